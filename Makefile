@@ -1,0 +1,40 @@
+# Two commands for a new user: `make serve` and `make test`.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+PORT   ?= 1102
+HOST   ?= 127.0.0.1
+
+.PHONY: serve test tshark lint bench
+
+$(VENV)/bin/python:
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(VENV)/bin/python
+	$(PY) -m pip install -q -e .
+	touch $@
+
+$(VENV)/.installed-test: pyproject.toml | $(VENV)/bin/python
+	$(PY) -m pip install -q -e '.[test]'
+	touch $@ $(VENV)/.installed
+
+serve: $(VENV)/.installed
+	$(VENV)/bin/nckemu serve --host $(HOST) --port $(PORT)
+
+# tshark is the independent decoder the interop tests compare against; install it when we may.
+tshark:
+	@if command -v tshark >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq tshark >/dev/null) \
+	  || echo "tshark could not be installed: the tshark tests will skip"; \
+	else echo "tshark is missing and we are not root: the tshark tests will skip"; fi
+
+lint: $(VENV)/.installed-test
+	$(VENV)/bin/ruff check nckemu tests bench examples
+
+test: $(VENV)/.installed-test tshark lint
+	$(PY) -m pytest
+
+bench: $(VENV)/.installed-test
+	@for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

@@ -1,0 +1,5 @@
+import sys
+
+from nckemu.cli import main
+
+sys.exit(main())

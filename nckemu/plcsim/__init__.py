@@ -1,0 +1,1 @@
+"""Running a user's STL program (awlsim) against the emulator."""
