@@ -1,1 +1,1 @@
-"""traces."""
+"""Field captures: decode by variable name, replay against the emulator, write captures."""

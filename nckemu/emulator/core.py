@@ -1,0 +1,62 @@
+"""The emulated controller as one object: machine, clock, NCK model, PLC memory, retained state."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from nckemu.protocol.errors import NckConfigError
+
+from .clock import Clock, MonotonicClock
+from .dispatch import Dispatcher
+from .machine import Machine, load_machine
+from .nck.model import NckModel
+from .plc import PlcModel
+from .state import RetainedStore
+
+log = logging.getLogger(__name__)
+
+
+class Emulator:
+    """An NCU: NCK and PLC behind one S7 interface, with optional retained state on disk."""
+
+    def __init__(self, machine: Machine | str | Path | None = None, *, clock: Clock | None = None,
+                 state_path: str | Path | None = None) -> None:
+        self.machine = machine if isinstance(machine, Machine) else load_machine(machine)
+        self.clock = clock or MonotonicClock()
+        self.nck = NckModel(self.machine, self.clock)
+        self.plc = PlcModel(self.machine, self.nck)
+        self.store = RetainedStore(Path(state_path)) if state_path is not None else None
+        # An alarm text while retained state cannot be written (disk full, read-only directory).
+        self.persist_alarm: str | None = None
+        if self.store is not None:
+            snapshot = self.store.load()
+            if snapshot is not None:
+                self.nck.restore_retained(snapshot)
+                log.info("retained state loaded from %s", self.store.path)
+        self.dispatcher = Dispatcher(self.nck, self.plc, persist=self.persist,
+                                     default_access_level=self.default_access_level)
+
+    @property
+    def default_access_level(self) -> int:
+        return int(getattr(self.machine, "connection_access_level", 7))
+
+    def persist(self) -> None:
+        """Write retained data now; on failure keep serving and raise an alarm instead."""
+        if self.store is None:
+            return
+        try:
+            self.store.save(self.nck.retained_snapshot())
+        except (OSError, NckConfigError) as exc:
+            if self.persist_alarm is None:
+                log.error("retained state cannot be written to %s: %s (serving on, alarm raised)",
+                          self.store.path, exc)
+            self.persist_alarm = f"retained state not saved: {exc}"
+        else:
+            if self.persist_alarm is not None:
+                log.warning("retained state written again to %s; alarm cleared", self.store.path)
+            self.persist_alarm = None
+
+    def power_on(self) -> None:
+        """Simulated power-on: power-on machine data take effect, 840C TC data are erased."""
+        self.nck.power_on()

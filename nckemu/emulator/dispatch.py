@@ -1,0 +1,219 @@
+"""Jobs to datastore calls: read var, write var, PI service, SZL read.
+
+The dispatcher decodes job parameters with ``protocol/``, calls the NCK model or the PLC memory
+with typed addresses and Python values, and encodes the answer. Item errors stay per item: one bad
+item never spoils the others. Anything else a job raises is the session's business (it answers
+with a header error).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+
+from nckemu.protocol import pi, s7, szl
+from nckemu.protocol.addresses import (
+    NCK_SYNTAX_IDS,
+    NckAddress,
+    S7AnyAddress,
+    S7Area,
+    S7TransportSize,
+    UnsupportedAddress,
+)
+from nckemu.protocol.errors import (
+    NckAddressOutOfRange,
+    NckError,
+    NckItemError,
+    NckObjectDoesNotExist,
+    NckServiceError,
+    NckTypeInconsistent,
+)
+from nckemu.protocol.values import NCK_TRANSPORT_SIZE, decode_nck_values, encode_nck_values
+
+from .nck.access import AccessContext
+
+log = logging.getLogger(__name__)
+
+RC_SUCCESS = 0xFF
+RC_HARDWARE_ERROR = 0x01
+
+# Data-item transport sizes of answers to S7ANY reads (the length counts bits for 0x03/0x04/0x05).
+DATA_TS_BIT = 0x03
+DATA_TS_BYTE_WORD_DWORD = 0x04
+DATA_TS_INTEGER = 0x05
+DATA_TS_REAL = 0x07
+DATA_TS_OCTET_STRING = 0x09
+
+_ELEMENT_BYTES: dict[int, int] = {
+    S7TransportSize.BYTE: 1, S7TransportSize.CHAR: 1, S7TransportSize.WORD: 2,
+    S7TransportSize.INT: 2, S7TransportSize.DWORD: 4, S7TransportSize.DINT: 4,
+    S7TransportSize.REAL: 4, S7TransportSize.COUNTER: 2, S7TransportSize.TIMER: 2,
+}
+_ANSWER_TRANSPORT_SIZE: dict[int, int] = {
+    S7TransportSize.BYTE: DATA_TS_BYTE_WORD_DWORD, S7TransportSize.CHAR: DATA_TS_BYTE_WORD_DWORD,
+    S7TransportSize.WORD: DATA_TS_BYTE_WORD_DWORD, S7TransportSize.DWORD: DATA_TS_BYTE_WORD_DWORD,
+    S7TransportSize.INT: DATA_TS_INTEGER, S7TransportSize.DINT: DATA_TS_BYTE_WORD_DWORD,
+    S7TransportSize.REAL: DATA_TS_REAL, S7TransportSize.COUNTER: DATA_TS_OCTET_STRING,
+    S7TransportSize.TIMER: DATA_TS_OCTET_STRING,
+}
+
+
+def _error_item(return_code: int) -> s7.DataItem:
+    return s7.DataItem(return_code, 0x00, b"")
+
+
+class Dispatcher:
+    """Turns S7 jobs into calls on the NCK model and the PLC memory."""
+
+    def __init__(self, nck: object, plc: object, *,
+                 persist: Callable[[], None] | None = None,
+                 default_access_level: int = 7) -> None:
+        self.nck = nck
+        self.plc = plc
+        self._persist = persist
+        self.default_access_level = default_access_level
+
+    def new_access_context(self, peer: str) -> AccessContext:
+        return AccessContext(level=self.default_access_level, client=peer)
+
+    # ------------------------------------------------------------------ jobs
+    def job(self, pdu: s7.S7Pdu, ctx: AccessContext) -> s7.S7Pdu | None:
+        function = pdu.parameter[0]
+        if function == s7.Function.READ_VAR:
+            request = s7.parse_read_var_request(pdu.parameter)
+            parameter, data = s7.build_read_var_response(self.read_var(request, ctx))
+        elif function == s7.Function.WRITE_VAR:
+            write = s7.parse_write_var_request(pdu.parameter, pdu.data)
+            parameter, data = s7.build_write_var_response(self.write_var(write, ctx))
+        elif function == s7.Function.PI_SERVICE:
+            parameter, data = self.pi_service(pi.parse_pi_request(pdu.parameter), ctx), b""
+        elif function == s7.Function.PLC_STOP:
+            pi.parse_plc_stop_request(pdu.parameter)
+            self._plc_control("stop")
+            parameter, data = bytes([s7.Function.PLC_STOP]), b""
+        else:
+            return None
+        return s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref, parameter, data)
+
+    def read_var(self, request: s7.ReadVarRequest, ctx: AccessContext) -> s7.ReadVarResponse:
+        return s7.ReadVarResponse(tuple(self._read_item(item, ctx) for item in request.items))
+
+    def write_var(self, request: s7.WriteVarRequest, ctx: AccessContext) -> s7.WriteVarResponse:
+        codes: list[int] = []
+        retained_changed = False
+        for address, value in zip(request.items, request.values, strict=True):
+            code, changed = self._write_item(address, value, ctx)
+            codes.append(code)
+            retained_changed = retained_changed or changed
+        if retained_changed and self._persist is not None:
+            # Durability before acknowledgement: the answer leaves only after the state is on disk.
+            self._persist()
+        return s7.WriteVarResponse(tuple(codes))
+
+    def pi_service(self, request: pi.PiServiceRequest, ctx: AccessContext) -> bytes:
+        service = request.service
+        if service.startswith("_N_"):
+            self.nck.pi_service(service, request.arguments, ctx)  # type: ignore[attr-defined]
+        elif service == "P_PROGRAM":
+            self._plc_control("start")
+        else:
+            raise NckServiceError(f"PI service {service!r} is not supported")
+        return pi.build_pi_response(pi.PiServiceResponse())
+
+    def _plc_control(self, action: str) -> None:
+        control = getattr(self.plc, "plc_control", None)
+        if control is not None:
+            control(action)
+
+    # ------------------------------------------------------------------ userdata
+    def userdata(self, pdu: s7.S7Pdu, ctx: AccessContext) -> s7.S7Pdu | None:
+        request = szl.parse_szl_request(pdu.parameter, pdu.data)
+        try:
+            records = self.plc.szl(request.szl_id, request.szl_index)  # type: ignore[attr-defined]
+        except NckError as exc:
+            log.info("SZL 0x%04X/0x%04X refused: %s", request.szl_id, request.szl_index, exc)
+            parameter, data = szl.build_szl_error_response(request)
+        else:
+            parameter, data = szl.build_szl_response(request, records)
+        return s7.S7Pdu(s7.Rosctr.USERDATA, pdu.pdu_ref, parameter, data)
+
+    # ------------------------------------------------------------------ items
+    def _read_item(self, address: object, ctx: AccessContext) -> s7.DataItem:
+        try:
+            if isinstance(address, NckAddress):
+                return self._read_nck(address, ctx)
+            if isinstance(address, S7AnyAddress):
+                return self._read_s7any(address)
+            if isinstance(address, UnsupportedAddress):
+                return _error_item(NckObjectDoesNotExist.return_code)  # type: ignore[arg-type]
+            return _error_item(NckObjectDoesNotExist.return_code)  # type: ignore[arg-type]
+        except NckItemError as exc:
+            return _error_item(exc.return_code or RC_HARDWARE_ERROR)
+        except Exception:
+            log.exception("read of %s failed inside the emulator", address)
+            return _error_item(RC_HARDWARE_ERROR)
+
+    def _write_item(self, address: object, value: s7.DataItem, ctx: AccessContext) -> tuple[int, bool]:
+        try:
+            if isinstance(address, NckAddress):
+                return RC_SUCCESS, self._write_nck(address, value, ctx)
+            if isinstance(address, S7AnyAddress):
+                self._write_s7any(address, value)
+                return RC_SUCCESS, False
+            return NckObjectDoesNotExist.return_code, False  # type: ignore[return-value]
+        except NckItemError as exc:
+            return exc.return_code or RC_HARDWARE_ERROR, False
+        except Exception:
+            log.exception("write of %s failed inside the emulator", address)
+            return RC_HARDWARE_ERROR, False
+
+    def _read_nck(self, address: NckAddress, ctx: AccessContext) -> s7.DataItem:
+        if address.syntax_id not in NCK_SYNTAX_IDS:
+            raise NckObjectDoesNotExist(f"syntax ID 0x{address.syntax_id:02X}")
+        nck_type, string_length = self.nck.variable_type(address)  # type: ignore[attr-defined]
+        values = self.nck.read(address, ctx)  # type: ignore[attr-defined]
+        data = encode_nck_values(nck_type, values, area=address.area, string_length=string_length)
+        return s7.DataItem(RC_SUCCESS, NCK_TRANSPORT_SIZE, data)
+
+    def _write_nck(self, address: NckAddress, value: s7.DataItem, ctx: AccessContext) -> bool:
+        if address.syntax_id not in NCK_SYNTAX_IDS:
+            raise NckObjectDoesNotExist(f"syntax ID 0x{address.syntax_id:02X}")
+        nck_type, string_length = self.nck.variable_type(address)  # type: ignore[attr-defined]
+        values = decode_nck_values(nck_type, value.data, area=address.area,
+                                   line_count=address.line_count, string_length=string_length)
+        return bool(self.nck.write(address, values, ctx))  # type: ignore[attr-defined]
+
+    @staticmethod
+    def _s7any_size(address: S7AnyAddress) -> int:
+        if address.transport_size == S7TransportSize.BIT:
+            if address.count != 1:
+                raise NckAddressOutOfRange("a BIT item addresses exactly one bit")
+            return 1
+        element = _ELEMENT_BYTES.get(address.transport_size)
+        if element is None:
+            raise NckTypeInconsistent(f"transport size 0x{address.transport_size:02X}")
+        return element * address.count
+
+    def _read_s7any(self, address: S7AnyAddress) -> s7.DataItem:
+        size = self._s7any_size(address)
+        if address.transport_size == S7TransportSize.BIT:
+            bit = self.plc.read_bit(address.area, address.db_number,  # type: ignore[attr-defined]
+                                    address.byte_address, address.bit_address)
+            return s7.DataItem(RC_SUCCESS, DATA_TS_BIT, b"\x01" if bit else b"\x00")
+        data = self.plc.read(address.area, address.db_number,  # type: ignore[attr-defined]
+                             address.byte_address, size)
+        return s7.DataItem(RC_SUCCESS, _ANSWER_TRANSPORT_SIZE[address.transport_size], data)
+
+    def _write_s7any(self, address: S7AnyAddress, value: s7.DataItem) -> None:
+        size = self._s7any_size(address)
+        if len(value.data) != size:
+            raise NckTypeInconsistent(f"{len(value.data)} bytes written to an item of {size}")
+        if address.transport_size == S7TransportSize.BIT:
+            self.plc.write_bit(address.area, address.db_number,  # type: ignore[attr-defined]
+                               address.byte_address, address.bit_address, bool(value.data[0] & 1))
+            return
+        self.plc.write(address.area, address.db_number,  # type: ignore[attr-defined]
+                       address.byte_address, value.data)
+
+
+__all__ = ["Dispatcher", "S7Area"]

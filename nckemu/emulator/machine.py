@@ -1,0 +1,192 @@
+"""A machine from TOML: axes, sensors, PLC data blocks, initial data and settings for open facts.
+
+One machine per file; the built-in default machine is ``machines/default.toml`` in this package.
+Every problem is reported as an ``NckConfigError`` naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from nckemu.protocol.errors import NckConfigError
+
+
+@dataclass(frozen=True)
+class Axis:
+    number: int
+    name: str
+    travel_min_mm: float = -1.0e6
+    travel_max_mm: float = 1.0e6
+    rotary: bool = False
+    spindle: bool = False
+    referenced: bool = True
+    position_mm: float = 0.0
+
+
+@dataclass(frozen=True)
+class Sensor:
+    name: str
+    temperature_C: float = 20.0
+    plc_input: str | None = None
+    raw_offset: float = 0.0
+    raw_per_C: float = 276.48
+    # (t_s, temperature_C) points; linear in between, end values held.
+    profile: tuple[tuple[float, float], ...] = ()
+
+    def raw_value(self, temperature_C: float) -> int:
+        raw = round(self.raw_offset + self.raw_per_C * temperature_C)
+        return max(-32768, min(32767, raw))
+
+
+@dataclass(frozen=True)
+class Settings:
+    compensation_sign: int = -1
+    tc_requires_referenced: bool = False
+    r_parameter_line_offset: int = 1
+    limit_violation_return_code: int = 0x05
+
+
+@dataclass(frozen=True)
+class Machine:
+    name: str
+    source: str
+    ipo_cycle_s: float = 0.004
+    pdu_size_max: int = 960
+    max_amq: int = 8
+    channels: int = 1
+    connection_access_level: int = 7
+    passwords: dict[str, int] = field(default_factory=dict)
+    settings: Settings = field(default_factory=Settings)
+    axes: tuple[Axis, ...] = ()
+    sensors: tuple[Sensor, ...] = ()
+    data_blocks: dict[int, int] = field(default_factory=dict)
+    # {"MD32750": {4: 1}, "SD43900": {4: 0.0}}: variable name -> unit -> value (or list of lines)
+    initial: dict[str, dict[int, Any]] = field(default_factory=dict)
+
+    def axis(self, number: int) -> Axis | None:
+        for axis in self.axes:
+            if axis.number == number:
+                return axis
+        return None
+
+
+def _get(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str, source: str,
+         default: Any = None) -> Any:
+    if key not in table:
+        if default is None:
+            raise NckConfigError("missing", path=source, field=f"{where}{key}")
+        return default
+    value = table[key]
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        raise NckConfigError(f"expected {getattr(kind, '__name__', kind)}, got {value!r}", path=source,
+                             field=f"{where}{key}")
+    return value
+
+
+def _axis(table: dict[str, Any], index: int, source: str) -> Axis:
+    where = f"axis[{index}]."
+    number = _get(table, "number", int, where, source)
+    if not 1 <= number <= 31:
+        raise NckConfigError("a machine axis number is 1..31 (the NCK unit)", path=source, field=f"{where}number")
+    travel = table.get("travel_mm", [-1.0e6, 1.0e6])
+    if (not isinstance(travel, list) or len(travel) != 2
+            or not all(isinstance(v, int | float) for v in travel) or travel[0] > travel[1]):
+        raise NckConfigError("expected [min, max] in mm", path=source, field=f"{where}travel_mm")
+    rotary = _get(table, "rotary", bool, where, source, False)
+    position = _get(table, "position_mm", float, where, source, 0.0 if travel[0] <= 0.0 <= travel[1]
+                    else float(travel[0]))
+    return Axis(number=number, name=_get(table, "name", str, where, source),
+                travel_min_mm=float(travel[0]), travel_max_mm=float(travel[1]), rotary=rotary,
+                spindle=_get(table, "spindle", bool, where, source, False),
+                referenced=_get(table, "referenced", bool, where, source, True), position_mm=position)
+
+
+def _sensor(table: dict[str, Any], index: int, source: str) -> Sensor:
+    where = f"sensor[{index}]."
+    profile_raw = table.get("profile", [])
+    profile: list[tuple[float, float]] = []
+    if not isinstance(profile_raw, list):
+        raise NckConfigError("expected a list of [t_s, temperature_C]", path=source, field=f"{where}profile")
+    for point in profile_raw:
+        if not (isinstance(point, list) and len(point) == 2 and all(isinstance(v, int | float) for v in point)):
+            raise NckConfigError(f"bad point {point!r}", path=source, field=f"{where}profile")
+        profile.append((float(point[0]), float(point[1])))
+    if any(b[0] <= a[0] for a, b in zip(profile, profile[1:], strict=False)):
+        raise NckConfigError("times must increase", path=source, field=f"{where}profile")
+    plc_input = table.get("plc_input")
+    if plc_input is not None and (not isinstance(plc_input, str) or not plc_input.upper().startswith("PIW")
+                                  or not plc_input[3:].isdigit()):
+        raise NckConfigError("expected 'PIW<byte address>'", path=source, field=f"{where}plc_input")
+    return Sensor(name=_get(table, "name", str, where, source),
+                  temperature_C=_get(table, "temperature_C", float, where, source, 20.0),
+                  plc_input=plc_input.upper() if plc_input else None,
+                  raw_offset=_get(table, "raw_offset", float, where, source, 0.0),
+                  raw_per_C=_get(table, "raw_per_C", float, where, source, 276.48),
+                  profile=tuple(profile))
+
+
+def parse_machine(text: str, source: str = "<string>") -> Machine:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise NckConfigError(f"not valid TOML: {exc}", path=source) from None
+    settings_table = data.get("settings", {})
+    settings = Settings(
+        compensation_sign=_get(settings_table, "compensation_sign", int, "settings.", source, -1),
+        tc_requires_referenced=_get(settings_table, "tc_requires_referenced", bool, "settings.", source, False),
+        r_parameter_line_offset=_get(settings_table, "r_parameter_line_offset", int, "settings.", source, 1),
+        limit_violation_return_code=_get(settings_table, "limit_violation_return_code", int, "settings.",
+                                         source, 0x05),
+    )
+    if settings.compensation_sign not in (-1, 1):
+        raise NckConfigError("expected -1 or 1", path=source, field="settings.compensation_sign")
+    axes = tuple(_axis(t, i, source) for i, t in enumerate(data.get("axis", [])))
+    numbers = [a.number for a in axes]
+    if len(set(numbers)) != len(numbers):
+        raise NckConfigError("two axes with one number", path=source, field="axis.number")
+    sensors = tuple(_sensor(t, i, source) for i, t in enumerate(data.get("sensor", [])))
+    plc = data.get("plc", {})
+    blocks_raw = plc.get("data_blocks", {})
+    data_blocks: dict[int, int] = {}
+    for key, size in blocks_raw.items():
+        if not str(key).isdigit() or not isinstance(size, int) or not 1 <= size <= 65535:
+            raise NckConfigError(f"DB {key} = {size!r}: expected a DB number = size in bytes",
+                                 path=source, field="plc.data_blocks")
+        data_blocks[int(key)] = size
+    initial: dict[str, dict[int, Any]] = {}
+    for name, per_unit in data.get("initial", {}).items():
+        if not isinstance(per_unit, dict):
+            raise NckConfigError("expected { unit = value }", path=source, field=f"initial.{name}")
+        initial[name.upper()] = {int(unit): value for unit, value in per_unit.items()}
+    passwords = data.get("passwords", {})
+    if not all(isinstance(v, int) and 0 <= v <= 7 for v in passwords.values()):
+        raise NckConfigError("each password maps to an access level 0..7", path=source, field="passwords")
+    return Machine(
+        name=_get(data, "name", str, "", source, "unnamed machine"), source=source,
+        ipo_cycle_s=_get(data, "ipo_cycle_s", float, "", source, 0.004),
+        pdu_size_max=_get(data, "pdu_size_max", int, "", source, 960),
+        max_amq=_get(data, "max_amq", int, "", source, 8),
+        channels=_get(data, "channels", int, "", source, 1),
+        connection_access_level=_get(data, "connection_access_level", int, "", source, 7),
+        passwords=dict(passwords), settings=settings, axes=axes, sensors=sensors,
+        data_blocks=data_blocks, initial=initial,
+    )
+
+
+def load_machine(path: str | Path | None = None) -> Machine:
+    """The machine in ``path``, or the built-in default machine."""
+    if path is None:
+        text = resources.files("nckemu.emulator").joinpath("machines/default.toml").read_text("utf-8")
+        return parse_machine(text, "default.toml (built in)")
+    path = Path(path)
+    try:
+        text = path.read_text("utf-8")
+    except OSError as exc:
+        raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
+    return parse_machine(text, str(path))

@@ -1,0 +1,189 @@
+"""PLC memory for ordinary S7ANY clients: DBs, inputs, outputs, flags, peripheral inputs, SZL.
+
+Peripheral input words wired to machine sensors (e.g. PIW 420) return the sensor temperature
+through the sensor's analog scaling. A write that sets the DB41 request bit runs the 840C command
+channel at once.
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+from typing import Any
+
+from nckemu.protocol import c840
+from nckemu.protocol.addresses import S7Area
+from nckemu.protocol.errors import NckAddressOutOfRange, NckError, NckObjectDoesNotExist, NckServiceError
+
+from . import db41
+
+log = logging.getLogger(__name__)
+
+AREA_BYTES = 2048
+ORDER_NUMBER = "6FC5372-0AA30-0AA0"  # NCU 720.3 PN; the PLC part answers as the NCU
+MODULE_NAME = "nckemu NCU"
+
+
+def _text(value: str, size: int) -> bytes:
+    return value.encode("ascii")[:size].ljust(size, b"\x00")
+
+
+class PlcModel:
+    """The PLC part of the emulated NCU."""
+
+    def __init__(self, machine: Any = None, nck: Any = None, *,
+                 data_blocks: dict[int, int] | None = None, layout: c840.C840Layout | None = None) -> None:
+        self.machine = machine
+        self.nck = nck
+        self.layout = layout or c840.C840Layout()
+        blocks = data_blocks if data_blocks is not None else (
+            dict(getattr(machine, "data_blocks", {})) if machine is not None else {41: 64, 100: 256})
+        blocks.setdefault(db41.CHANNEL_DB, 64)
+        self.data_blocks: dict[int, bytearray] = {number: bytearray(size) for number, size in blocks.items()}
+        self.areas: dict[int, bytearray] = {S7Area.I: bytearray(AREA_BYTES), S7Area.Q: bytearray(AREA_BYTES),
+                                            S7Area.M: bytearray(AREA_BYTES)}
+        self.running = True
+        self._sensor_inputs: dict[int, Any] = {}
+        for sensor in getattr(machine, "sensors", ()) if machine is not None else ():
+            if sensor.plc_input:
+                self._sensor_inputs[int(sensor.plc_input[3:])] = sensor
+        if nck is not None:
+            nck.add_power_on_hook(self.power_on)
+
+    # ------------------------------------------------------------------ memory
+    def _block(self, area: int, db_number: int) -> bytearray:
+        if area in (S7Area.DB, S7Area.DI):
+            block = self.data_blocks.get(db_number)
+            if block is None:
+                raise NckObjectDoesNotExist(f"DB{db_number} does not exist")
+            return block
+        block = self.areas.get(area)
+        if block is None:
+            raise NckObjectDoesNotExist(f"area 0x{area:02X} is not served")
+        return block
+
+    @staticmethod
+    def _check(block: bytearray, start: int, size: int, what: str) -> None:
+        if start < 0 or size < 0 or start + size > len(block):
+            raise NckAddressOutOfRange(f"{what}: bytes {start}..{start + size - 1} beyond its "
+                                       f"{len(block)} bytes")
+
+    def read(self, area: int, db_number: int, start_byte: int, size_bytes: int) -> bytes:
+        if area == S7Area.P:
+            return self._read_peripheral(start_byte, size_bytes)
+        block = self._block(area, db_number)
+        self._check(block, start_byte, size_bytes, f"DB{db_number}" if area == S7Area.DB else f"area {area:#x}")
+        if area == S7Area.I and self._sensor_inputs:
+            # The process image of the inputs holds what the peripheral words read.
+            return self._read_peripheral(start_byte, size_bytes)
+        return bytes(block[start_byte:start_byte + size_bytes])
+
+    def write(self, area: int, db_number: int, start_byte: int, data: bytes) -> None:
+        if area == S7Area.P:
+            area = S7Area.Q  # peripheral outputs: the process image of the outputs
+        block = self._block(area, db_number)
+        self._check(block, start_byte, len(data), f"DB{db_number}" if area == S7Area.DB else f"area {area:#x}")
+        block[start_byte:start_byte + len(data)] = data
+        if area == S7Area.DB and db_number == db41.CHANNEL_DB and \
+                start_byte <= db41.OFFSET_HANDSHAKE < start_byte + len(data):
+            self._run_channel()
+
+    def read_bit(self, area: int, db_number: int, byte: int, bit: int) -> bool:
+        return bool(self.read(area, db_number, byte, 1)[0] >> bit & 1)
+
+    def write_bit(self, area: int, db_number: int, byte: int, bit: int, value: bool) -> None:
+        current = self.read(area, db_number, byte, 1)[0]
+        updated = (current | (1 << bit)) if value else (current & ~(1 << bit))
+        self.write(area, db_number, byte, bytes([updated & 0xFF]))
+
+    def _read_peripheral(self, start_byte: int, size_bytes: int) -> bytes:
+        """Peripheral inputs: sensor words where a sensor is wired, the input image elsewhere."""
+        out = bytearray()
+        for offset in range(start_byte, start_byte + size_bytes):
+            base = offset if offset in self._sensor_inputs else offset - 1
+            sensor = self._sensor_inputs.get(base)
+            if sensor is None:
+                self._check(self.areas[S7Area.I], offset, 1, "peripheral inputs")
+                out.append(self.areas[S7Area.I][offset])
+                continue
+            temperature_C = self.nck.sensor_temperature_C(sensor.name) if self.nck is not None \
+                else sensor.temperature_C
+            out.append(struct.pack(">h", sensor.raw_value(temperature_C))[offset - base])
+        return bytes(out)
+
+    # ------------------------------------------------------------------ SZL
+    def szl(self, szl_id: int, szl_index: int) -> bytes:
+        """The whole SZL: ID, index, record length, record count, records."""
+        if szl_id == 0x0011:
+            records = [struct.pack(">H", index) + _text(ORDER_NUMBER, 20) + struct.pack(">HHH", 0, 3, 0)
+                       for index in (1, 6, 7)]
+            return self._szl(szl_id, szl_index, 28, records)
+        if szl_id == 0x001C:
+            machine_name = getattr(self.machine, "name", "nckemu") if self.machine is not None else "nckemu"
+            texts = {1: machine_name, 2: MODULE_NAME, 3: "nckemu", 4: "Original Siemens Equipment",
+                     5: "NCKEMU-0001", 7: "CPU 317-2 PN/DP (NCU PLC)", 8: "", 9: "", 10: ""}
+            records = [struct.pack(">H", index) + _text(text, 32) for index, text in texts.items()]
+            return self._szl(szl_id, szl_index, 34, records)
+        if szl_id == 0x0424:
+            mode = 0x08 if self.running else 0x03
+            record = bytes([0x51, 0xFF, mode, 0x00, 0x00]) + bytes(15)
+            return self._szl(szl_id, szl_index, 20, [struct.pack(">H", 0x0002)[1:] + record[:19]])
+        if szl_id == 0x0131 and szl_index == 1:
+            record = struct.pack(">HHHH", 1, 960, 64, 12) + bytes(32)
+            return self._szl(szl_id, szl_index, 40, [record])
+        raise NckServiceError(f"SZL 0x{szl_id:04X} index 0x{szl_index:04X} is not available")
+
+    @staticmethod
+    def _szl(szl_id: int, szl_index: int, record_length: int, records: list[bytes]) -> bytes:
+        body = b"".join(record[:record_length].ljust(record_length, b"\x00") for record in records)
+        return struct.pack(">HHHH", szl_id, szl_index, record_length, len(records)) + body
+
+    def plc_control(self, action: str) -> None:
+        self.running = action == "start"
+        log.info("PLC %s", "RUN" if self.running else "STOP")
+
+    # ------------------------------------------------------------------ 840C command channel
+    def _run_channel(self) -> None:
+        channel = self.data_blocks[db41.CHANNEL_DB]
+        status = db41.parse_status(bytes(channel[:db41.CHANNEL_BYTES]))
+        if not status.request:
+            return
+        error = self._execute(status)
+        handshake = db41.BIT_ERROR if error else db41.BIT_DONE
+        channel[db41.OFFSET_HANDSHAKE] = handshake
+        channel[db41.OFFSET_ERROR:db41.OFFSET_ERROR + 2] = struct.pack(">H", error)
+        if error:
+            log.info("840C command channel: function %d refused with error %d", status.function, error)
+
+    def _execute(self, status: db41.ChannelStatus) -> int:
+        errors = db41.ChannelError
+        if status.function != db41.FUNCTION_TEMPERATURE_COMPENSATION:
+            return errors.UNKNOWN_FUNCTION
+        block = self.data_blocks.get(status.user_db)
+        if block is None:
+            return errors.USER_DB_MISSING
+        start = 2 * status.data_word
+        data = bytes(block[start:start + c840.USER_DB_BYTES])
+        if len(data) < c840.USER_DB_BYTES:
+            return errors.USER_DB_TOO_SHORT
+        try:
+            user = c840.parse_user_db(data, self.layout)
+        except c840.C840FormatError as exc:
+            return {0: errors.BAD_LENGTH_WORD, 1: errors.BAD_FLAGS if "flag" in str(exc) else errors.BAD_AXIS_NUMBER,
+                    4: errors.TAN_BETA_OUT_OF_RANGE}.get(exc.data_word, errors.VALUE_OUT_OF_RANGE)
+        if self.nck is None:
+            return errors.OPTION_MISSING
+        p0_mm = user.p0_mm(self.layout)
+        if user.position_dependent and p0_mm == 0.0:
+            return errors.P0_AT_AXIS_ZERO
+        try:
+            self.nck.apply_840c_tc(user.axis, user.k_tcabs_mm(self.layout), user.tan_beta, p0_mm,
+                                   user.position_independent, user.position_dependent)
+        except NckError:
+            return errors.AXIS_NOT_PRESENT
+        return errors.NONE
+
+    def power_on(self) -> None:
+        """840C TC data are erased at power-on (the NCK clears its copy); DBs are kept."""
+        channel = self.data_blocks[db41.CHANNEL_DB]
+        channel[db41.OFFSET_HANDSHAKE] = 0

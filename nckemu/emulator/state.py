@@ -1,0 +1,52 @@
+"""Retained data on disk: one JSON file, replaced atomically (write temp, fsync, rename, fsync dir).
+
+A write job that changes retained data is acknowledged only after ``save`` returned, so an
+acknowledged value survives a kill -9. A damaged file is refused with a message, never replaced.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from nckemu.protocol.errors import NckConfigError
+
+
+class RetainedStore:
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+
+    def load(self) -> dict[str, Any] | None:
+        try:
+            text = self.path.read_text("utf-8")
+        except FileNotFoundError:
+            return None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise NckConfigError(f"cannot read the retained state: {exc}", path=str(self.path)) from None
+        try:
+            snapshot = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise NckConfigError(f"damaged retained state ({exc.msg}); it is left as it is: move it "
+                                 f"away to start without it", path=str(self.path), line=exc.lineno) from None
+        if not isinstance(snapshot, dict):
+            raise NckConfigError("damaged retained state (not a JSON object)", path=str(self.path))
+        return snapshot
+
+    def save(self, snapshot: dict[str, Any]) -> None:
+        data = json.dumps(snapshot, separators=(",", ":"), allow_nan=False).encode("utf-8")
+        directory = self.path.parent
+        temporary = directory / f".{self.path.name}.tmp"
+        fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        try:
+            os.write(fd, data)
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(temporary, self.path)
+        dir_fd = os.open(directory, os.O_RDONLY)
+        try:
+            os.fsync(dir_fd)
+        finally:
+            os.close(dir_fd)

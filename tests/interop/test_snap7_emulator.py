@@ -1,0 +1,132 @@
+"""Real clients (python-snap7 sync and async, pys7) against the real server on 127.0.0.1."""
+
+from __future__ import annotations
+
+import logging
+import struct
+from collections.abc import Iterator
+
+import pytest
+import snap7
+
+from nckemu.emulator.nck.access import AccessContext
+from nckemu.emulator.runner import EmulatorThread
+from nckemu.protocol import pi, s7
+from nckemu.protocol.addresses import NckAddress
+
+SD43900_AX4 = NckAddress(3, 4, 43900, 1, 0x16)
+SD43910_AX4 = NckAddress(3, 4, 43910, 1, 0x16)
+SD43920_AX4 = NckAddress(3, 4, 43920, 1, 0x16)
+
+
+@pytest.fixture
+def emulator() -> Iterator[EmulatorThread]:
+    with EmulatorThread() as emu:
+        yield emu
+
+
+@pytest.fixture
+def client(emulator: EmulatorThread) -> Iterator[snap7.Client]:
+    logging.getLogger("snap7").setLevel(logging.WARNING)
+    c = snap7.Client()
+    c.connect("127.0.0.1", 0, 4, emulator.port)
+    yield c
+    c.disconnect()
+
+
+def exchange(client: snap7.Client, parameter: bytes, data: bytes = b"", ref: int = 0x100) -> s7.S7Pdu:
+    raw = client.iso_exchange_buffer(bytearray(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, ref, parameter, data))))
+    return s7.parse_pdu(bytes(raw))
+
+
+def nck_read(client: snap7.Client, *addresses: NckAddress) -> s7.ReadVarResponse:
+    answer = exchange(client, s7.build_read_var_request(s7.ReadVarRequest(addresses)))
+    assert (answer.error_class, answer.error_code) == (0, 0)
+    return s7.parse_read_var_response(answer.parameter, answer.data)
+
+
+def nck_write(client: snap7.Client, values: dict[NckAddress, float]) -> tuple[int, ...]:
+    request = s7.WriteVarRequest(tuple(values), tuple(
+        s7.DataItem(0, 0x09, struct.pack("<d", v)) for v in values.values()))
+    answer = exchange(client, *s7.build_write_var_request(request))
+    return s7.parse_write_var_response(answer.parameter, answer.data).return_codes
+
+
+def test_connect_with_nck_slot_and_plc_slot(emulator: EmulatorThread) -> None:
+    for slot in (2, 3, 4):
+        c = snap7.Client()
+        c.connect("127.0.0.1", 0, slot, emulator.port)
+        assert c.get_connected()
+        c.disconnect()
+
+
+def test_get_cpu_info(client: snap7.Client) -> None:
+    info = client.get_cpu_info()
+    assert info.ModuleTypeName
+
+
+def test_db_write_then_read(client: snap7.Client) -> None:
+    client.db_write(130, 0, bytearray(b"\x12\x34\x56\x78"))
+    assert client.db_read(130, 0, 4) == bytearray(b"\x12\x34\x56\x78")
+
+
+def test_missing_db_is_an_error(client: snap7.Client) -> None:
+    with pytest.raises(Exception):  # noqa: B017 - python-snap7 raises its own error type
+        client.db_read(4321, 0, 4)
+
+
+def test_nck_real8_read_via_raw_pdu(client: snap7.Client) -> None:
+    answer = nck_read(client, SD43900_AX4)
+    assert answer.items[0].return_code == 0xFF and answer.items[0].transport_size == 0x09
+    assert struct.unpack("<d", answer.items[0].data) == (0.0,)
+
+
+def test_seed000_put_then_compensation_at_any_position(emulator: EmulatorThread, client: snap7.Client) -> None:
+    """Seed 000: MD32750 = 1 (position independent); K0 = 0.3 mm at 40 °C for Z (axis 4)."""
+    emulator.call(lambda: emulator.nck.write(NckAddress(3, 4, 32750, 1, 0x1A), [1], AccessContext(level=0)))
+    emulator.call(emulator.emulator.power_on)
+    assert nck_write(client, {SD43900_AX4: 0.3, SD43910_AX4: 0.0, SD43920_AX4: 0.0}) == (0xFF, 0xFF, 0xFF)
+    assert [struct.unpack("<d", i.data)[0] for i in nck_read(client, SD43900_AX4, SD43920_AX4).items] \
+        == [0.3, 0.0]
+
+
+def test_unknown_items_never_answer_with_other_data(client: snap7.Client) -> None:
+    answer = nck_read(client, NckAddress(3, 4, 43900, 1, 0x55), NckAddress(3, 4, 43900, 99, 0x16),
+                      NckAddress(3, 4, 0xFFFF, 1, 0x16))
+    assert [i.return_code for i in answer.items] == [0x0A, 0x05, 0x0A]
+    assert all(i.data == b"" for i in answer.items)
+
+
+def test_pi_unknown_service_is_refused(client: snap7.Client) -> None:
+    answer = exchange(client, pi.build_pi_request(pi.PiServiceRequest("_N_NOSUCH", ("201",))))
+    assert answer.error_class != 0
+
+
+def test_async_client_raw_nck_read(emulator: EmulatorThread) -> None:
+    import asyncio
+
+    from snap7.async_client import AsyncClient
+
+    async def run() -> bytes:
+        client = AsyncClient()
+        await client.connect("127.0.0.1", 0, 4, emulator.port)
+        try:
+            request = s7.build_pdu(s7.S7Pdu(1, 5, s7.build_read_var_request(s7.ReadVarRequest((SD43900_AX4,)))))
+            return bytes(await client.iso_exchange_buffer(bytearray(request)))
+        finally:
+            await client.disconnect()
+
+    answer = s7.parse_pdu(asyncio.run(run()))
+    assert s7.parse_read_var_response(answer.parameter, answer.data).items[0].return_code == 0xFF
+
+
+def test_pys7_reads_and_writes_a_db(emulator: EmulatorThread) -> None:
+    from pyS7 import S7Client
+
+    client = S7Client(address="127.0.0.1", rack=0, slot=2, port=emulator.port)
+    client.connect()
+    try:
+        client.write(["DB130,INT20"], [-7])
+        assert client.read(["DB130,INT20"]) == [-7]
+    finally:
+        client.disconnect()
