@@ -15,7 +15,7 @@ from nckemu.protocol import c840
 from nckemu.protocol.addresses import S7Area
 from nckemu.protocol.errors import NckAddressOutOfRange, NckError, NckObjectDoesNotExist, NckServiceError
 
-from . import db41
+from nckemu.protocol import db41
 
 log = logging.getLogger(__name__)
 
