@@ -170,8 +170,7 @@ class Dispatcher:
     def _read_nck(self, address: NckAddress, ctx: AccessContext) -> s7.DataItem:
         if address.syntax_id not in NCK_SYNTAX_IDS:
             raise NckObjectDoesNotExist(f"syntax ID 0x{address.syntax_id:02X}")
-        nck_type, string_length = self.nck.variable_type(address)  # type: ignore[attr-defined]
-        values = self.nck.read(address, ctx)  # type: ignore[attr-defined]
+        nck_type, string_length, values = self.nck.read_typed(address, ctx)  # type: ignore[attr-defined]
         data = encode_nck_values(nck_type, values, area=address.area, string_length=string_length)
         return s7.DataItem(RC_SUCCESS, NCK_TRANSPORT_SIZE, data)
 

@@ -133,6 +133,13 @@ class ServerSession:
         for frame in frames:
             if self.closed:
                 break
+            if frame[4:7] == cotp.DT_HEADER_EOT and self.state is SessionState.READY and not self._fragments:
+                # The common case, a whole S7 PDU in one DT: skip building a DataTpdu for it.
+                jobs_in_flight += 1
+                answer = self._handle_pdu(frame[7:], over_amq=jobs_in_flight > self.info.amq)
+                if answer is not None:
+                    out.append(cotp.build_data_frame(answer))
+                continue
             try:
                 payload = tpkt.parse_tpkt(frame)
                 tpdu = cotp.parse_cotp(payload)
@@ -146,7 +153,7 @@ class ServerSession:
                 jobs_in_flight += 1
                 answer = self._handle_pdu(pdu_bytes, over_amq=jobs_in_flight > self.info.amq)
                 if answer is not None:
-                    out.append(cotp.build_frame(cotp.DataTpdu(answer)))
+                    out.append(cotp.build_data_frame(answer))
             elif isinstance(tpdu, cotp.ConnectRequest):
                 out.extend(self._handle_connect(tpdu))
             elif isinstance(tpdu, cotp.DisconnectRequest):

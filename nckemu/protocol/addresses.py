@@ -106,6 +106,21 @@ class NckAddress:
             if not 0 <= value <= top:
                 raise ValueError(f"NckAddress.{name} = {value} is outside 0..{top}")
 
+    @classmethod
+    def from_wire(cls, syntax_id: int, area_unit: int, column: int, line: int, module: int,
+                  line_count: int) -> NckAddress:
+        """From fields unpacked off the wire: in range by construction, so not checked again."""
+        address = object.__new__(cls)
+        set_field = object.__setattr__
+        set_field(address, "area", area_unit >> 5)
+        set_field(address, "unit", area_unit & 0x1F)
+        set_field(address, "column", column)
+        set_field(address, "line", line)
+        set_field(address, "module", module)
+        set_field(address, "line_count", line_count)
+        set_field(address, "syntax_id", syntax_id)
+        return address
+
     @property
     def area_unit(self) -> int:
         """The packed byte, ``area << 5 | unit`` (NCVar selector: bereich_u_einheit)."""

@@ -215,6 +215,11 @@ def build_cotp(tpdu: Cotp) -> bytes:
     return bytes([len(header)]) + header
 
 
+def build_data_frame(payload: bytes) -> bytes:
+    """TPKT + COTP DT (EOT) around one S7 PDU: what every answer is."""
+    return build_tpkt(DT_HEADER_EOT + payload)
+
+
 def build_frame(tpdu: Cotp) -> bytes:
     """A whole frame: TPKT around COTP."""
     return build_tpkt(build_cotp(tpdu))

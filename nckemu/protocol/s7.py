@@ -225,7 +225,7 @@ def _parse_item(parameter: bytes, offset: int) -> tuple[Address, int]:
         return S7AnyAddress(transport_size, count, db_number, area, address >> 3, address & 7), end
     if var_spec == VAR_SPEC and syntax_id in NCK_SYNTAX_IDS and length == 8:
         _v, _l, syntax, area_unit, column, line, module, line_count = _NCK.unpack_from(parameter, offset)
-        return NckAddress(area_unit >> 5, area_unit & 0x1F, column, line, module, line_count, syntax), end
+        return NckAddress.from_wire(syntax, area_unit, column, line, module, line_count), end
     return UnsupportedAddress(var_spec, syntax_id, parameter[offset + 2:end]), end
 
 

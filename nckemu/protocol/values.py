@@ -62,8 +62,15 @@ def _coerce(nck_type: NckType, value: object) -> object:
     return value
 
 
+_REAL8_LE = struct.Struct("<d")
+
+
 def encode_nck_values(nck_type: NckType, values: Sequence[object], *, area: int,
                       string_length: int | None = None) -> bytes:
+    if nck_type == NckType.REAL8 and len(values) == 1 and area not in BIG_ENDIAN_AREAS:
+        value = values[0]
+        if isinstance(value, float):  # the hot path: one REAL8 in an N/B/C/A/T/M area
+            return _REAL8_LE.pack(value)
     nck_type = NckType(nck_type)
     if nck_type == NckType.STRING:
         size = value_size(nck_type, string_length)

@@ -85,6 +85,7 @@ class NckModel:
         self.machine = machine
         self.clock = clock
         self._index = table_index()
+        self._resolved: dict[NckAddress, tuple[VariableSpec, int]] = {}
         self._stored: dict[tuple[str, int], list[Any]] = {}
         self._active: dict[tuple[str, int], list[Any]] = {}
         for spec in self._index.values():
@@ -92,6 +93,7 @@ class NckModel:
                 continue
             for unit in self._units(spec):
                 self._stored[(spec.name, unit)] = [spec.default] * spec.lines
+        self._valid_units = {spec.name: frozenset(self._units(spec)) for spec in self._index.values()}
         self._apply_initial()
         self._active = {key: list(values) for key, values in self._stored.items()}
         self._positions_mm = {axis.number: axis.position_mm for axis in machine.axes}
@@ -141,6 +143,14 @@ class NckModel:
 
     # ------------------------------------------------------------------ addressing
     def _resolve(self, address: NckAddress) -> tuple[VariableSpec, int]:
+        resolved = self._resolved.get(address)
+        if resolved is None:
+            resolved = self._resolve_uncached(address)
+            if len(self._resolved) < 4096:  # hot addresses; a flood of distinct ones is not cached
+                self._resolved[address] = resolved
+        return resolved
+
+    def _resolve_uncached(self, address: NckAddress) -> tuple[VariableSpec, int]:
         if address.module not in KNOWN_MODULES:
             raise NckObjectDoesNotExist(f"module 0x{address.module:02X} is not served")
         spec = self._index.get((address.module, address.column))
@@ -150,7 +160,7 @@ class NckModel:
         unit = address.unit
         if address.area in (NckArea.N, NckArea.B) and unit == 0:
             unit = 1
-        if unit not in self._units(spec):
+        if unit not in self._valid_units[spec.name]:
             raise NckObjectDoesNotExist(f"{spec.name}: unit {address.unit} does not exist")
         last = address.line + address.line_count - 1
         if address.line < 1 or address.line_count < 1 or last > spec.lines:
@@ -162,6 +172,12 @@ class NckModel:
         return spec.nck_type, spec.string_length
 
     # ------------------------------------------------------------------ read / write
+    def read_typed(self, address: NckAddress, ctx: AccessContext
+                   ) -> tuple[NckType, int | None, list[object]]:
+        """Type, string length and values in one lookup (the server's hot path)."""
+        spec, _unit = self._resolve(address)
+        return spec.nck_type, spec.string_length, self.read(address, ctx)
+
     def read(self, address: NckAddress, ctx: AccessContext) -> list[object]:
         spec, unit = self._resolve(address)
         if not ctx.may(spec.read_level):
