@@ -39,6 +39,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--max-connections", type=int, default=ServerLimits.max_connections)
     parser.add_argument("--idle-timeout", type=float, default=ServerLimits.idle_timeout_s,
                         help="seconds without a byte before a connection is closed")
+    parser.add_argument("--partial-frame-timeout", type=float, default=ServerLimits.partial_frame_timeout_s,
+                        help="seconds a begun frame may take to complete")
     parser.add_argument("--json", action="store_true", help="print the ready line as JSON")
     parser.set_defaults(func=run_serve)
 
@@ -50,7 +52,8 @@ def run_serve(args: argparse.Namespace) -> int:
             emulator.nck.load_leadscrew_program(handle.read(), source=path)
     if args.lec:
         emulator.power_on()
-    limits = ServerLimits(max_connections=args.max_connections, idle_timeout_s=args.idle_timeout)
+    limits = ServerLimits(max_connections=args.max_connections, idle_timeout_s=args.idle_timeout,
+                          partial_frame_timeout_s=args.partial_frame_timeout)
     server = EmulatorServer(emulator, host=args.host, port=args.port, limits=limits,
                             record_path=args.record)
     try:

@@ -51,10 +51,14 @@ class Emulator:
             if self.persist_alarm is None:
                 log.error("retained state cannot be written to %s: %s (serving on, alarm raised)",
                           self.store.path, exc)
+            if self.persist_alarm in self.nck.alarms:
+                self.nck.alarms.remove(self.persist_alarm)
             self.persist_alarm = f"retained state not saved: {exc}"
+            self.nck.alarms.append(self.persist_alarm)
         else:
             if self.persist_alarm is not None:
                 log.warning("retained state written again to %s; alarm cleared", self.store.path)
+                self.nck.alarms.remove(self.persist_alarm)
             self.persist_alarm = None
 
     def power_on(self) -> None:

@@ -30,6 +30,8 @@ class ServerLimits:
     # and if it stays that way for write_stall_timeout_s we close the connection.
     write_buffer_high_bytes: int = 256 * 1024
     write_stall_timeout_s: float = 30.0
+    # A frame begun must be complete within this time (a client sending one byte a second).
+    partial_frame_timeout_s: float = 10.0
 
 
 class _Connection(asyncio.Protocol):
@@ -40,6 +42,7 @@ class _Connection(asyncio.Protocol):
         self.peer = ""
         self.last_activity_s = time.monotonic()
         self.paused_since_s: float | None = None
+        self.partial_since_s: float | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -67,6 +70,11 @@ class _Connection(asyncio.Protocol):
         if recorder is not None:
             recorder.segment(self, True, data, client=self._peer_tuple())
         answers = session.receive(data)
+        if session.has_partial_frame:
+            if self.partial_since_s is None:
+                self.partial_since_s = self.last_activity_s
+        else:
+            self.partial_since_s = None
         if answers:
             out = answers[0] if len(answers) == 1 else b"".join(answers)
             transport.write(out)
@@ -105,6 +113,12 @@ class _Connection(asyncio.Protocol):
         if self.paused_since_s is not None and now_s - self.paused_since_s > limits.write_stall_timeout_s:
             log.warning("closing %s: it has not read its answers for %.0f s", self.peer,
                         limits.write_stall_timeout_s)
+            self.transport.abort()
+        elif self.partial_since_s is not None and now_s - self.partial_since_s > limits.partial_frame_timeout_s:
+            log.warning("closing %s: a frame begun %.0f s ago is still incomplete", self.peer,
+                        limits.partial_frame_timeout_s)
+            if self.session is not None:
+                self.session.close("partial frame timeout")
             self.transport.abort()
         elif now_s - self.last_activity_s > limits.idle_timeout_s:
             log.info("closing %s: idle for %.0f s", self.peer, limits.idle_timeout_s)
@@ -153,7 +167,8 @@ class EmulatorServer:
         return self
 
     async def _watch_timeouts(self) -> None:
-        period_s = max(0.05, min(1.0, self.limits.idle_timeout_s / 4, self.limits.write_stall_timeout_s / 4))
+        period_s = max(0.05, min(1.0, self.limits.idle_timeout_s / 4, self.limits.write_stall_timeout_s / 4,
+                                 self.limits.partial_frame_timeout_s / 4))
         while True:
             await asyncio.sleep(period_s)
             now_s = time.monotonic()

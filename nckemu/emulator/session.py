@@ -101,6 +101,11 @@ class ServerSession:
         self._on_close = on_close
 
     @property
+    def has_partial_frame(self) -> bool:
+        """Bytes of an incomplete frame or of an unfinished fragmented PDU are waiting."""
+        return bool(self._buffer) or bool(self._fragments)
+
+    @property
     def closed(self) -> bool:
         return self.state is SessionState.CLOSED
 
