@@ -20,6 +20,7 @@ from snap7.async_client import AsyncClient
 
 from nckemu.protocol import pi, s7
 from nckemu.protocol.addresses import NckType
+from nckemu.protocol.codes import describe_return_code
 from nckemu.protocol.errors import (
     NckConfigError,
     NckConnectionError,
@@ -55,18 +56,7 @@ class ItemResult:
 
     def error(self, index: int) -> NckItemError:
         return item_error_for(self.return_code, f"variable {index} ({self.variable}): "
-                                                f"{_describe(self.return_code)}")
-
-
-_RETURN_CODE_TEXT = {
-    0x01: "hardware error", 0x03: "access to the object not allowed", 0x05: "invalid address",
-    0x06: "data type not supported", 0x07: "data type inconsistent", 0x0A: "object does not exist",
-    0xFF: "success",
-}
-
-
-def _describe(return_code: int) -> str:
-    return f"{_RETURN_CODE_TEXT.get(return_code, 'error')} (0x{return_code:02X})"
+                                                f"{describe_return_code(self.return_code)}")
 
 
 def to_real32(value: float) -> float:

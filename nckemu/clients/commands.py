@@ -9,9 +9,10 @@ import sys
 from typing import Any
 
 from nckemu.protocol.addresses import NckType
+from nckemu.protocol.codes import describe_return_code
 from nckemu.protocol.errors import NckConfigError, NckError
 
-from .async_client import AsyncNckClient, ItemResult, _describe
+from .async_client import AsyncNckClient, ItemResult
 from .channel840c import Channel840C
 from .names import Variable, parse_variable
 
@@ -88,7 +89,7 @@ def _print_results(results: list[ItemResult], as_json: bool) -> int:
                 print(f"{result.variable} = {shown}{suffix}" if result.value is not None
                       else f"{result.variable}: ok")
     for result in failed:
-        print(f"nckemu: {result.variable}: {_describe(result.return_code)}", file=sys.stderr)
+        print(f"nckemu: {result.variable}: {describe_return_code(result.return_code)}", file=sys.stderr)
     return 1 if failed else 0
 
 
