@@ -9,6 +9,7 @@ Usage: .venv/bin/python bench/fuzz_session.py [--frames 1000000] [--seed 1]
 from __future__ import annotations
 
 import argparse
+import logging
 import random
 import struct
 import sys
@@ -45,12 +46,29 @@ def mutate(rng: random.Random, frame: bytes) -> bytes:
     return bytes(data)
 
 
+class _ErrorCounter(logging.Handler):
+    """Exceptions the session caught are bugs too: they are logged at ERROR by the session."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.ERROR)
+        self.count = 0
+        self.first: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.count += 1
+        if len(self.first) < 3:
+            self.first.append(self.format(record))
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=1_000_000)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     rng = random.Random(args.seed)
+    internal = _ErrorCounter()
+    logging.getLogger("nckemu").addHandler(internal)
+    logging.getLogger("nckemu").propagate = False
     emulator = Emulator()
     limits = SessionLimits(max_frame_bytes=4096, max_reassembly_bytes=8192, max_buffer_bytes=4100)
     crashes = hangs = sessions = closes = answers = 0
@@ -77,8 +95,11 @@ def main() -> int:
                 break
     elapsed_s = time.perf_counter() - started
     print(f"frames {frames}  sessions {sessions}  answers {answers}  closed {closes}  "
-          f"crashes {crashes}  hangs {hangs}  {frames / elapsed_s:,.0f} frames/s  ({elapsed_s:.1f} s)")
-    return 1 if crashes or hangs else 0
+          f"crashes {crashes}  internal errors {internal.count}  hangs {hangs}  "
+          f"{frames / elapsed_s:,.0f} frames/s  ({elapsed_s:.1f} s)")
+    for text in internal.first:
+        print(text)
+    return 1 if crashes or hangs or internal.count else 0
 
 
 if __name__ == "__main__":

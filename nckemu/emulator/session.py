@@ -215,7 +215,9 @@ class ServerSession:
             self.close(f"client sent ROSCTR {pdu.rosctr}")
             return None
         self.info.jobs += 1
-        function = pdu.parameter[0] if pdu.parameter else -1
+        if not pdu.parameter:
+            return self._error_answer(pdu, ERROR_WRONG_FRAMES)
+        function = pdu.parameter[0]
         if pdu.rosctr == s7.Rosctr.JOB and function == s7.Function.SETUP_COMMUNICATION:
             return self._handle_setup(pdu)
         if self.state is not SessionState.READY:
