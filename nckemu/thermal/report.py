@@ -1,0 +1,73 @@
+"""A self-contained HTML report: the recording, baseline and improved model over time, the residual
+before and after, and the located windows, as matplotlib figures embedded as PNG."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from .discover import Discovery  # noqa: E402
+
+
+def _png(figure: plt.Figure) -> str:
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
+    plt.close(figure)
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def _shade(axes: plt.Axes, discovery: Discovery) -> None:
+    for index, window in enumerate(discovery.mismatch):
+        axes.axvspan(window["t_start_s"] / 3600, window["t_end_s"] / 3600, color="orange", alpha=0.15,
+                     label="located mismatch" if index == 0 else None)
+
+
+def write_report(path: str | Path, discovery: Discovery, title: str) -> None:
+    series = discovery.series
+    hours = series["t_s"] / 3600
+    figure, axes = plt.subplots(figsize=(10, 4))
+    axes.plot(hours, series["measured_um"], ".", markersize=3, label="recorded", color="black")
+    axes.plot(hours, series["baseline_um"], label="baseline (as given)")
+    axes.plot(hours, series["improved_um"], label="improved model")
+    _shade(axes, discovery)
+    axes.set_xlabel("time [h]")
+    axes.set_ylabel(f"error of axis {discovery.axis} [um]")
+    axes.legend()
+    overview = _png(figure)
+    figure, axes = plt.subplots(figsize=(10, 3.5))
+    axes.plot(hours, series["residual_before_um"], label="residual before (baseline as given)")
+    axes.plot(hours, series["residual_after_um"], label="residual after (improved model)")
+    _shade(axes, discovery)
+    axes.axhline(0, color="grey", linewidth=0.5)
+    axes.set_xlabel("time [h]")
+    axes.set_ylabel("residual [um]")
+    axes.legend()
+    residuals = _png(figure)
+    rows = "".join(
+        f"<tr><td>{html.escape(m['effect'])}</td><td><code>{html.escape(json.dumps(m['parameters']))}</code></td>"
+        f"<td>{html.escape(str(m['evidence'].get('why', '')))}; held-out "
+        f"{m['evidence'].get('heldout_rms_before_um', '')} &rarr; {m['evidence'].get('heldout_rms_after_um', '')} um"
+        f"</td></tr>" for m in discovery.missing_physics) or "<tr><td colspan=3>nothing missing</td></tr>"
+    windows = "".join(f"<li>{w['t_start_s'] / 3600:.2f} h to {w['t_end_s'] / 3600:.2f} h: {html.escape(w['why'])}</li>"
+                      for w in discovery.mismatch) or "<li>no structured residual</li>"
+    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{html.escape(title)}</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}td{{padding:4px 8px;vertical-align:top}}
+table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}</style></head><body>
+<h1>{html.escape(title)}</h1>
+<p>Axis {html.escape(discovery.axis)}, {discovery.samples} measured samples. RMS as given
+{discovery.baseline_rms_um:.3f} um; recalibrated {discovery.recalibrated_rms_um:.3f} um; held-out
+{discovery.heldout_rms_before_um:.3f} &rarr; {discovery.heldout_rms_after_um:.3f} um.</p>
+<h2>Missing physics</h2><table><tr><th>effect</th><th>parameters</th><th>evidence</th></tr>{rows}</table>
+<h2>Where the model disagrees</h2><ul>{windows}</ul>
+<img alt="recording, baseline and improved model" src="data:image/png;base64,{overview}">
+<img alt="residual before and after" src="data:image/png;base64,{residuals}">
+</body></html>"""
+    Path(path).write_text(page, encoding="utf-8")

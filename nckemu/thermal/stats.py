@@ -1,0 +1,120 @@
+"""The few statistics discovery needs, on numpy: least squares, blocked cross-validation over time,
+AR(1)-corrected standard errors and a robust noise scale.
+
+Residuals of thermal models are strongly autocorrelated, so nothing here treats samples as
+independent: folds are contiguous blocks of time, and standard errors are inflated by the
+effective-sample-size factor of an AR(1) fit to the residual.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(values)))) if len(values) else math.nan
+
+
+def robust_sigma(values: np.ndarray) -> float:
+    """1.4826 × median absolute deviation: a noise scale that outliers do not inflate."""
+    if len(values) == 0:
+        return math.nan
+    return float(1.4826 * np.median(np.abs(values - np.median(values))))
+
+
+def least_squares(design: np.ndarray, target: np.ndarray) -> np.ndarray:
+    coefficients, *_ = np.linalg.lstsq(design, target, rcond=None)
+    return coefficients
+
+
+def blocked_folds(count: int, folds: int = 5) -> list[np.ndarray]:
+    """Boolean test masks of ``folds`` contiguous blocks of the (time-ordered) samples."""
+    folds = max(2, min(folds, count))
+    edges = np.linspace(0, count, folds + 1).round().astype(int)
+    masks = []
+    for start, end in zip(edges[:-1], edges[1:], strict=True):
+        mask = np.zeros(count, dtype=bool)
+        mask[start:end] = True
+        masks.append(mask)
+    return masks
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    rms_um: float
+    fold_rms_um: tuple[float, ...]
+
+
+def cross_validate(design: np.ndarray, target: np.ndarray, folds: list[np.ndarray]) -> CrossValidation:
+    """Fit on all blocks but one, predict that one; RMS over all held-out predictions."""
+    squared = np.empty_like(target)
+    per_fold = []
+    for test in folds:
+        train = ~test
+        if design.shape[1] == 0:
+            prediction = np.zeros(int(test.sum()))
+        else:
+            prediction = design[test] @ least_squares(design[train], target[train])
+        errors = target[test] - prediction
+        squared[test] = errors ** 2
+        per_fold.append(rms(errors))
+    return CrossValidation(float(np.sqrt(np.mean(squared))), tuple(per_fold))
+
+
+def ar1_coefficient(residual: np.ndarray) -> float:
+    if len(residual) < 3:
+        return 0.0
+    centred = residual - residual.mean()
+    denominator = float(np.dot(centred[:-1], centred[:-1]))
+    if denominator == 0.0:
+        return 0.0
+    return float(np.clip(np.dot(centred[1:], centred[:-1]) / denominator, -0.99, 0.99))
+
+
+@dataclass(frozen=True)
+class Fit:
+    coefficients: np.ndarray
+    standard_errors: np.ndarray
+    residual: np.ndarray
+    rms_um: float
+    ar1: float
+
+    def t_value(self, index: int) -> float:
+        se = self.standard_errors[index]
+        return float(self.coefficients[index] / se) if se > 0 else math.inf
+
+
+def fit(design: np.ndarray, target: np.ndarray) -> Fit:
+    """OLS with standard errors inflated for AR(1) residuals (n_eff = n (1 − φ) / (1 + φ))."""
+    coefficients = least_squares(design, target)
+    residual = target - design @ coefficients
+    n, p = design.shape
+    phi = ar1_coefficient(residual)
+    inflation = math.sqrt((1 + phi) / (1 - phi)) if phi > 0 else 1.0
+    dof = max(n - p, 1)
+    sigma2 = float(np.dot(residual, residual)) / dof
+    try:
+        covariance = sigma2 * np.linalg.inv(design.T @ design)
+        standard_errors = np.sqrt(np.clip(np.diag(covariance), 0, None)) * inflation
+    except np.linalg.LinAlgError:
+        standard_errors = np.full(p, math.inf)
+    return Fit(coefficients, standard_errors, residual, rms(residual), phi)
+
+
+def ljung_box(residual: np.ndarray, lags: int = 20) -> float:
+    """The Ljung-Box Q statistic (reported as evidence of structure, not used as a gate)."""
+    n = len(residual)
+    if n <= lags + 1:
+        return math.nan
+    centred = residual - residual.mean()
+    denominator = float(np.dot(centred, centred))
+    if denominator == 0:
+        return 0.0
+    q = 0.0
+    for k in range(1, lags + 1):
+        r_k = float(np.dot(centred[k:], centred[:-k])) / denominator
+        q += r_k * r_k / (n - k)
+    return n * (n + 2) * q
