@@ -13,11 +13,10 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from nckemu.emulator.nck.table import VariableSpec, find_by_name, table_index
+from nckemu.emulator.nck.table import R_PARAMETER_LINE_OFFSET, display_name, find_by_name, table_index
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType
 from nckemu.protocol.errors import NckConfigError
 
-R_PARAMETER_LINE_OFFSET = 1
 _NAME = re.compile(r"^\$?(?:(?:S|M)[ACN]_)?(?P<name>[A-Z_][A-Z0-9_]*?)(?:\[(?P<index>[^\]]*)\])?$", re.IGNORECASE)
 _R_SHORT = re.compile(r"^R(?P<number>\d+)$", re.IGNORECASE)
 
@@ -41,17 +40,7 @@ def variable_for_address(address: NckAddress) -> Variable:
     spec = table_index().get((address.module, address.column))
     if spec is None:
         return Variable(address, NckType.REAL8, None, str(address))
-    return Variable(address, spec.nck_type, spec.string_length, _display(spec, address), spec.unit)
-
-
-def _display(spec: VariableSpec, address: NckAddress) -> str:
-    count = f",x{address.line_count}" if address.line_count > 1 else ""
-    if spec.name == "R":
-        return f"R{address.line - R_PARAMETER_LINE_OFFSET}[C{address.unit}{count}]"
-    where = f"AX{address.unit}" if address.area == NckArea.A else f"{NckArea(address.area).name}{address.unit}"
-    line = f",l{address.line}" if spec.lines > 1 else ""
-    number = "" if spec.number.startswith("NCKEMU_") or not spec.number[:2].isalpha() else f"{spec.number} "
-    return f"{number}{spec.name}[{where}{line}{count}]"
+    return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)
 
 
 def parse_variable(text: str) -> Variable:
@@ -91,7 +80,7 @@ def parse_variable(text: str) -> Variable:
         address = NckAddress(area, unit, spec.column, line, spec.module, count)
     except ValueError as exc:
         raise NckConfigError(f"{text!r}: {exc}") from None
-    return Variable(address, spec.nck_type, spec.string_length, _display(spec, address), spec.unit)
+    return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)
 
 
 def as_variable(item: object) -> Variable:

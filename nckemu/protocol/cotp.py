@@ -154,9 +154,10 @@ def parse_cotp(data: bytes) -> Cotp:
         if length_indicator != 2:
             raise NckProtocolError(f"COTP DT with length indicator {length_indicator}, expected 2")
         return DataTpdu(data[3:], eot=bool(header[1] & DT_EOT), tpdu_number=header[1] & 0x7F)
-    if len(data) != length_indicator + 1:
+    if len(data) != length_indicator + 1 and code in (CODE_CR, CODE_CC):
         raise NckProtocolError(f"COTP 0x{code:02X} TPDU carries {len(data) - length_indicator - 1} "
-                               "bytes of user data")
+                               "bytes of user data (class 0 has none)")
+    # A DR may carry user data (python-snap7 sends one byte); it is not needed and is dropped.
     if code == CODE_CR:
         return _parse_connect(ConnectRequest, header)
     if code == CODE_CC:

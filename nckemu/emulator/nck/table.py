@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 
-from nckemu.protocol.addresses import NckArea, NckType
+from nckemu.protocol.addresses import NckAddress, NckArea, NckType
 from nckemu.protocol.errors import NckConfigError
 
 READ_ONLY = -1
@@ -84,3 +84,17 @@ def find_by_name(name: str) -> VariableSpec | None:
 
 
 KNOWN_MODULES = frozenset(spec.module for spec in load_table())
+
+
+R_PARAMETER_LINE_OFFSET = 1
+
+
+def display_name(spec: VariableSpec, address: NckAddress) -> str:
+    """``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[AX4,l2]``."""
+    count = f",x{address.line_count}" if address.line_count > 1 else ""
+    if spec.name == "R":
+        return f"R{address.line - R_PARAMETER_LINE_OFFSET}[C{address.unit}{count}]"
+    where = f"AX{address.unit}" if address.area == NckArea.A else f"{NckArea(address.area).name}{address.unit}"
+    line = f",l{address.line}" if spec.lines > 1 or address.line != 1 else ""
+    number = "" if spec.number.startswith("NCKEMU_") or not spec.number[:2].isalpha() else f"{spec.number} "
+    return f"{number}{spec.name}[{where}{line}{count}]"

@@ -1,0 +1,142 @@
+"""``nckemu trace show`` and ``nckemu trace replay``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from nckemu.protocol.errors import NckConfigError
+
+from .decode import decode, format_exchange
+from .reader import read_capture
+from .replay import progress_printer, replay, seed_values
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    raw = argparse.RawDescriptionHelpFormatter
+    trace = subparsers.add_parser("trace", help="decode and replay field captures (pcap, pcapng)")
+    commands = trace.add_subparsers(dest="trace_command", metavar="COMMAND")
+    show = commands.add_parser("show", help="one line per job/answer, items by variable name", formatter_class=raw,
+                               epilog="example: nckemu trace show capture.pcapng --var SD43900 --json")
+    show.add_argument("capture")
+    show.add_argument("--port", type=int, default=102, help="server port in the capture (102)")
+    show.add_argument("--var", help="only exchanges with an item whose name contains this")
+    show.add_argument("--connection", type=int, help="only this connection (1, 2, ... as listed)")
+    show.add_argument("--json", action="store_true", help="records as JSON")
+    show.set_defaults(func=run_show)
+    again = commands.add_parser(
+        "replay", help="send the recorded jobs to an emulator and diff the answers", formatter_class=raw,
+        epilog="example: nckemu trace replay capture.pcapng --spawn --seed-state\n"
+               "         nckemu trace replay capture.pcapng --emulator 127.0.0.1:1102")
+    again.add_argument("capture")
+    again.add_argument("--port", type=int, default=102, help="server port in the capture (102)")
+    target = again.add_mutually_exclusive_group()
+    target.add_argument("--emulator", metavar="HOST:PORT", help="a running emulator")
+    target.add_argument("--spawn", action="store_true", help="start an emulator in this process (default)")
+    again.add_argument("--machine", help="machine TOML for --spawn")
+    again.add_argument("--realtime", action="store_true", help="keep the recorded timing")
+    again.add_argument("--seed-state", action="store_true",
+                       help="first set the values the trace's first reads show, to reproduce the field state")
+    again.add_argument("--json", action="store_true")
+    again.add_argument("--quiet", action="store_true", help="no progress bar")
+    again.set_defaults(func=run_replay)
+    trace.set_defaults(func=lambda args: trace.print_help() or 2)
+
+
+def run_show(args: argparse.Namespace) -> int:
+    capture = read_capture(args.capture, port=args.port)
+    exchanges = decode(capture)
+    if args.connection is not None:
+        exchanges = [e for e in exchanges if e.connection == args.connection]
+    if args.var:
+        exchanges = [e for e in exchanges if any(args.var.upper() in i.name.upper() for i in e.items)]
+    if args.json:
+        print(json.dumps({"capture": args.capture, "frames": capture.frames, "connections": capture.connections,
+                          "exchanges": [e.to_json() for e in exchanges], "problems": capture.problems}))
+    else:
+        start = exchanges[0].job.time_s if exchanges else 0.0
+        for number, label in capture.connections.items():
+            print(f"connection c{number}: {label}")
+        for exchange in exchanges:
+            print("\n".join(format_exchange(exchange, start)))
+    for problem in capture.problems:
+        print(f"nckemu trace: {problem}", file=sys.stderr)
+    if not capture.pdus:
+        print(f"nckemu trace: {args.capture}: no S7 traffic on port {args.port} "
+              f"({capture.frames} frames read)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    capture = read_capture(args.capture, port=args.port)
+    if not capture.pdus:
+        raise NckConfigError(f"no S7 traffic on port {args.port}", path=args.capture)
+    progress = progress_printer(not args.quiet)
+    if args.emulator:
+        host, _, port_text = args.emulator.rpartition(":")
+        if not host or not port_text.isdigit():
+            raise NckConfigError(f"--emulator {args.emulator!r}: expected HOST:PORT")
+        if args.seed_state:
+            _seed_remote(host, int(port_text), capture)
+        report = replay(capture, host, int(port_text), realtime=args.realtime, progress=progress)
+    else:
+        from nckemu.emulator.nck.access import AccessContext
+        from nckemu.emulator.runner import EmulatorThread
+
+        with EmulatorThread(args.machine) as emulator:
+            if args.seed_state:
+                values = seed_values(decode(capture))
+                emulator.call(lambda: _seed_model(emulator.nck, values, AccessContext(level=0)))
+            report = replay(capture, "127.0.0.1", emulator.port, realtime=args.realtime, progress=progress)
+    if args.json:
+        print(json.dumps(report.to_json()))
+    else:
+        print(f"{report.jobs} jobs replayed: {report.matching_items} items match, {report.differing_values} "
+              f"values differ, {report.differing_return_codes} return codes differ, {report.differing_errors} "
+              f"header errors differ, {report.missing_answers} answers missing")
+        for difference in report.differences:
+            print(f"  frame {difference['frame']} c{difference['connection']} {difference['function']} "
+                  f"{difference['item']}: {difference['kind']}: recorded {difference['recorded']!r}, "
+                  f"emulated {difference['emulated']!r}")
+    return 0 if report.all_match else 1
+
+
+def _seed_model(nck: object, values: dict, ctx: object) -> int:
+    from nckemu.protocol.errors import NckError
+    from nckemu.protocol.values import decode_nck_values
+
+    written = 0
+    for address, data in values.items():
+        try:
+            nck_type, length = nck.variable_type(address)  # type: ignore[attr-defined]
+            decoded = decode_nck_values(nck_type, data, area=address.area, line_count=address.line_count,
+                                        string_length=length)
+            nck.write(address, decoded, ctx)  # type: ignore[attr-defined]
+            written += 1
+        except NckError:
+            continue  # state data and the like cannot be set; the replay will show them
+    return written
+
+
+def _seed_remote(host: str, port: int, capture: object) -> None:
+    from nckemu.clients import NckClient
+    from nckemu.clients.names import variable_for_address
+    from nckemu.protocol.errors import NckError
+    from nckemu.protocol.values import decode_nck_values
+
+    values = seed_values(decode(capture))  # type: ignore[arg-type]
+    with NckClient(host, port) as client:
+        try:
+            client.login("SUNRISE")
+        except NckError:
+            pass
+        for address, data in values.items():
+            variable = variable_for_address(address)
+            try:
+                decoded = decode_nck_values(variable.nck_type, data, area=address.area,
+                                            line_count=address.line_count, string_length=variable.length)
+                client.put_items([(variable, decoded[0] if len(decoded) == 1 else decoded)])
+            except NckError:
+                continue

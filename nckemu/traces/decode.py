@@ -1,0 +1,218 @@
+"""Job/answer pairs of a capture, each item by variable name, return codes in words."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from nckemu.emulator.nck.table import display_name, table_index
+from nckemu.protocol import pi, s7, szl
+from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
+from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
+from nckemu.protocol.errors import NckError
+from nckemu.protocol.values import decode_nck_values
+
+from .reader import Capture, TracePdu
+
+FUNCTION_NAMES = {0x04: "read", 0x05: "write", 0x28: "PI", 0x29: "PLC stop", 0xF0: "setup", 0x00: "CPU services"}
+S7_AREA_NAMES = {0x84: "DB", 0x81: "I", 0x82: "Q", 0x83: "M", 0x80: "P", 0x1C: "C", 0x1D: "T"}
+
+
+@dataclass
+class Item:
+    address: dict[str, Any]
+    name: str
+    return_code: int | None = None
+    value: Any = None
+    raw: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {**self.address, "name": self.name, "return_code": self.return_code,
+                "return_text": RETURN_CODE_TEXTS.get(self.return_code, "") if self.return_code is not None else None,
+                "value": self.value, "raw": self.raw}
+
+
+@dataclass
+class Exchange:
+    """A client job and the controller's answer (None when the answer is missing)."""
+
+    connection: int
+    job: TracePdu
+    answer: TracePdu | None
+    function: str
+    pdu_ref: int
+    items: list[Item] = field(default_factory=list)
+    detail: str = ""
+    header_error: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {"frame": self.job.frame, "answer_frame": self.answer.frame if self.answer else None,
+                "time_s": self.job.time_s, "connection": self.connection, "function": self.function,
+                "pdu_ref": self.pdu_ref, "detail": self.detail, "header_error": self.header_error or None,
+                "items": [i.to_json() for i in self.items]}
+
+
+def _address_json(address: object) -> dict[str, Any]:
+    if isinstance(address, NckAddress):
+        return {"kind": "nck", "syntax_id": address.syntax_id, "area": address.area, "unit": address.unit,
+                "column": address.column, "line": address.line, "module": address.module,
+                "line_count": address.line_count}
+    if isinstance(address, S7AnyAddress):
+        return {"kind": "s7any", "area": address.area, "db": address.db_number, "byte": address.byte_address,
+                "bit": address.bit_address, "transport_size": address.transport_size, "count": address.count}
+    assert isinstance(address, UnsupportedAddress)
+    return {"kind": "unsupported", "syntax_id": address.syntax_id}
+
+
+def name_of(address: object) -> tuple[str, NckType | None, int | None, str]:
+    """Readable name, type, string length and unit of measure of an item address."""
+    if isinstance(address, NckAddress):
+        spec = table_index().get((address.module, address.column))
+        if spec is None:
+            where = f"{NckArea(address.area).name}{address.unit}"
+            return (f"NCK {where} col {address.column} line {address.line} ({describe_module(address.module)})",
+                    None, None, "")
+        return display_name(spec, address), spec.nck_type, spec.string_length, spec.unit
+    if isinstance(address, S7AnyAddress):
+        area = S7_AREA_NAMES.get(address.area, f"area 0x{address.area:02X}")
+        prefix = f"DB{address.db_number}." if address.area == 0x84 else ""
+        return f"{prefix}{area}B{address.byte_address} x{address.count} (ts {address.transport_size})", None, None, ""
+    assert isinstance(address, UnsupportedAddress)
+    return f"syntax 0x{address.syntax_id:02X} item", None, None, ""
+
+
+def _value(address: object, data: bytes, nck_type: NckType | None, length: int | None) -> Any:
+    if isinstance(address, NckAddress) and nck_type is not None:
+        try:
+            values = decode_nck_values(nck_type, data, area=address.area, line_count=address.line_count,
+                                       string_length=length)
+        except NckError:
+            return None
+        return values[0] if len(values) == 1 else values
+    return None
+
+
+def decode(capture: Capture) -> list[Exchange]:
+    """Pair each client job with the answer bearing its PDU reference on the same connection."""
+    open_jobs: dict[tuple[int, int], Exchange] = {}
+    exchanges: list[Exchange] = []
+    for pdu in capture.pdus:
+        if pdu.kind != "s7":
+            continue
+        try:
+            parsed = s7.parse_pdu(pdu.data)
+        except NckError as exc:
+            capture.problems.append(f"frame {pdu.frame}: not an S7 PDU ({exc})")
+            continue
+        if pdu.from_client and parsed.rosctr in (s7.Rosctr.JOB, s7.Rosctr.USERDATA):
+            exchange = _describe_job(pdu, parsed, capture)
+            open_jobs[(pdu.connection, parsed.pdu_ref)] = exchange
+            exchanges.append(exchange)
+        elif not pdu.from_client:
+            exchange = open_jobs.pop((pdu.connection, parsed.pdu_ref), None)
+            if exchange is None:
+                capture.problems.append(f"frame {pdu.frame}: answer without a job (PDU ref {parsed.pdu_ref})")
+                continue
+            exchange.answer = pdu
+            _describe_answer(exchange, parsed, capture)
+    return exchanges
+
+
+def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange:
+    if parsed.rosctr == s7.Rosctr.USERDATA:
+        exchange = Exchange(pdu.connection, pdu, None, "userdata", parsed.pdu_ref)
+        try:
+            request = szl.parse_szl_request(parsed.parameter, parsed.data)
+            exchange.detail = f"read SZL 0x{request.szl_id:04X} index 0x{request.szl_index:04X}"
+        except NckError:
+            exchange.detail = "userdata"
+        return exchange
+    function = parsed.parameter[0] if parsed.parameter else -1
+    exchange = Exchange(pdu.connection, pdu, None, FUNCTION_NAMES.get(function, f"0x{function:02X}"), parsed.pdu_ref)
+    try:
+        if function == s7.Function.READ_VAR:
+            for address in s7.parse_read_var_request(parsed.parameter).items:
+                exchange.items.append(Item(_address_json(address), name_of(address)[0]))
+        elif function == s7.Function.WRITE_VAR:
+            request = s7.parse_write_var_request(parsed.parameter, parsed.data)
+            for address, data_item in zip(request.items, request.values, strict=True):
+                name, nck_type, length, _unit = name_of(address)
+                exchange.items.append(Item(_address_json(address), name, None,
+                                           _value(address, data_item.data, nck_type, length), data_item.data.hex()))
+        elif function == s7.Function.PI_SERVICE:
+            request = pi.parse_pi_request(parsed.parameter)
+            arguments = ", ".join(f'"{a}"' for a in request.arguments)
+            exchange.detail = f"{request.service}({arguments})"
+        elif function == s7.Function.SETUP_COMMUNICATION:
+            setup = s7.parse_setup_communication(parsed.parameter)
+            exchange.detail = f"PDU {setup.pdu_length}, AMQ {setup.max_amq_calling}/{setup.max_amq_called}"
+    except NckError as exc:
+        capture.problems.append(f"frame {pdu.frame}: job not decoded ({exc})")
+    return exchange
+
+
+def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> None:
+    if parsed.error_class or parsed.error_code:
+        exchange.header_error = describe_header_error(parsed.error_class, parsed.error_code)
+        return
+    try:
+        if exchange.function == "read":
+            response = s7.parse_read_var_response(parsed.parameter, parsed.data)
+            for item, data_item in zip(exchange.items, response.items, strict=False):
+                item.return_code = data_item.return_code
+                item.raw = data_item.data.hex()
+                if data_item.return_code == 0xFF:
+                    address = _address_from_json(item.address)
+                    _name, nck_type, length, _unit = name_of(address)
+                    item.value = _value(address, data_item.data, nck_type, length)
+        elif exchange.function == "write":
+            response = s7.parse_write_var_response(parsed.parameter, parsed.data)
+            for item, code in zip(exchange.items, response.return_codes, strict=False):
+                item.return_code = code
+        elif exchange.function == "setup":
+            setup = s7.parse_setup_communication(parsed.parameter)
+            exchange.detail += f" -> PDU {setup.pdu_length}, AMQ {setup.max_amq_calling}/{setup.max_amq_called}"
+    except NckError as exc:
+        capture.problems.append(f"frame {exchange.answer.frame if exchange.answer else '?'}: answer not "
+                                f"decoded ({exc})")
+
+
+def _address_from_json(address: dict[str, Any]) -> object:
+    if address["kind"] == "nck":
+        return NckAddress(address["area"], address["unit"], address["column"], address["line"], address["module"],
+                          address["line_count"], address["syntax_id"])
+    if address["kind"] == "s7any":
+        return S7AnyAddress(address["transport_size"], address["count"], address["db"], address["area"],
+                            address["byte"], address["bit"])
+    return UnsupportedAddress(0x12, address["syntax_id"], b"")
+
+
+def format_exchange(exchange: Exchange, start_s: float) -> list[str]:
+    """The ``trace show`` lines of one exchange."""
+    t = exchange.job.time_s - start_s
+    head = f"{t:10.3f}s  c{exchange.connection}  #{exchange.job.frame:<6} {exchange.function:8}"
+    lines = []
+    if exchange.detail:
+        head += f" {exchange.detail}"
+    if exchange.answer is None:
+        head += "  [no answer]"
+    elif exchange.header_error:
+        head += f"  -> {exchange.header_error}"
+    lines.append(head)
+    for item in exchange.items:
+        unit = name_of(_address_from_json(item.address))[3]
+        suffix = f" {unit}" if unit and unit != "1" else ""
+        shown = f"{item.value:.6f}" if isinstance(item.value, float) else (item.value if item.value is not None
+                                                                           else item.raw or "")
+        if exchange.function == "write":
+            text = f"    {item.name} := {shown}{suffix}"
+            if item.return_code is not None:
+                text += f"  -> {RETURN_CODE_TEXTS.get(item.return_code, hex(item.return_code))}"
+        else:
+            text = f"    {item.name}"
+            if item.return_code == 0xFF:
+                text += f" = {shown}{suffix}"
+            elif item.return_code is not None:
+                text += f"  -> {RETURN_CODE_TEXTS.get(item.return_code, hex(item.return_code))}"
+        lines.append(text)
+    return lines

@@ -1,0 +1,219 @@
+"""Replay a capture's client side against an emulator and compare every answer with the recorded one."""
+
+from __future__ import annotations
+
+import socket
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from nckemu.protocol import cotp, s7, tpkt
+from nckemu.protocol.addresses import NckAddress
+from nckemu.protocol.codes import RETURN_CODE_TEXTS
+from nckemu.protocol.errors import NckError
+
+from .decode import Exchange, _address_from_json, _value, decode, name_of
+from .reader import Capture
+
+
+@dataclass
+class ReplayReport:
+    matching_items: int = 0
+    differing_values: int = 0
+    differing_return_codes: int = 0
+    differing_errors: int = 0
+    missing_answers: int = 0
+    jobs: int = 0
+    differences: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def all_match(self) -> bool:
+        return not (self.differing_values or self.differing_return_codes or self.differing_errors
+                    or self.missing_answers)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"jobs": self.jobs, "matching_items": self.matching_items, "differing_values": self.differing_values,
+                "differing_return_codes": self.differing_return_codes, "differing_errors": self.differing_errors,
+                "missing_answers": self.missing_answers, "all_match": self.all_match,
+                "differences": self.differences}
+
+
+class _Link:
+    """One replayed connection: raw frames over a socket."""
+
+    def __init__(self, host: str, port: int, timeout_s: float) -> None:
+        self.sock = socket.create_connection((host, port), timeout=timeout_s)
+        self.buffer = b""
+
+    def send_frame(self, frame: bytes) -> None:
+        self.sock.sendall(frame)
+
+    def receive_frame(self) -> bytes | None:
+        while True:
+            try:
+                frames, rest = tpkt.split_frames(self.buffer)
+            except NckError:
+                return None
+            if frames:
+                first = frames[0]
+                self.buffer = self.buffer[len(first):]
+                return first
+            try:
+                chunk = self.sock.recv(65536)
+            except (TimeoutError, OSError):
+                return None
+            if not chunk:
+                return None
+            self.buffer += chunk
+
+    def receive_pdu(self) -> bytes | None:
+        fragments = []
+        while True:
+            frame = self.receive_frame()
+            if frame is None:
+                return None
+            tpdu = cotp.parse_cotp(tpkt.parse_tpkt(frame))
+            if isinstance(tpdu, cotp.DataTpdu):
+                fragments.append(tpdu.payload)
+                if tpdu.eot and (fragments[-1] or len(fragments) > 1):
+                    return b"".join(fragments)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def _difference(report: ReplayReport, exchange: Exchange, kind: str, name: str, recorded: Any,
+                emulated: Any) -> None:
+    report.differences.append({"frame": exchange.job.frame, "connection": exchange.connection,
+                               "function": exchange.function, "item": name, "kind": kind,
+                               "recorded": recorded, "emulated": emulated})
+
+
+def _compare(report: ReplayReport, exchange: Exchange, recorded: s7.S7Pdu, emulated: s7.S7Pdu) -> None:
+    if (recorded.error_class, recorded.error_code) != (emulated.error_class, emulated.error_code):
+        report.differing_errors += 1
+        _difference(report, exchange, "header error", exchange.detail or exchange.function,
+                    f"0x{recorded.error_class:02X}{recorded.error_code:02X}",
+                    f"0x{emulated.error_class:02X}{emulated.error_code:02X}")
+        return
+    if recorded.error_class or recorded.error_code:
+        report.matching_items += 1
+        return
+    if exchange.function == "read":
+        got = s7.parse_read_var_response(emulated.parameter, emulated.data).items
+        want = s7.parse_read_var_response(recorded.parameter, recorded.data).items
+        for item, expected, actual in zip(exchange.items, want, got, strict=False):
+            if expected.return_code != actual.return_code:
+                report.differing_return_codes += 1
+                _difference(report, exchange, "return code", item.name,
+                            RETURN_CODE_TEXTS.get(expected.return_code, hex(expected.return_code)),
+                            RETURN_CODE_TEXTS.get(actual.return_code, hex(actual.return_code)))
+            elif expected.data != actual.data:
+                report.differing_values += 1
+                address = _address_from_json(item.address)
+                _name, nck_type, length, _unit = name_of(address)
+                _difference(report, exchange, "value", item.name,
+                            _value(address, expected.data, nck_type, length) if nck_type else expected.data.hex(),
+                            _value(address, actual.data, nck_type, length) if nck_type else actual.data.hex())
+            else:
+                report.matching_items += 1
+    elif exchange.function == "write":
+        got_codes = s7.parse_write_var_response(emulated.parameter, emulated.data).return_codes
+        want_codes = s7.parse_write_var_response(recorded.parameter, recorded.data).return_codes
+        for item, expected, actual in zip(exchange.items, want_codes, got_codes, strict=False):
+            if expected != actual:
+                report.differing_return_codes += 1
+                _difference(report, exchange, "return code", item.name, RETURN_CODE_TEXTS.get(expected, hex(expected)),
+                            RETURN_CODE_TEXTS.get(actual, hex(actual)))
+            else:
+                report.matching_items += 1
+    else:
+        report.matching_items += 1  # setup (negotiated values may differ), PI, userdata: status matched
+
+
+def seed_values(exchanges: list[Exchange]) -> dict[NckAddress, bytes]:
+    """The state at the start of the trace: the first read answer of each address read before any write."""
+    seen: set[NckAddress] = set()
+    values: dict[NckAddress, bytes] = {}
+    for exchange in exchanges:
+        for item in exchange.items:
+            address = _address_from_json(item.address)
+            if not isinstance(address, NckAddress) or address in seen:
+                continue
+            seen.add(address)
+            if exchange.function == "read" and item.return_code == 0xFF and item.raw:
+                values[address] = bytes.fromhex(item.raw)
+    return values
+
+
+def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, timeout_s: float = 5.0,
+           progress: Callable[[int, int], None] | None = None) -> ReplayReport:
+    exchanges = decode(capture)
+    by_job = {id(e.job): e for e in exchanges}
+    report = ReplayReport()
+    links: dict[int, _Link] = {}
+    client_pdus = [p for p in capture.pdus if p.from_client]
+    started_wall = time.monotonic()
+    first_time = client_pdus[0].time_s if client_pdus else 0.0
+    try:
+        for index, pdu in enumerate(client_pdus):
+            if realtime:
+                delay = (pdu.time_s - first_time) - (time.monotonic() - started_wall)
+                if delay > 0:
+                    time.sleep(delay)
+            link = links.get(pdu.connection)
+            if pdu.kind == "cr":
+                if link is not None:
+                    link.close()
+                link = links[pdu.connection] = _Link(host, port, timeout_s)
+                link.send_frame(pdu.data)
+                link.receive_frame()
+                continue
+            if pdu.kind != "s7":
+                continue
+            if link is None:  # the capture began after the connect: make one like python-snap7 does
+                link = links[pdu.connection] = _Link(host, port, timeout_s)
+                link.send_frame(cotp.build_frame(cotp.ConnectRequest(src_ref=1, calling_tsap=b"\x01\x00",
+                                                                     called_tsap=b"\x01\x04", tpdu_size=1024)))
+                link.receive_frame()
+            exchange = by_job.get(id(pdu))
+            link.send_frame(cotp.build_data_frame(pdu.data))
+            if exchange is None:
+                continue
+            report.jobs += 1
+            answer = link.receive_pdu()
+            if answer is None:
+                report.missing_answers += 1
+                _difference(report, exchange, "missing answer", exchange.detail or exchange.function, "answer", None)
+                link.close()
+                links.pop(pdu.connection)
+            elif exchange.answer is not None:  # a job whose answer was not captured is not compared
+                try:
+                    _compare(report, exchange, s7.parse_pdu(exchange.answer.data), s7.parse_pdu(answer))
+                except NckError as exc:
+                    report.differing_errors += 1
+                    _difference(report, exchange, "undecodable answer", exchange.function, "", str(exc))
+            if progress is not None:
+                progress(index + 1, len(client_pdus))
+    finally:
+        for link in links.values():
+            link.close()
+    return report
+
+
+def progress_printer(enabled: bool) -> Callable[[int, int], None] | None:
+    if not enabled or not sys.stderr.isatty():
+        return None
+
+    def show(done: int, total: int) -> None:
+        if done == total or done % 50 == 0:
+            width = 30
+            filled = int(width * done / max(total, 1))
+            sys.stderr.write(f"\rreplay [{'#' * filled}{'.' * (width - filled)}] {done}/{total}")
+            if done == total:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+
+    return show
