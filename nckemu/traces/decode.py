@@ -20,11 +20,15 @@ S7_AREA_NAMES = {0x84: "DB", 0x81: "I", 0x82: "Q", 0x83: "M", 0x80: "P", 0x1C: "
 
 @dataclass
 class Item:
-    address: dict[str, Any]
+    target: object   # the parsed item address
     name: str
     return_code: int | None = None
     value: Any = None
     raw: str = ""
+
+    @property
+    def address(self) -> dict[str, Any]:
+        return _address_json(self.target)
 
     def to_json(self) -> dict[str, Any]:
         return {**self.address, "name": self.name, "return_code": self.return_code,
@@ -64,8 +68,20 @@ def _address_json(address: object) -> dict[str, Any]:
     return {"kind": "unsupported", "syntax_id": address.syntax_id}
 
 
+_NAMES: dict[object, tuple[str, NckType | None, int | None, str]] = {}
+
+
 def name_of(address: object) -> tuple[str, NckType | None, int | None, str]:
-    """Readable name, type, string length and unit of measure of an item address."""
+    """Readable name, type, string length and unit of measure of an item address (cached)."""
+    named = _NAMES.get(address)
+    if named is None:
+        named = _name_of(address)
+        if len(_NAMES) < 65536:
+            _NAMES[address] = named
+    return named
+
+
+def _name_of(address: object) -> tuple[str, NckType | None, int | None, str]:
     if isinstance(address, NckAddress):
         spec = table_index().get((address.module, address.column))
         if spec is None:
@@ -132,12 +148,12 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
     try:
         if function == s7.Function.READ_VAR:
             for address in s7.parse_read_var_request(parsed.parameter).items:
-                exchange.items.append(Item(_address_json(address), name_of(address)[0]))
+                exchange.items.append(Item(address, name_of(address)[0]))
         elif function == s7.Function.WRITE_VAR:
             request = s7.parse_write_var_request(parsed.parameter, parsed.data)
             for address, data_item in zip(request.items, request.values, strict=True):
                 name, nck_type, length, _unit = name_of(address)
-                exchange.items.append(Item(_address_json(address), name, None,
+                exchange.items.append(Item(address, name, None,
                                            _value(address, data_item.data, nck_type, length), data_item.data.hex()))
         elif function == s7.Function.PI_SERVICE:
             request = pi.parse_pi_request(parsed.parameter)
@@ -162,9 +178,8 @@ def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> 
                 item.return_code = data_item.return_code
                 item.raw = data_item.data.hex()
                 if data_item.return_code == 0xFF:
-                    address = _address_from_json(item.address)
-                    _name, nck_type, length, _unit = name_of(address)
-                    item.value = _value(address, data_item.data, nck_type, length)
+                    _name, nck_type, length, _unit = name_of(item.target)
+                    item.value = _value(item.target, data_item.data, nck_type, length)
         elif exchange.function == "write":
             response = s7.parse_write_var_response(parsed.parameter, parsed.data)
             for item, code in zip(exchange.items, response.return_codes, strict=False):
@@ -200,7 +215,7 @@ def format_exchange(exchange: Exchange, start_s: float) -> list[str]:
         head += f"  -> {exchange.header_error}"
     lines.append(head)
     for item in exchange.items:
-        unit = name_of(_address_from_json(item.address))[3]
+        unit = name_of(item.target)[3]
         suffix = f" {unit}" if unit and unit != "1" else ""
         shown = f"{item.value:.6f}" if isinstance(item.value, float) else (item.value if item.value is not None
                                                                            else item.raw or "")

@@ -86,7 +86,43 @@ def _packets(handle: BinaryIO, source: str, capture: Capture) -> Iterator[tuple[
         yield number, float(ts), bytes(frame), link
 
 
-def _tcp(frame: bytes, link: int) -> tuple[str, str, dpkt.tcp.TCP] | None:
+@dataclass(frozen=True, slots=True)
+class _Segment:
+    sport: int
+    dport: int
+    seq: int
+    flags: int
+    data: bytes
+
+
+_ETH_IPV4_TCP = struct.Struct(">12xH")
+_TCP_HEADER = struct.Struct(">HHIIBB")
+
+
+def _fast_ipv4_tcp(frame: bytes) -> tuple[str, str, _Segment] | None:
+    """Ethernet + IPv4 + TCP, the usual layout, without building dpkt objects (the hot path)."""
+    if len(frame) < 54 or _ETH_IPV4_TCP.unpack_from(frame)[0] != 0x0800 or frame[14] >> 4 != 4:
+        return None
+    ip_header = (frame[14] & 0x0F) * 4
+    total = int.from_bytes(frame[16:18], "big")
+    if frame[23] != 6 or (int.from_bytes(frame[20:22], "big") & 0x3FFF):  # not TCP, or a fragment
+        return None
+    tcp_start = 14 + ip_header
+    if len(frame) < tcp_start + 20:
+        return None
+    sport, dport, seq, _ack, offset, flags = _TCP_HEADER.unpack_from(frame, tcp_start)
+    data_start = tcp_start + (offset >> 4) * 4
+    end = min(len(frame), 14 + total) if total else len(frame)
+    src = socket.inet_ntop(socket.AF_INET, frame[26:30])
+    dst = socket.inet_ntop(socket.AF_INET, frame[30:34])
+    return src, dst, _Segment(sport, dport, seq, flags, frame[data_start:end])
+
+
+def _tcp(frame: bytes, link: int) -> tuple[str, str, dpkt.tcp.TCP | _Segment] | None:
+    if link == dpkt.pcap.DLT_EN10MB:
+        fast = _fast_ipv4_tcp(frame)
+        if fast is not None:
+            return fast
     try:
         if link == dpkt.pcap.DLT_EN10MB:
             ip = dpkt.ethernet.Ethernet(frame).data
@@ -146,8 +182,8 @@ def read_capture(path: str | Path, *, port: int = S7_PORT) -> Capture:
     return capture
 
 
-def _feed(capture: Capture, connection: _Connection, from_client: bool, segment: dpkt.tcp.TCP, number: int,
-          ts: float) -> None:
+def _feed(capture: Capture, connection: _Connection, from_client: bool, segment: dpkt.tcp.TCP | _Segment,
+          number: int, ts: float) -> None:
     direction = connection.directions[from_client]
     seq = segment.seq
     payload = bytes(segment.data)

@@ -14,7 +14,7 @@ from nckemu.protocol.addresses import NckAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS
 from nckemu.protocol.errors import NckError
 
-from .decode import Exchange, _address_from_json, _value, decode, name_of
+from .decode import Exchange, _value, decode, name_of
 from .reader import Capture
 
 
@@ -112,7 +112,7 @@ def _compare(report: ReplayReport, exchange: Exchange, recorded: s7.S7Pdu, emula
                             RETURN_CODE_TEXTS.get(actual.return_code, hex(actual.return_code)))
             elif expected.data != actual.data:
                 report.differing_values += 1
-                address = _address_from_json(item.address)
+                address = item.target
                 _name, nck_type, length, _unit = name_of(address)
                 _difference(report, exchange, "value", item.name,
                             _value(address, expected.data, nck_type, length) if nck_type else expected.data.hex(),
@@ -139,7 +139,7 @@ def seed_values(exchanges: list[Exchange]) -> dict[NckAddress, bytes]:
     values: dict[NckAddress, bytes] = {}
     for exchange in exchanges:
         for item in exchange.items:
-            address = _address_from_json(item.address)
+            address = item.target
             if not isinstance(address, NckAddress) or address in seen:
                 continue
             seen.add(address)

@@ -1,0 +1,95 @@
+"""Trace decode rate: ``nckemu``'s reader and decoder against ``tshark -T fields`` on the same file.
+
+A capture of N frames (request/answer pairs of NCK reads on one connection) is generated from two
+packet templates with patched TCP sequence numbers, then both decoders read it.
+
+Usage: .venv/bin/python bench/bench_trace_decode.py [--frames 1000000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from nckemu.protocol import cotp, s7  # noqa: E402
+from nckemu.protocol.addresses import NckAddress  # noqa: E402
+from nckemu.traces.capture import write_capture  # noqa: E402
+from nckemu.traces.decode import decode  # noqa: E402
+from nckemu.traces.reader import read_capture  # noqa: E402
+
+_ITEMS = (NckAddress(3, 4, 43900, 1, 0x16), NckAddress(2, 1, 1, 1, 0x15))
+REQUEST = cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(1, 1, s7.build_read_var_request(s7.ReadVarRequest(_ITEMS)))))
+ANSWER = cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(3, 1, *s7.build_read_var_response(s7.ReadVarResponse((
+    s7.DataItem(0xFF, 0x09, struct.pack("<d", 0.3)), s7.DataItem(0xFF, 0x09, struct.pack("<d", 0.1))))))))
+
+
+def write_big_capture(path: Path, frames: int) -> None:
+    with tempfile.TemporaryDirectory() as scratch:
+        template = Path(scratch) / "t.pcap"
+        write_capture(template, [(True, REQUEST), (False, ANSWER)])
+        data = template.read_bytes()
+    header, records = data[:24], data[24:]
+    packets = []
+    offset = 0
+    while offset < len(records):
+        length = struct.unpack_from("<I", records, offset + 8)[0]
+        packets.append(records[offset + 16:offset + 16 + length])
+        offset += 16 + length
+    request, answer = packets[3], packets[4]  # after the three-way handshake
+    tcp_seq = 14 + 20 + 4  # Ethernet + IPv4 header, then the TCP sequence number
+    with path.open("wb") as handle:
+        handle.write(header)
+        client_seq, server_seq = struct.unpack_from(">II", request, tcp_seq)
+        record = struct.Struct("<IIII")
+        for index in range(frames // 2):
+            for packet, seq, ack in ((request, client_seq, server_seq), (answer, server_seq, client_seq)):
+                patched = bytearray(packet)
+                struct.pack_into(">II", patched, tcp_seq, seq & 0xFFFFFFFF, ack & 0xFFFFFFFF)
+                handle.write(record.pack(1_700_000_000 + index // 1000, (index % 1000) * 1000, len(patched),
+                                         len(patched)))
+                handle.write(patched)
+            client_seq += len(REQUEST)
+            server_seq += len(ANSWER)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=1_000_000)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as scratch:
+        path = Path(scratch) / "big.pcap"
+        started = time.perf_counter()
+        write_big_capture(path, args.frames)
+        print(f"generated {args.frames:,} frames ({path.stat().st_size / 1e6:.0f} MB) in "
+              f"{time.perf_counter() - started:.1f} s")
+        started = time.perf_counter()
+        capture = read_capture(path)
+        exchanges = decode(capture)
+        ours_s = time.perf_counter() - started
+        print(f"nckemu: {len(exchanges):,} exchanges, {len(capture.problems)} problems, {ours_s:.1f} s, "
+              f"{args.frames / ours_s:,.0f} frames/s")
+        tshark = shutil.which("tshark")
+        if tshark is None:
+            print("tshark not installed: no comparison")
+            return 0
+        started = time.perf_counter()
+        result = subprocess.run([tshark, "-r", str(path), "-T", "fields", "-e", "frame.number",
+                                 "-e", "s7comm.param.item.nck.column", "-e", "s7comm.data.returncode"],
+                                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, check=True)
+        tshark_s = time.perf_counter() - started
+        lines = result.stdout.count(b"\n")
+        print(f"tshark: {lines:,} lines, {tshark_s:.1f} s, {args.frames / tshark_s:,.0f} frames/s")
+        print(f"ratio nckemu / tshark: {tshark_s / ours_s:.2f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
