@@ -47,7 +47,7 @@ DT_HEADER_EOT = bytes([2, CODE_DT, DT_EOT])
 
 
 @dataclass(frozen=True, slots=True)
-class ConnectRequest:
+class _Connect:
     src_ref: int
     dst_ref: int = 0
     class_option: int = 0
@@ -58,14 +58,13 @@ class ConnectRequest:
 
 
 @dataclass(frozen=True, slots=True)
-class ConnectConfirm:
-    src_ref: int
-    dst_ref: int = 0
-    class_option: int = 0
-    calling_tsap: bytes | None = None
-    called_tsap: bytes | None = None
-    tpdu_size: int | None = None
-    other_parameters: tuple[tuple[int, bytes], ...] = ()
+class ConnectRequest(_Connect):
+    """CR, client to server."""
+
+
+@dataclass(frozen=True, slots=True)
+class ConnectConfirm(_Connect):
+    """CC, server to client (a distinct type: a session must not take one for the other)."""
 
 
 @dataclass(frozen=True, slots=True)
