@@ -34,9 +34,15 @@ class ServerLimits:
     partial_frame_timeout_s: float = 10.0
 
 
-class _Connection(asyncio.Protocol):
+# Bytes taken from one connection per event-loop turn. asyncio would hand over 256 KiB at once: a
+# client flooding jobs then holds the loop for hundreds of milliseconds while the others wait.
+READ_CHUNK_BYTES = 4 * 1024
+
+
+class _Connection(asyncio.BufferedProtocol):
     def __init__(self, server: EmulatorServer) -> None:
         self.server = server
+        self._read_buffer = bytearray(READ_CHUNK_BYTES)
         self.transport: asyncio.Transport | None = None
         self.session: ServerSession | None = None
         self.peer = ""
@@ -60,6 +66,12 @@ class _Connection(asyncio.Protocol):
                                      peer=self.peer)
         self.server.connections.add(self)
         log.info("connection from %s", self.peer)
+
+    def get_buffer(self, sizehint: int) -> bytearray:
+        return self._read_buffer
+
+    def buffer_updated(self, nbytes: int) -> None:
+        self.data_received(bytes(self._read_buffer[:nbytes]))
 
     def data_received(self, data: bytes) -> None:
         session, transport = self.session, self.transport

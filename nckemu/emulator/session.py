@@ -58,6 +58,9 @@ class SessionLimits:
     max_reassembly_bytes: int = 65535
     # A client's unframed bytes are kept up to this size (a frame's worth), then the connection closes.
     max_buffer_bytes: int = 65535 + 4
+    # Jobs beyond the AMQ get the controller's "no resources" answer; a client that sends more than
+    # this many times the AMQ at once is flooding and is disconnected.
+    flood_factor: int = 4
 
 
 @dataclass
@@ -137,6 +140,9 @@ class ServerSession:
         jobs_in_flight = 0
         for frame in frames:
             if self.closed:
+                break
+            if jobs_in_flight >= self.info.amq * self.limits.flood_factor:
+                self.close(f"flooding: more than {jobs_in_flight} jobs at once, AMQ is {self.info.amq}")
                 break
             if frame[4:7] == cotp.DT_HEADER_EOT and self.state is SessionState.READY and not self._fragments:
                 # The common case, a whole S7 PDU in one DT: skip building a DataTpdu for it.

@@ -170,3 +170,12 @@ def test_unwritable_state_raises_an_alarm_and_keeps_serving(tmp_path: Path) -> N
         directory.mkdir()
         client.put({"SD43900[AX4]": 0.3})
         assert client.get("numAlarms") == [0]
+
+
+def test_gross_flood_beyond_the_amq_is_disconnected(emulator: EmulatorThread) -> None:
+    sock = raw_connect(emulator.port)
+    handshake(sock)
+    sock.sendall(b"".join(job(200 + i, bytes.fromhex("040112088241000100011501")) for i in range(40)))
+    assert closed_by_server(sock, 3.0)  # 40 > 4 x AMQ 8: a flood, not a pipelining client
+    with NckClient("127.0.0.1", emulator.port) as good:
+        assert good.get("R1") == [0.0]
