@@ -188,6 +188,10 @@ def _feed(capture: Capture, connection: _Connection, from_client: bool, segment:
     seq = segment.seq
     payload = bytes(segment.data)
     if segment.flags & dpkt.tcp.TH_SYN:
+        if direction.isn is None and direction.next_seq is not None \
+                and ((direction.next_seq - (seq + 1)) & 0xFFFFFFFF) < 0x80000000:
+            direction.isn = seq  # captured after data it precedes: the stream so far stands
+            return
         if direction.isn != seq:  # a retransmitted SYN changes nothing; a new one starts afresh
             direction.isn = seq
             direction.next_seq = (seq + 1) & 0xFFFFFFFF

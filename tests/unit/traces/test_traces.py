@@ -112,7 +112,7 @@ def _pdus(path: Path) -> dict[tuple[str, bool], list[bytes]]:
     return streams
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(data=st.data())
 def test_reordered_and_duplicated_segments_decode_the_same(capture_path: Path, tmp_path_factory:
                                                            pytest.TempPathFactory, data: st.DataObject) -> None:
