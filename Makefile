@@ -31,7 +31,7 @@ tshark:
 	else echo "tshark is missing and we are not root: the tshark tests will skip"; fi
 
 lint: $(VENV)/.installed-test
-	$(VENV)/bin/ruff check nckemu tests bench examples
+	$(VENV)/bin/ruff check nckemu awlsimhw_nckemu tests bench examples
 
 test: $(VENV)/.installed-test tshark lint
 	$(PY) -m pytest

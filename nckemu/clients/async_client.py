@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from snap7.async_client import AsyncClient
+from snap7.type import Area
 
 from nckemu.protocol import pi, s7
 from nckemu.protocol.addresses import NckType
@@ -235,6 +236,15 @@ class AsyncNckClient:
     async def db_read(self, db_number: int, start: int, size: int) -> bytes:
         return bytes(await self._on_connection(f"DB{db_number}.DBB{start} read ({size} bytes)",
                                                lambda client: client.db_read(db_number, start, size)))
+
+    async def plc_read(self, area: int, db_number: int, start: int, size: int) -> bytes:
+        """Bytes of a PLC area (inputs, outputs, flags, a DB), as python-snap7's ``read_area``."""
+        try:
+            snap7_area = Area(int(area))
+        except ValueError:
+            raise NckConfigError(f"python-snap7 cannot read area 0x{int(area):02X}") from None
+        return bytes(await self._on_connection(f"area 0x{int(area):02X} byte {start} read ({size} bytes)",
+                                               lambda client: client.read_area(snap7_area, db_number, start, size)))
 
     async def db_write(self, db_number: int, start: int, data: bytes) -> None:
         await self._on_connection(f"DB{db_number}.DBB{start} write ({len(data)} bytes)",

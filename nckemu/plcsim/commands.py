@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 
 from nckemu.protocol.errors import NckConfigError
 
@@ -24,27 +25,72 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         epilog="example: nckemu plc run fixtures/plc/tc_z.awl --machine fixtures/machines/bed_ramp.toml "
                "--duration 2h")
     run.add_argument("program", help="STL source with OB1 (FB3 \"PUT\" is provided by nckemu)")
-    run.add_argument("--machine", help="machine TOML (sensor profiles drive the analog inputs)")
+    run.add_argument("--machine", help="machine TOML for the in-process emulator (sensor profiles drive the "
+                                       "analog inputs)")
+    run.add_argument("--emulator", metavar="HOST:PORT",
+                     help="run against this controller (a running `nckemu serve` or a real NCK) in real time, "
+                          "instead of an in-process emulator on simulated time")
+    run.add_argument("--speed", default="max",
+                     help="simulated time per real time, e.g. 1000x or 1x; max runs as fast as possible (max)")
     run.add_argument("--duration", default="2h", help="simulated time, e.g. 2h, 30min, 600s (2h)")
     run.add_argument("--cycle", default="1s", help="simulated PLC cycle time (1s)")
     run.add_argument("--axis", type=int, default=4, help="machine axis whose compensation is reported (4)")
     run.add_argument("--json", action="store_true")
     run.set_defaults(func=run_plc)
+    stubs = commands.add_parser("stubs", help="write the FB2/FB3/FB4 stub sources (for awlsim with -H nckemu)")
+    stubs.add_argument("directory", help="where to write fb2_get.awl, fb3_put.awl and fb4_pi_serv.awl")
+    stubs.set_defaults(func=write_stubs)
     plc.set_defaults(func=lambda args: plc.print_help() or 2)
+
+
+def _speed(text: str) -> float | None:
+    if text.lower() == "max":
+        return None
+    try:
+        speed = float(text.lower().removesuffix("x"))
+    except ValueError:
+        raise NckConfigError(f"--speed {text!r}: expected e.g. 1000x, 1x or max") from None
+    if speed <= 0:
+        raise NckConfigError("--speed must be positive")
+    return speed
+
+
+def write_stubs(args: argparse.Namespace) -> int:
+    import shutil
+    from pathlib import Path
+
+    from .bridge import STUB_SOURCES
+
+    target = Path(args.directory)
+    target.mkdir(parents=True, exist_ok=True)
+    for source in STUB_SOURCES:
+        shutil.copyfile(source, target / source.name)
+        print(target / source.name)
+    return 0
 
 
 def run_plc(args: argparse.Namespace) -> int:
     from .run import run_program
 
-    duration_s, cycle_s = _duration_s(args.duration), _duration_s(args.cycle)
+    try:
+        duration_s, cycle_s = _duration_s(args.duration), _duration_s(args.cycle)
+    except ValueError:
+        raise NckConfigError("--duration and --cycle take e.g. 2h, 30min, 600s") from None
     if duration_s <= 0 or cycle_s <= 0:
         raise NckConfigError("--duration and --cycle must be positive")
-    result = run_program(args.program, machine=args.machine, duration_s=duration_s, cycle_s=cycle_s, axis=args.axis)
+    speed = _speed(args.speed)
+    if args.emulator and speed not in (None, 1.0):
+        raise NckConfigError("--speed applies to the in-process emulator; --emulator runs in real time")
+    result = run_program(args.program, machine=args.machine, emulator=args.emulator, duration_s=duration_s,
+                         cycle_s=cycle_s, axis=args.axis, speed=speed)
     if args.json:
-        print(json.dumps({"samples": [vars(s) for s in result.samples],
-                          "puts": [vars(p) for p in result.log.puts], "errors": result.log.errors}))
+        samples = [{k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in vars(s).items()}
+                   for s in result.samples]  # NaN (not measured) is not JSON
+        print(json.dumps({"samples": samples,
+                          "jobs": [vars(j) for j in result.log.jobs], "errors": result.log.errors}))
     else:
-        print(f"{len(result.log.puts)} FB3 PUT jobs, {len(result.log.errors)} errors")
+        print(f"{len(result.log.puts)} FB3 PUT jobs, {len(result.log.gets)} FB2 GET jobs, "
+              f"{len(result.log.pi_calls)} FB4 PI_SERV jobs, {len(result.log.errors)} errors")
         for sample in result.samples[:: max(1, len(result.samples) // 12)]:
             print(f"t = {sample.time_s / 60:6.1f} min  sensor {sample.sensor_C:6.2f} degC  "
                   f"TC of axis {args.axis}: {sample.tc_value_mm:.4f} mm")

@@ -45,5 +45,6 @@ def test_cli(capsys: pytest.CaptureFixture[str]) -> None:
     from nckemu.cli import main
 
     assert main(["plc", "run", str(FIXTURES / "plc" / "tc_z.awl"), "--machine", str(MACHINE),
-                 "--duration", "10min"]) == 0
-    assert "FB3 PUT jobs, 0 errors" in capsys.readouterr().out
+                 "--duration", "10min"]) == 0  # a PUT every 62 s (60 s timer + 2 cycles)
+    out = capsys.readouterr().out
+    assert "9 FB3 PUT jobs, 0 FB2 GET jobs, 0 FB4 PI_SERV jobs, 0 errors" in out
