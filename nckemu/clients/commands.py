@@ -1,4 +1,4 @@
-"""``nckemu get | put | pi | comp840c``: one-shot client calls from the shell."""
+"""``nckemu get | put | pi | comp840c | lec``: one-shot client calls from the shell."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import argparse
 import asyncio
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from nckemu.protocol.addresses import NckType
@@ -61,6 +62,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     comp.add_argument("--dw", type=int, default=0, help="first data word n in the user DB (0)")
     _connection_options(comp)
     comp.set_defaults(func=run_comp840c, slot=2)
+
+    lec = subparsers.add_parser(
+        "lec", help="load a leadscrew compensation table program into a running emulator", formatter_class=raw,
+        description="Sends nckemu's PI service _N_NCKEMU_LEC with the program's path: the emulator reads the "
+                    "file on its own host (the same machine for a loopback emulator). As on the control, tables "
+                    "load only while MD32700 = 0 and act after power-on with MD32700 = 1 and the axis referenced.",
+        epilog="example: nckemu lec --port 1102 --password EVENING --power-on fixtures/lec/x_axis.mpf")
+    lec.add_argument("program", help="NC program with $AA_ENC_COMP[...] lines")
+    lec.add_argument("--password", help="log in first (_N_LOGIN_): loading needs MD32700's write level")
+    lec.add_argument("--power-on", action="store_true", help="then power on the NCK (_N_NCKRES)")
+    _connection_options(lec)
+    lec.set_defaults(func=run_lec)
 
 
 def _client(args: argparse.Namespace) -> AsyncNckClient:
@@ -162,4 +175,43 @@ def run_comp840c(args: argparse.Namespace) -> int:
 
     asyncio.run(go())
     print(json.dumps({"axis": args.axis, "ok": True}) if args.json else f"840C TC sent for axis {args.axis}")
+    return 0
+
+
+def _check_leadscrew_program(path: Path) -> None:
+    """Syntax, index gaps and parameters, checked here so that errors name the line; the axes and
+    MD38000 are checked by the controller."""
+    from nckemu.emulator.nck.leadscrew import parse_leadscrew_program
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise NckConfigError(f"cannot read: {exc}", path=str(path)) from None
+    axes: dict[str, int] = {}
+    parse_leadscrew_program(text, str(path), lambda ref: axes.setdefault(ref.upper(), len(axes) + 1),
+                            lambda _axis, _encoder: 1 << 30)
+
+
+def run_lec(args: argparse.Namespace) -> int:
+    from nckemu.emulator.nck.model import PI_LOAD_LEADSCREW, PI_POWER_ON
+
+    path = Path(args.program).resolve()
+    _check_leadscrew_program(path)
+
+    async def go() -> None:
+        async with _client(args) as client:
+            if args.password:
+                await client.login(args.password)
+            try:
+                await client.pi_service(PI_LOAD_LEADSCREW, "/NC", str(path))
+            except NckError as exc:
+                raise type(exc)(f"{path}: the controller refused the table ({exc}); its log names the line",
+                                error_class=exc.error_class, error_code=exc.error_code) from None
+            if args.power_on:
+                await client.pi_service(PI_POWER_ON, "/NC")
+
+    asyncio.run(go())
+    done = "loaded and powered on" if args.power_on else "loaded; active after power-on"
+    print(json.dumps({"program": str(path), "ok": True, "power_on": args.power_on}) if args.json
+          else f"{path}: {done}")
     return 0

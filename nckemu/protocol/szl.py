@@ -17,6 +17,7 @@ METHOD_REQUEST = 0x11
 METHOD_RESPONSE = 0x12
 GROUP_CPU_FUNCTIONS = 0x04
 SUBFUNCTION_READ_SZL = 0x01
+TYPE_PUSH = 0x0
 TYPE_REQUEST = 0x4
 TYPE_RESPONSE = 0x8
 # Userdata error code for an SZL the CPU does not have ("invalid SZL ID", as S7 CPUs answer).
@@ -43,7 +44,9 @@ def parse_szl_request(parameter: bytes, data: bytes) -> SzlReadRequest:
     if len(parameter) < 8 or parameter[:3] != b"\x00\x01\x12":
         raise NckProtocolError("userdata parameter head is not 00 01 12")
     method, type_group, subfunction, sequence = parameter[4], parameter[5], parameter[6], parameter[7]
-    if method != METHOD_REQUEST or type_group >> 4 != TYPE_REQUEST:
+    # pyS7 (0.x) sends its SZL reads with type 0 ("push") and the request method; it works against
+    # real CPUs, which go by the method, so we do too.
+    if method != METHOD_REQUEST or type_group >> 4 not in (TYPE_REQUEST, TYPE_PUSH):
         raise NckProtocolError("userdata is not a request")
     if type_group & 0x0F != GROUP_CPU_FUNCTIONS or subfunction != SUBFUNCTION_READ_SZL:
         raise NckServiceError(f"userdata group {type_group & 0x0F} subfunction {subfunction} not served",

@@ -130,3 +130,17 @@ def test_pys7_reads_and_writes_a_db(emulator: EmulatorThread) -> None:
         assert client.read(["DB130,INT20"]) == [-7]
     finally:
         client.disconnect()
+
+
+def test_pys7_cpu_status_and_info(emulator: EmulatorThread) -> None:
+    """pys7 asks for SZL 0x0424 (status) and 0x001C (identification), as it would of a real CPU."""
+    from pyS7 import S7Client
+
+    client = S7Client(address="127.0.0.1", rack=0, slot=2, port=emulator.port)
+    client.connect()
+    try:
+        assert client.get_cpu_status() == "RUN"
+        info = client.get_cpu_info()
+        assert info
+    finally:
+        client.disconnect()

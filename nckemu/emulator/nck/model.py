@@ -44,9 +44,13 @@ PI_ERROR_BAD_ARGUMENTS = (0xD4, 0x05)        # syntax error in function paramete
 PI_ERROR_WRONG_PASSWORD = (0xD6, 0x02)       # incorrect password entered
 PI_ERROR_NO_SUCH_FILE = (0xD2, 0x01)         # syntax error in block name (no such program)
 PI_ERROR_STATE = (0x84, 0x02)                # service cannot execute owing to the object's status
+PI_ERROR_ACCESS = (0x87, 0x03)               # access to object refused (protection level)
 
 # The power-on / NCK reset service name is not in our sources: an assumption.
 PI_POWER_ON = "_N_NCKRES"
+# nckemu extension (no Siemens service): load a leadscrew table program from a file on the emulator's
+# host, as `serve --lec` does at start. Arguments: the address identification and the file's path.
+PI_LOAD_LEADSCREW = "_N_NCKEMU_LEC"
 
 TC_BIT_POSITION_INDEPENDENT = 0x01
 TC_BIT_POSITION_DEPENDENT = 0x02
@@ -485,6 +489,34 @@ class NckModel:
     def _pi_power_on(self, arguments: list[str], ctx: AccessContext) -> None:
         self.power_on()
 
+    def _pi_load_leadscrew(self, arguments: list[str], ctx: AccessContext) -> None:
+        from .table import find_by_name
+
+        enable = find_by_name("ENC_COMP_ENABLE")
+        assert enable is not None
+        if not ctx.may(enable.write_level):  # the same protection as the machine data that enables it
+            raise NckServiceError(f"loading a table needs access level {enable.write_level}",
+                                  error_class=PI_ERROR_ACCESS[0], error_code=PI_ERROR_ACCESS[1])
+        path = arguments[1]
+        try:
+            with open(path, encoding="utf-8") as handle:
+                text = handle.read()
+        except (OSError, UnicodeDecodeError) as exc:
+            log.warning("%s %s: cannot read (%s)", PI_LOAD_LEADSCREW, path, exc)
+            raise NckServiceError(f"cannot read {path}", error_class=PI_ERROR_NO_SUCH_FILE[0],
+                                  error_code=PI_ERROR_NO_SUCH_FILE[1]) from None
+        try:
+            tables = self.load_leadscrew_program(text, path)
+        except NckServiceError as exc:
+            log.warning("%s: %s", PI_LOAD_LEADSCREW, exc)
+            raise
+        except NckConfigError as exc:  # the wire has no room for the line; the log has it
+            log.warning("%s: %s", PI_LOAD_LEADSCREW, exc)
+            raise NckServiceError(str(exc), error_class=PI_ERROR_BAD_ARGUMENTS[0],
+                                  error_code=PI_ERROR_BAD_ARGUMENTS[1]) from None
+        log.info("%s: %d table(s) from %s; active after power-on with MD32700 = 1", PI_LOAD_LEADSCREW,
+                 len(tables), path)
+
     def add_program(self, path: str) -> None:
         self._programs.add(path)
 
@@ -536,4 +568,5 @@ _PI_HANDLERS: dict[str, tuple[int, Callable[[NckModel, list[str], AccessContext]
     "_N_F_DELE": (2, NckModel._pi_delete),
     "_N_SETUDT": (1, NckModel._pi_setudt),
     PI_POWER_ON: (1, NckModel._pi_power_on),
+    PI_LOAD_LEADSCREW: (2, NckModel._pi_load_leadscrew),
 }
