@@ -1,12 +1,16 @@
 """Server throughput and latency: nckemu against python-snap7's own Server, same load, same run.
 
-Loads (each from 1 and 8 client processes, python-snap7 Client over loopback):
-* NCK REAL8 read: one NCK item (SD43900 of axis 4) through ``iso_exchange_buffer``;
-* DB read: ``db_read(db, 0, 4)``.
+Loads (each from 1 and 8 client processes over loopback):
+* NCK REAL8 read: one NCK item (SD43900 of axis 4);
+* DB read: 4 bytes of a DB.
+Drivers: ``snap7``, python-snap7's Client (``iso_exchange_buffer`` and ``db_read``), and ``raw``, a
+load generator that sends the very same request frames from pre-built bytes over a plain socket
+and reads the answers. python-snap7's Client is pure Python and, on a small machine, the client
+processes take most of the CPU; the raw driver leaves the CPU to the server under test.
 The anchor (python-snap7 3.3 Server) answers the NCK read with DB1 bytes (it ignores the syntax
 ID), so it does the same amount of work per request: the comparison is of request handling.
 
-Usage: .venv/bin/python bench/bench_server.py [--seconds 3] [--clients 1 8]
+Usage: .venv/bin/python bench/bench_server.py [--seconds 3] [--clients 1 8] [--drivers snap7 raw]
 """
 
 from __future__ import annotations
@@ -89,10 +93,70 @@ def client_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) 
     out.put(latencies)
 
 
-def measure(port: int, load: str, clients: int, seconds: float, db: int) -> dict[str, float]:
+def _raw_frames(load: str, db: int) -> tuple[bytes, bytes, bytes]:
+    """COTP CR (rack 0, slot 4), setup communication (PDU 480, AMQ 1) and the request, as sent by
+    python-snap7."""
+    sys.path.insert(0, str(REPO))
+    from nckemu.protocol import cotp, s7
+    from nckemu.protocol.addresses import S7AnyAddress
+
+    connect = cotp.build_frame(cotp.ConnectRequest(src_ref=1, calling_tsap=b"\x01\x00", called_tsap=b"\x01\x04",
+                                                   tpdu_size=1024))
+    setup = cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 0, s7.build_setup_communication(
+        s7.SetupCommunication(1, 1, 480)))))
+    if load == "nck":
+        request = cotp.build_data_frame(NCK_READ_PDU)
+    else:
+        item = S7AnyAddress(transport_size=0x02, count=4, db_number=db, area=0x84, byte_address=0)
+        request = cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 1, s7.build_read_var_request(
+            s7.ReadVarRequest((item,))))))
+    return connect, setup, request
+
+
+def _receive_frame(sock: socket.socket) -> bytes:
+    head = b""
+    while len(head) < 4:
+        chunk = sock.recv(4 - len(head))
+        if not chunk:
+            raise ConnectionError("server closed the connection")
+        head += chunk
+    length = int.from_bytes(head[2:4], "big")
+    body = b""
+    while len(body) < length - 4:
+        chunk = sock.recv(length - 4 - len(body))
+        if not chunk:
+            raise ConnectionError("server closed the connection")
+        body += chunk
+    return head + body
+
+
+def raw_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) -> None:  # type: ignore[type-arg]
+    connect, setup, request = _raw_frames(load, db)
+    sock = socket.create_connection(("127.0.0.1", port))
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    for frame in (connect, setup):
+        sock.sendall(frame)
+        _receive_frame(sock)
+    latencies: list[float] = []
+    deadline = time.perf_counter() + seconds
+    while True:
+        start = time.perf_counter()
+        if start >= deadline:
+            break
+        sock.sendall(request)
+        answer = _receive_frame(sock)
+        if len(answer) < 22 or answer[21] != 0xFF:  # TPKT 4 + COTP 3 + ack header 12 + parameter 2
+            raise RuntimeError(f"the read failed: {answer.hex()}")
+        latencies.append(time.perf_counter() - start)
+    sock.close()
+    out.put(latencies)
+
+
+def measure(port: int, load: str, clients: int, seconds: float, db: int, driver: str = "snap7") -> dict[str, float]:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    workers = [ctx.Process(target=client_worker, args=(port, load, seconds, db, queue))
+    target = raw_worker if driver == "raw" else client_worker
+    workers = [ctx.Process(target=target, args=(port, load, seconds, db, queue))
                for _ in range(clients)]
     for worker in workers:
         worker.start()
@@ -113,6 +177,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--clients", type=int, nargs="+", default=[1, 8])
+    parser.add_argument("--drivers", nargs="+", choices=("snap7", "raw"), default=["snap7", "raw"])
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     results = []
@@ -121,22 +186,25 @@ def main() -> int:
         process = starter(port)
         try:
             wait_port(port)
-            for load in ("nck", "db"):
-                for clients in args.clients:
-                    figures = measure(port, load, clients, args.seconds, db)
-                    results.append({"server": name, "load": load, "clients": clients, **figures})
+            for driver in args.drivers:
+                for load in ("nck", "db"):
+                    for clients in args.clients:
+                        figures = measure(port, load, clients, args.seconds, db, driver)
+                        results.append({"server": name, "driver": driver, "load": load, "clients": clients,
+                                        **figures})
         finally:
             process.terminate()
             process.wait(timeout=10)
-    anchor = {(r["load"], r["clients"]): r for r in results if r["server"].startswith("python-snap7")}
+    anchor = {(r["driver"], r["load"], r["clients"]): r for r in results if r["server"].startswith("python-snap7")}
     if args.json:
         print(json.dumps(results, indent=2))
         return 0
     print(f"machine: {os.cpu_count()} cores; {args.seconds:.0f} s per point")
-    print(f"{'server':30} {'load':5} {'clients':>7} {'req/s':>9} {'p50 ms':>8} {'p99 ms':>8} {'x anchor':>9}")
-    for r in results:
-        ratio = r["requests_per_s"] / anchor[(r["load"], r["clients"])]["requests_per_s"]
-        print(f"{r['server']:30} {r['load']:5} {r['clients']:>7} {r['requests_per_s']:>9.0f} "
+    print(f"{'server':30} {'driver':6} {'load':5} {'clients':>7} {'req/s':>9} {'p50 ms':>8} {'p99 ms':>8} "
+          f"{'x anchor':>9}")
+    for r in sorted(results, key=lambda r: (r["driver"], r["load"], r["clients"], r["server"])):
+        ratio = r["requests_per_s"] / anchor[(r["driver"], r["load"], r["clients"])]["requests_per_s"]
+        print(f"{r['server']:30} {r['driver']:6} {r['load']:5} {r['clients']:>7} {r['requests_per_s']:>9.0f} "
               f"{r['p50_ms']:>8.3f} {r['p99_ms']:>8.3f} {ratio:>9.2f}")
     return 0
 

@@ -9,6 +9,9 @@ import json
 import logging
 import signal
 import sys
+from collections.abc import Callable
+
+from nckemu.protocol.errors import NckConfigError
 
 from .core import Emulator
 from .server import EmulatorServer, ServerLimits
@@ -41,8 +44,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help="seconds without a byte before a connection is closed")
     parser.add_argument("--partial-frame-timeout", type=float, default=ServerLimits.partial_frame_timeout_s,
                         help="seconds a begun frame may take to complete")
+    parser.add_argument("--loop", choices=("auto", "uvloop", "asyncio"), default="auto",
+                        help="event loop: uvloop (faster, libuv) when installed, else asyncio's own (auto)")
     parser.add_argument("--json", action="store_true", help="print the ready line as JSON")
     parser.set_defaults(func=run_serve)
+
+
+def loop_factory(choice: str = "auto") -> Callable[[], asyncio.AbstractEventLoop]:
+    """uvloop's loop when it is installed (and not refused), else asyncio's."""
+    if choice != "asyncio":
+        try:
+            import uvloop
+        except ImportError:
+            if choice == "uvloop":
+                raise NckConfigError("--loop uvloop: uvloop is not installed (pip install uvloop)") from None
+        else:
+            return uvloop.new_event_loop
+    return asyncio.new_event_loop
 
 
 def run_serve(args: argparse.Namespace) -> int:
@@ -57,7 +75,8 @@ def run_serve(args: argparse.Namespace) -> int:
     server = EmulatorServer(emulator, host=args.host, port=args.port, limits=limits,
                             record_path=args.record)
     try:
-        return asyncio.run(_serve(server, args))
+        with asyncio.Runner(loop_factory=loop_factory(args.loop)) as runner:
+            return runner.run(_serve(server, args))
     except KeyboardInterrupt:
         return 0
 

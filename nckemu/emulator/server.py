@@ -11,6 +11,7 @@ import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 from nckemu.traces.capture import CaptureWriter
 
@@ -51,8 +52,9 @@ class _Connection(asyncio.BufferedProtocol):
         self.partial_since_s: float | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        assert isinstance(transport, asyncio.Transport)
-        self.transport = transport
+        # uvloop's TCP transport has asyncio.Transport's methods without being its subclass.
+        self.transport = cast(asyncio.Transport, transport)
+        transport = self.transport
         peername = transport.get_extra_info("peername")
         self.peer = f"{peername[0]}:{peername[1]}" if peername else "?"
         if len(self.server.connections) >= self.server.limits.max_connections:

@@ -7,14 +7,10 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from nckemu.protocol.errors import NckConfigError
 
-from .discover import discover
-from .recording import Recording, load_recording, write_recording
-from .report import write_report
-from .terms import load_model, render_model
+# numpy/scipy and the modules on them load when a command runs, not for every `nckemu` call
+# (importing scipy.signal takes over a second and `nckemu serve` does not need it).
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -43,6 +39,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 
 def run_simulate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .recording import Recording, load_recording, write_recording
+    from .terms import load_model
+
     model = load_model(args.model)
     recording = load_recording(args.inputs)
     prediction = model.predict_um(recording)
@@ -62,6 +63,11 @@ def run_simulate(args: argparse.Namespace) -> int:
 
 
 def run_discover(args: argparse.Namespace) -> int:
+    from .discover import discover
+    from .recording import load_recording
+    from .report import write_report
+    from .terms import load_model, render_model
+
     model = load_model(args.model) if args.model else None
     recording = load_recording(args.recording)
     if model is None and args.axis and args.axis not in recording.simulated_um:
