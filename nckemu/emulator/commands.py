@@ -89,8 +89,9 @@ async def _serve(server: EmulatorServer, args: argparse.Namespace) -> int:
             print(f"nckemu serve: cannot bind {args.host}:{args.port} (permission denied: ports below "
                   f"1024 need root). Try: nckemu serve --port 1102", file=sys.stderr)
         elif exc.errno == errno.EADDRINUSE:
-            print(f"nckemu serve: {args.host}:{args.port} is already in use. Try another port, "
-                  f"e.g. --port 1102", file=sys.stderr)
+            other = args.port + 1 if args.port >= 1024 else 1102
+            print(f"nckemu serve: {args.host}:{args.port} is already in use (another nckemu serve?). "
+                  f"Stop it, or use another port, e.g. --port {other} (make serve PORT={other})", file=sys.stderr)
         else:
             print(f"nckemu serve: cannot bind {args.host}:{args.port}: {exc}", file=sys.stderr)
         return 1

@@ -144,3 +144,19 @@ def test_pys7_cpu_status_and_info(emulator: EmulatorThread) -> None:
         assert info
     finally:
         client.disconnect()
+
+
+def test_python_snap7_get_cpu_state_gets_the_controllers_refusal(emulator: EmulatorThread) -> None:
+    """python-snap7 3.3's get_cpu_state sends a read-var job with a 1-byte parameter (no item count).
+    A controller refuses such a frame with a header error; so do we, and the connection goes on."""
+    import snap7
+    from snap7.error import S7ProtocolError
+
+    client = snap7.Client()
+    client.connect("127.0.0.1", 0, 2, emulator.port)
+    try:
+        with pytest.raises(S7ProtocolError, match="class=0x85"):
+            client.get_cpu_state()
+        assert client.get_cpu_info().ModuleTypeName
+    finally:
+        client.disconnect()
