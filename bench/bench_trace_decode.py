@@ -1,7 +1,8 @@
 """Trace decode rate: ``nckemu``'s reader and decoder against ``tshark -T fields`` on the same file.
 
 A capture of N frames (request/answer pairs of NCK reads on one connection) is generated from two
-packet templates with patched TCP sequence numbers, then both decoders read it.
+packet templates with patched TCP sequence numbers, PDU references and values, then both decoders
+read it; ours gives every item its name, return code and value.
 
 Usage: .venv/bin/python bench/bench_trace_decode.py [--frames 1000000]
 """
@@ -31,6 +32,10 @@ ANSWER = cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(3, 1, *s7.build_read_var_re
     s7.DataItem(0xFF, 0x09, struct.pack("<d", 0.3)), s7.DataItem(0xFF, 0x09, struct.pack("<d", 0.1))))))))
 
 
+S7_PDU_REF = 14 + 20 + 20 + 4 + 3 + 4      # Ethernet, IPv4, TCP, TPKT, COTP DT, then the S7 header's reference
+FIRST_VALUE = 14 + 20 + 20 + 4 + 3 + 12 + 2 + 4   # ... the answer's header and parameter, the item's header
+
+
 def write_big_capture(path: Path, frames: int) -> None:
     with tempfile.TemporaryDirectory() as scratch:
         template = Path(scratch) / "t.pcap"
@@ -53,6 +58,10 @@ def write_big_capture(path: Path, frames: int) -> None:
             for packet, seq, ack in ((request, client_seq, server_seq), (answer, server_seq, client_seq)):
                 patched = bytearray(packet)
                 struct.pack_into(">II", patched, tcp_seq, seq & 0xFFFFFFFF, ack & 0xFFFFFFFF)
+                # As from a real client: a new PDU reference per job; as from a real NCK: a new value.
+                struct.pack_into(">H", patched, S7_PDU_REF, index % 0xFFFF + 1)
+                if packet is answer:
+                    struct.pack_into("<d", patched, FIRST_VALUE, 0.3 + index * 1e-6)
                 handle.write(record.pack(1_700_000_000 + index // 1000, (index % 1000) * 1000, len(patched),
                                          len(patched)))
                 handle.write(patched)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from .addresses import BIG_ENDIAN_AREAS, NckType
 from .errors import NckTypeInconsistent
@@ -101,6 +101,30 @@ def decode_nck_values(nck_type: NckType, data: bytes, *, area: int, line_count: 
     if nck_type == NckType.BOOL:
         return [bool(v) for v in values]
     return values
+
+
+def nck_value_reader(nck_type: NckType, *, area: int, line_count: int = 1,
+                     string_length: int | None = None) -> Callable[[bytes], object]:
+    """A function of the item's bytes giving what ``decode_nck_values`` gives (one value alone, else the
+    list), built once for a variable that is read many times; wrong lengths raise as there."""
+    nck_type = NckType(nck_type)
+    size = value_size(nck_type, string_length)
+    if nck_type in (NckType.STRING, NckType.BOOL) or line_count < 1:
+        def general(data: bytes) -> object:
+            values = decode_nck_values(nck_type, data, area=area, line_count=line_count,
+                                       string_length=string_length)
+            return values[0] if len(values) == 1 else values
+        return general
+    codec = _codec(nck_type, area in BIG_ENDIAN_AREAS, line_count)
+    expected = size * line_count
+
+    def read(data: bytes) -> object:
+        if len(data) != expected:
+            raise NckTypeInconsistent(f"{len(data)} bytes for {line_count} value(s) of {size} bytes "
+                                      f"({nck_type.name})")
+        values = codec.unpack(data)
+        return values[0] if line_count == 1 else list(values)
+    return read
 
 
 def is_finite(value: object) -> bool:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -10,7 +11,7 @@ from nckemu.protocol import pi, s7, szl
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
 from nckemu.protocol.errors import NckError
-from nckemu.protocol.values import decode_nck_values
+from nckemu.protocol.values import decode_nck_values, nck_value_reader
 
 from .reader import Capture, TracePdu
 
@@ -48,6 +49,7 @@ class Exchange:
     items: list[Item] = field(default_factory=list)
     detail: str = ""
     header_error: str = ""
+    readers: list[Any] | None = field(default=None, repr=False, compare=False)  # value readers of a read job
 
     def to_json(self) -> dict[str, Any]:
         return {"frame": self.job.frame, "answer_frame": self.answer.frame if self.answer else None,
@@ -108,6 +110,80 @@ def _value(address: object, data: bytes, nck_type: NckType | None, length: int |
     return None
 
 
+_ReadItem = tuple[object, str, "Callable[[bytes], Any] | None"]
+# Read jobs by their parameter bytes: a PLC or HMI polls the same items over and over.
+_READ_JOBS: dict[bytes, tuple[_ReadItem, ...]] = {}
+_MAX_CACHED_JOBS = 4096
+
+
+def _read_job_items(parameter: bytes) -> tuple[_ReadItem, ...]:
+    items = _READ_JOBS.get(parameter)
+    if items is None:
+        built = []
+        for address in s7.parse_read_var_request(parameter).items:
+            name, nck_type, length, _unit = name_of(address)
+            reader = None
+            if isinstance(address, NckAddress) and nck_type is not None:
+                try:
+                    reader = nck_value_reader(nck_type, area=address.area, line_count=address.line_count,
+                                              string_length=length)
+                except NckError:
+                    reader = None
+            built.append((address, name, reader))
+        items = tuple(built)
+        if len(_READ_JOBS) < _MAX_CACHED_JOBS:
+            _READ_JOBS[parameter] = items
+    return items
+
+
+def _fast_read_job(pdu: TracePdu, data: bytes) -> Exchange | None:
+    """A read-var job with no data part, straight from the header (the hot path of field traces)."""
+    parameter_length = data[6] << 8 | data[7]
+    if data[8] or data[9] or len(data) != 10 + parameter_length or data[10] != s7.Function.READ_VAR:
+        return None
+    items = _read_job_items(data[10:])
+    exchange = Exchange(pdu.connection, pdu, None, "read", data[4] << 8 | data[5],
+                        [Item(address, name) for address, name, _reader in items])
+    exchange.readers = [reader for _address, _name, reader in items]
+    return exchange
+
+
+def _fast_read_answer(exchange: Exchange, data: bytes) -> bool:
+    """Return codes and values of a read-var answer; False leaves it to the general path."""
+    parameter_length = data[6] << 8 | data[7]
+    data_length = data[8] << 8 | data[9]
+    if data[10] or data[11] or parameter_length != 2 or len(data) != 12 + 2 + data_length \
+            or data[12] != s7.Function.READ_VAR or data[13] != len(exchange.items):
+        return False
+    offset = 14
+    end = len(data)
+    results = []
+    for index in range(len(exchange.items)):
+        if offset + 4 > end:
+            return False
+        return_code, transport_size = data[offset], data[offset + 1]
+        length = data[offset + 2] << 8 | data[offset + 3]
+        if transport_size in s7.BIT_LENGTH_TRANSPORT_SIZES and transport_size != 0x03:
+            length = (length + 7) // 8  # the length is in bits (a BIT item's is its byte count)
+        value_end = offset + 4 + length
+        if value_end > end:
+            return False
+        results.append((return_code, data[offset + 4:value_end]))
+        offset = value_end + (length & 1 if index + 1 < len(exchange.items) else 0)
+    if offset != end:
+        return False
+    readers = exchange.readers
+    for item, reader, (return_code, raw) in zip(exchange.items, readers, results, strict=True):
+        item.return_code = return_code
+        item.raw = raw.hex()
+        if return_code == 0xFF and reader is not None:
+            try:
+                item.value = reader(raw)
+            except NckError:
+                item.value = None
+    return True
+
+
 def decode(capture: Capture) -> list[Exchange]:
     """Pair each client job with the answer bearing its PDU reference on the same connection."""
     open_jobs: dict[tuple[int, int], Exchange] = {}
@@ -115,6 +191,20 @@ def decode(capture: Capture) -> list[Exchange]:
     for pdu in capture.pdus:
         if pdu.kind != "s7":
             continue
+        data = pdu.data
+        if len(data) > 14 and data[0] == 0x32:
+            if pdu.from_client and data[1] == s7.Rosctr.JOB:
+                fast_job = _fast_read_job(pdu, data)
+                if fast_job is not None:
+                    open_jobs[(pdu.connection, fast_job.pdu_ref)] = fast_job
+                    exchanges.append(fast_job)
+                    continue
+            elif not pdu.from_client and data[1] == s7.Rosctr.ACK_DATA:
+                waiting = open_jobs.get((pdu.connection, data[4] << 8 | data[5]))
+                if waiting is not None and waiting.readers is not None and _fast_read_answer(waiting, data):
+                    del open_jobs[(pdu.connection, waiting.pdu_ref)]
+                    waiting.answer = pdu
+                    continue
         try:
             parsed = s7.parse_pdu(pdu.data)
         except NckError as exc:
