@@ -35,6 +35,8 @@ from .nck.access import AccessContext
 log = logging.getLogger(__name__)
 
 RC_SUCCESS = 0xFF
+# Read jobs by parameter bytes: clients poll the same items; the parsed request is immutable.
+MAX_CACHED_READ_REQUESTS = 1024
 RC_HARDWARE_ERROR = 0x01
 
 # Data-item transport sizes of answers to S7ANY reads (the length counts bits for 0x03/0x04/0x05).
@@ -72,6 +74,7 @@ class Dispatcher:
         self.plc = plc
         self._persist = persist
         self.default_access_level = default_access_level
+        self._read_requests: dict[bytes, s7.ReadVarRequest] = {}
 
     def new_access_context(self, peer: str) -> AccessContext:
         return AccessContext(level=self.default_access_level, client=peer)
@@ -80,7 +83,11 @@ class Dispatcher:
     def job(self, pdu: s7.S7Pdu, ctx: AccessContext) -> s7.S7Pdu | None:
         function = pdu.parameter[0]
         if function == s7.Function.READ_VAR:
-            request = s7.parse_read_var_request(pdu.parameter)
+            request = self._read_requests.get(pdu.parameter)
+            if request is None:
+                request = s7.parse_read_var_request(pdu.parameter)
+                if len(self._read_requests) < MAX_CACHED_READ_REQUESTS:
+                    self._read_requests[pdu.parameter] = request
             parameter, data = s7.build_read_var_response(self.read_var(request, ctx))
         elif function == s7.Function.WRITE_VAR:
             write = s7.parse_write_var_request(pdu.parameter, pdu.data)
