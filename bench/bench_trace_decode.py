@@ -1,10 +1,11 @@
 """Trace decode rate: ``nckemu``'s reader and decoder against ``tshark -T fields`` on the same file.
 
-A capture of N frames (request/answer pairs of NCK reads on one connection) is generated from two
-packet templates with patched TCP sequence numbers, PDU references and values, then both decoders
-read it; ours gives every item its name, return code and value.
+A capture of N frames (request/answer pairs of NCK reads on one connection), as classic pcap and as
+pcapng (what Wireshark writes), is generated from two packet templates with patched TCP sequence
+numbers, PDU references and values, then both decoders read it; ours gives every item its name,
+return code and value.
 
-Usage: .venv/bin/python bench/bench_trace_decode.py [--frames 1000000]
+Usage: .venv/bin/python bench/bench_trace_decode.py [--frames 1000000] [--format pcap|pcapng|both]
 """
 
 from __future__ import annotations
@@ -36,7 +37,14 @@ S7_PDU_REF = 14 + 20 + 20 + 4 + 3 + 4      # Ethernet, IPv4, TCP, TPKT, COTP DT,
 FIRST_VALUE = 14 + 20 + 20 + 4 + 3 + 12 + 2 + 4   # ... the answer's header and parameter, the item's header
 
 
-def write_big_capture(path: Path, frames: int) -> None:
+def _pcapng_head() -> bytes:
+    """Section header and interface description (Ethernet, microseconds), as Wireshark writes them."""
+    section = struct.pack("<IIIHHq", 0x0A0D0D0A, 28, 0x1A2B3C4D, 1, 0, -1) + struct.pack("<I", 28)
+    interface = struct.pack("<IIHHI", 1, 20, 1, 0, 262144) + struct.pack("<I", 20)
+    return section + interface
+
+
+def write_big_capture(path: Path, frames: int, pcapng: bool = False) -> None:
     with tempfile.TemporaryDirectory() as scratch:
         template = Path(scratch) / "t.pcap"
         write_capture(template, [(True, REQUEST), (False, ANSWER)])
@@ -51,7 +59,7 @@ def write_big_capture(path: Path, frames: int) -> None:
     request, answer = packets[3], packets[4]  # after the three-way handshake
     tcp_seq = 14 + 20 + 4  # Ethernet + IPv4 header, then the TCP sequence number
     with path.open("wb") as handle:
-        handle.write(header)
+        handle.write(_pcapng_head() if pcapng else header)
         client_seq, server_seq = struct.unpack_from(">II", request, tcp_seq)
         record = struct.Struct("<IIII")
         for index in range(frames // 2):
@@ -62,41 +70,58 @@ def write_big_capture(path: Path, frames: int) -> None:
                 struct.pack_into(">H", patched, S7_PDU_REF, index % 0xFFFF + 1)
                 if packet is answer:
                     struct.pack_into("<d", patched, FIRST_VALUE, 0.3 + index * 1e-6)
-                handle.write(record.pack(1_700_000_000 + index // 1000, (index % 1000) * 1000, len(patched),
-                                         len(patched)))
-                handle.write(patched)
+                seconds, microseconds = 1_700_000_000 + index // 1000, (index % 1000) * 1000
+                if pcapng:  # an enhanced packet block
+                    block_length = 32 + len(patched) + (-len(patched) % 4)
+                    stamp = seconds * 1_000_000 + microseconds
+                    handle.write(struct.pack("<IIIIIII", 6, block_length, 0, stamp >> 32, stamp & 0xFFFFFFFF,
+                                             len(patched), len(patched)))
+                    handle.write(patched + bytes(-len(patched) % 4) + struct.pack("<I", block_length))
+                else:
+                    handle.write(record.pack(seconds, microseconds, len(patched), len(patched)))
+                    handle.write(patched)
             client_seq += len(REQUEST)
             server_seq += len(ANSWER)
+
+
+def measure(path: Path, frames: int) -> tuple[float, float | None]:
+    """Seconds for ours and for tshark (None when tshark is not installed) on one file."""
+    started = time.perf_counter()
+    capture = read_capture(path)
+    exchanges = decode(capture)
+    ours_s = time.perf_counter() - started
+    print(f"  nckemu: {len(exchanges):,} exchanges, {len(capture.problems)} problems, {ours_s:.1f} s, "
+          f"{frames / ours_s:,.0f} frames/s")
+    tshark = shutil.which("tshark")
+    if tshark is None:
+        print("  tshark not installed: no comparison")
+        return ours_s, None
+    started = time.perf_counter()
+    result = subprocess.run([tshark, "-r", str(path), "-T", "fields", "-e", "frame.number",
+                             "-e", "s7comm.param.item.nck.column", "-e", "s7comm.data.returncode"],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, check=True)
+    tshark_s = time.perf_counter() - started
+    lines = result.stdout.count(b"\n")
+    print(f"  tshark: {lines:,} lines, {tshark_s:.1f} s, {frames / tshark_s:,.0f} frames/s")
+    print(f"  ratio nckemu / tshark: {tshark_s / ours_s:.2f}x")
+    return ours_s, tshark_s
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=1_000_000)
+    parser.add_argument("--format", choices=("pcap", "pcapng", "both"), default="both")
     args = parser.parse_args()
+    formats = ("pcap", "pcapng") if args.format == "both" else (args.format,)
     with tempfile.TemporaryDirectory() as scratch:
-        path = Path(scratch) / "big.pcap"
-        started = time.perf_counter()
-        write_big_capture(path, args.frames)
-        print(f"generated {args.frames:,} frames ({path.stat().st_size / 1e6:.0f} MB) in "
-              f"{time.perf_counter() - started:.1f} s")
-        started = time.perf_counter()
-        capture = read_capture(path)
-        exchanges = decode(capture)
-        ours_s = time.perf_counter() - started
-        print(f"nckemu: {len(exchanges):,} exchanges, {len(capture.problems)} problems, {ours_s:.1f} s, "
-              f"{args.frames / ours_s:,.0f} frames/s")
-        tshark = shutil.which("tshark")
-        if tshark is None:
-            print("tshark not installed: no comparison")
-            return 0
-        started = time.perf_counter()
-        result = subprocess.run([tshark, "-r", str(path), "-T", "fields", "-e", "frame.number",
-                                 "-e", "s7comm.param.item.nck.column", "-e", "s7comm.data.returncode"],
-                                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, check=True)
-        tshark_s = time.perf_counter() - started
-        lines = result.stdout.count(b"\n")
-        print(f"tshark: {lines:,} lines, {tshark_s:.1f} s, {args.frames / tshark_s:,.0f} frames/s")
-        print(f"ratio nckemu / tshark: {tshark_s / ours_s:.2f}x")
+        for kind in formats:
+            path = Path(scratch) / f"big.{kind}"
+            started = time.perf_counter()
+            write_big_capture(path, args.frames, pcapng=kind == "pcapng")
+            print(f"{kind}: generated {args.frames:,} frames ({path.stat().st_size / 1e6:.0f} MB) in "
+                  f"{time.perf_counter() - started:.1f} s")
+            measure(path, args.frames)
+            path.unlink()
     return 0
 
 

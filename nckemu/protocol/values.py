@@ -127,5 +127,13 @@ def nck_value_reader(nck_type: NckType, *, area: int, line_count: int = 1,
     return read
 
 
+def nck_value_format(nck_type: NckType, *, area: int, line_count: int = 1) -> tuple[str, bool] | None:
+    """The struct code and byte order (True: big-endian) of one numeric value, for decoders that unpack
+    many items at once; None where ``nck_value_reader`` does more than unpack (strings, BOOL, arrays)."""
+    if line_count != 1 or nck_type in (NckType.STRING, NckType.BOOL) or nck_type not in _FORMATS:
+        return None
+    return _FORMATS[nck_type], area in BIG_ENDIAN_AREAS
+
+
 def is_finite(value: object) -> bool:
     return not isinstance(value, float) or math.isfinite(value)

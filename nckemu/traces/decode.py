@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -11,15 +12,15 @@ from nckemu.protocol import pi, s7, szl
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
 from nckemu.protocol.errors import NckError
-from nckemu.protocol.values import decode_nck_values, nck_value_reader
+from nckemu.protocol.values import decode_nck_values, nck_value_format, nck_value_reader
 
-from .reader import Capture, TracePdu
+from .reader import Capture, TracePdu, collector_paused
 
 FUNCTION_NAMES = {0x04: "read", 0x05: "write", 0x28: "PI", 0x29: "PLC stop", 0xF0: "setup", 0x00: "CPU services"}
 S7_AREA_NAMES = {0x84: "DB", 0x81: "I", 0x82: "Q", 0x83: "M", 0x80: "P", 0x1C: "C", 0x1D: "T"}
 
 
-@dataclass
+@dataclass(slots=True)
 class Item:
     target: object   # the parsed item address
     name: str
@@ -37,7 +38,7 @@ class Item:
                 "value": self.value, "raw": self.raw}
 
 
-@dataclass
+@dataclass(slots=True)
 class Exchange:
     """A client job and the controller's answer (None when the answer is missing)."""
 
@@ -49,7 +50,7 @@ class Exchange:
     items: list[Item] = field(default_factory=list)
     detail: str = ""
     header_error: str = ""
-    readers: list[Any] | None = field(default=None, repr=False, compare=False)  # value readers of a read job
+    read_job: _ReadJob | None = field(default=None, repr=False, compare=False)  # a cached read job's decoders
 
     def to_json(self) -> dict[str, Any]:
         return {"frame": self.job.frame, "answer_frame": self.answer.frame if self.answer else None,
@@ -110,55 +111,142 @@ def _value(address: object, data: bytes, nck_type: NckType | None, length: int |
     return None
 
 
-_ReadItem = tuple[object, str, "Callable[[bytes], Any] | None"]
-# Read jobs by their parameter bytes: a PLC or HMI polls the same items over and over.
-_READ_JOBS: dict[bytes, tuple[_ReadItem, ...]] = {}
+# Plain ints for the hot loop (comparing with an IntEnum member costs several times more).
+_S7_PROTOCOL_ID = 0x32
+_ROSCTR_JOB = int(s7.Rosctr.JOB)
+_ROSCTR_ACK_DATA = int(s7.Rosctr.ACK_DATA)
+_READ_VAR = int(s7.Function.READ_VAR)
+
+
+_ValueReader = Callable[[bytes], Any]
+
+
+@dataclass(slots=True)
+class _ReadJob:
+    """A read job's items, decoded once for all the times a PLC or HMI polls them, and the layout of
+    its all-good answer as learnt from the first one (then only the values differ)."""
+
+    addresses: tuple[object, ...]
+    names: tuple[str, ...]
+    readers: tuple[_ValueReader | None, ...]
+    value_formats: tuple[tuple[str, bool] | None, ...]
+    # The answer from byte 6 on: its fixed parts (lengths, parameter, item headers) alternating with the
+    # values, typed where every value is one number of the same byte order, else as bytes.
+    answer_layout: struct.Struct | None = None
+    answer_fixed: tuple[bytes, ...] = ()
+    answer_typed: bool = False
+    value_spans: tuple[tuple[int, int], ...] = ()
+
+    def learn_answer(self, data: bytes, value_spans: list[tuple[int, int]]) -> None:
+        fixed = []
+        lengths = []
+        position = 6  # after the PDU reference
+        for value_start, value_end in value_spans:
+            fixed.append(data[position:value_start])
+            lengths.append((value_start - position, value_end - value_start))
+            position = value_end
+        if position != len(data) or not value_spans:
+            return
+        orders = {value_format[1] for value_format in self.value_formats if value_format is not None}
+        typed = None not in self.value_formats and len(orders) == 1 and all(
+            struct.calcsize("<" + value_format[0]) == value_length
+            for value_format, (_fixed, value_length) in zip(self.value_formats, lengths, strict=True)
+            if value_format is not None)
+        if typed:
+            codes = [value_format[0] for value_format in self.value_formats if value_format is not None]
+            layout = (">" if orders.pop() else "<") + "6x" + "".join(
+                f"{fixed_length}s{code}" for (fixed_length, _v), code in zip(lengths, codes, strict=True))
+        else:
+            layout = ">6x" + "".join(f"{fixed_length}s{value_length}s" for fixed_length, value_length in lengths)
+        self.answer_layout = struct.Struct(layout)
+        self.answer_fixed = tuple(fixed)
+        self.answer_typed = typed
+        self.value_spans = tuple(value_spans)
+
+
+# Read jobs by their parameter bytes.
+_READ_JOBS: dict[bytes, _ReadJob] = {}
 _MAX_CACHED_JOBS = 4096
 
 
-def _read_job_items(parameter: bytes) -> tuple[_ReadItem, ...]:
-    items = _READ_JOBS.get(parameter)
-    if items is None:
-        built = []
+def _read_job(parameter: bytes) -> _ReadJob:
+    job = _READ_JOBS.get(parameter)
+    if job is None:
+        addresses, names, readers, value_formats = [], [], [], []
         for address in s7.parse_read_var_request(parameter).items:
             name, nck_type, length, _unit = name_of(address)
-            reader = None
+            reader = value_format = None
             if isinstance(address, NckAddress) and nck_type is not None:
                 try:
                     reader = nck_value_reader(nck_type, area=address.area, line_count=address.line_count,
                                               string_length=length)
                 except NckError:
                     reader = None
-            built.append((address, name, reader))
-        items = tuple(built)
+                value_format = nck_value_format(nck_type, area=address.area, line_count=address.line_count)
+            addresses.append(address)
+            names.append(name)
+            readers.append(reader)
+            value_formats.append(value_format)
+        job = _ReadJob(tuple(addresses), tuple(names), tuple(readers), tuple(value_formats))
         if len(_READ_JOBS) < _MAX_CACHED_JOBS:
-            _READ_JOBS[parameter] = items
-    return items
+            _READ_JOBS[parameter] = job
+    return job
 
 
 def _fast_read_job(pdu: TracePdu, data: bytes) -> Exchange | None:
     """A read-var job with no data part, straight from the header (the hot path of field traces)."""
     parameter_length = data[6] << 8 | data[7]
-    if data[8] or data[9] or len(data) != 10 + parameter_length or data[10] != s7.Function.READ_VAR:
+    if data[8] or data[9] or len(data) != 10 + parameter_length or data[10] != _READ_VAR:
         return None
-    items = _read_job_items(data[10:])
-    exchange = Exchange(pdu.connection, pdu, None, "read", data[4] << 8 | data[5],
-                        [Item(address, name) for address, name, _reader in items])
-    exchange.readers = [reader for _address, _name, reader in items]
-    return exchange
+    job = _read_job(data[10:])
+    return Exchange(pdu.connection, pdu, None, "read", data[4] << 8 | data[5],
+                    list(map(Item, job.addresses, job.names)), "", "", job)
 
 
-def _fast_read_answer(exchange: Exchange, data: bytes) -> bool:
+def _fill_items(items: list[Item], readers: tuple[_ValueReader | None, ...],
+                results: list[tuple[int, bytes]] | tuple[tuple[int, bytes], ...]) -> None:
+    for item, reader, (return_code, raw) in zip(items, readers, results, strict=True):
+        item.return_code = return_code
+        item.raw = raw.hex()
+        if return_code == 0xFF and reader is not None:
+            try:
+                item.value = reader(raw)
+            except NckError:
+                item.value = None
+
+
+def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
     """Return codes and values of a read-var answer; False leaves it to the general path."""
+    layout = job.answer_layout
+    if layout is not None and len(data) == layout.size:
+        parts = layout.unpack_from(data)
+        if parts[0::2] == job.answer_fixed:  # all good, as the first time: only the values are new
+            if job.answer_typed:
+                for item, value, (start, end) in zip(exchange.items, parts[1::2], job.value_spans, strict=True):
+                    item.return_code = 0xFF
+                    item.value = value
+                    item.raw = data[start:end].hex()
+                return True
+            for item, reader, raw in zip(exchange.items, job.readers, parts[1::2], strict=True):
+                item.return_code = 0xFF
+                item.raw = raw.hex()
+                if reader is not None:
+                    try:
+                        item.value = reader(raw)
+                    except NckError:
+                        item.value = None
+            return True
     parameter_length = data[6] << 8 | data[7]
     data_length = data[8] << 8 | data[9]
+    item_count = len(exchange.items)
     if data[10] or data[11] or parameter_length != 2 or len(data) != 12 + 2 + data_length \
-            or data[12] != s7.Function.READ_VAR or data[13] != len(exchange.items):
+            or data[12] != _READ_VAR or data[13] != item_count:
         return False
     offset = 14
     end = len(data)
     results = []
-    for index in range(len(exchange.items)):
+    spans = []
+    for index in range(item_count):
         if offset + 4 > end:
             return False
         return_code, transport_size = data[offset], data[offset + 1]
@@ -169,40 +257,43 @@ def _fast_read_answer(exchange: Exchange, data: bytes) -> bool:
         if value_end > end:
             return False
         results.append((return_code, data[offset + 4:value_end]))
-        offset = value_end + (length & 1 if index + 1 < len(exchange.items) else 0)
+        spans.append((offset + 4, value_end))
+        offset = value_end + (length & 1 if index + 1 < item_count else 0)
     if offset != end:
         return False
-    readers = exchange.readers
-    for item, reader, (return_code, raw) in zip(exchange.items, readers, results, strict=True):
-        item.return_code = return_code
-        item.raw = raw.hex()
-        if return_code == 0xFF and reader is not None:
-            try:
-                item.value = reader(raw)
-            except NckError:
-                item.value = None
+    _fill_items(exchange.items, job.readers, results)
+    if job.answer_layout is None and all(code == 0xFF for code, _raw in results):
+        job.learn_answer(data, spans)
     return True
 
 
 def decode(capture: Capture) -> list[Exchange]:
     """Pair each client job with the answer bearing its PDU reference on the same connection."""
+    with collector_paused():
+        return _decode(capture)
+
+
+def _decode(capture: Capture) -> list[Exchange]:
     open_jobs: dict[tuple[int, int], Exchange] = {}
     exchanges: list[Exchange] = []
     for pdu in capture.pdus:
         if pdu.kind != "s7":
             continue
         data = pdu.data
-        if len(data) > 14 and data[0] == 0x32:
-            if pdu.from_client and data[1] == s7.Rosctr.JOB:
-                fast_job = _fast_read_job(pdu, data)
-                if fast_job is not None:
-                    open_jobs[(pdu.connection, fast_job.pdu_ref)] = fast_job
-                    exchanges.append(fast_job)
-                    continue
-            elif not pdu.from_client and data[1] == s7.Rosctr.ACK_DATA:
-                waiting = open_jobs.get((pdu.connection, data[4] << 8 | data[5]))
-                if waiting is not None and waiting.readers is not None and _fast_read_answer(waiting, data):
-                    del open_jobs[(pdu.connection, waiting.pdu_ref)]
+        if len(data) > 14 and data[0] == _S7_PROTOCOL_ID:
+            if pdu.from_client:
+                if data[1] == _ROSCTR_JOB:
+                    fast_job = _fast_read_job(pdu, data)
+                    if fast_job is not None:
+                        open_jobs[(pdu.connection, fast_job.pdu_ref)] = fast_job
+                        exchanges.append(fast_job)
+                        continue
+            elif data[1] == _ROSCTR_ACK_DATA:
+                key = (pdu.connection, data[4] << 8 | data[5])
+                waiting = open_jobs.get(key)
+                if waiting is not None and waiting.read_job is not None \
+                        and _fast_read_answer(waiting, waiting.read_job, data):
+                    del open_jobs[key]
                     waiting.answer = pdu
                     continue
         try:
