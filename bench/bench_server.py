@@ -9,6 +9,9 @@ and reads the answers. python-snap7's Client is pure Python and, on a small mach
 processes take most of the CPU; the raw driver leaves the CPU to the server under test.
 The anchor (python-snap7 3.3 Server) answers the NCK read with DB1 bytes (it ignores the syntax
 ID), so it does the same amount of work per request: the comparison is of request handling.
+Each point also reports the CPU time per request of the server process and of the client processes
+together, and, for loads with more client processes than cores, the throughput the cores allow at
+that CPU cost: it shows when the clients, not the server, set the pace.
 
 Usage: .venv/bin/python bench/bench_server.py [--seconds 3] [--clients 1 8] [--drivers snap7 raw]
 """
@@ -90,7 +93,7 @@ def client_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) 
             client.db_read(db, 0, 4)
         latencies.append(time.perf_counter() - start)
     client.disconnect()
-    out.put(latencies)
+    out.put((latencies, time.process_time()))
 
 
 def _raw_frames(load: str, db: int) -> tuple[bytes, bytes, bytes]:
@@ -114,20 +117,18 @@ def _raw_frames(load: str, db: int) -> tuple[bytes, bytes, bytes]:
 
 
 def _receive_frame(sock: socket.socket) -> bytes:
-    head = b""
-    while len(head) < 4:
-        chunk = sock.recv(4 - len(head))
-        if not chunk:
+    """One TPKT frame; usually one recv call (a small answer arrives whole), so the load generator
+    spends as little CPU as it can."""
+    data = sock.recv(65536)
+    while True:
+        if not data:
             raise ConnectionError("server closed the connection")
-        head += chunk
-    length = int.from_bytes(head[2:4], "big")
-    body = b""
-    while len(body) < length - 4:
-        chunk = sock.recv(length - 4 - len(body))
-        if not chunk:
+        if len(data) >= 4 and len(data) >= int.from_bytes(data[2:4], "big"):
+            return data
+        more = sock.recv(65536)
+        if not more:
             raise ConnectionError("server closed the connection")
-        body += chunk
-    return head + body
+        data += more
 
 
 def raw_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) -> None:  # type: ignore[type-arg]
@@ -149,28 +150,48 @@ def raw_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) -> 
             raise RuntimeError(f"the read failed: {answer.hex()}")
         latencies.append(time.perf_counter() - start)
     sock.close()
-    out.put(latencies)
+    out.put((latencies, time.process_time()))
 
 
-def measure(port: int, load: str, clients: int, seconds: float, db: int, driver: str = "snap7") -> dict[str, float]:
+def process_cpu_s(pid: int) -> float | None:
+    """User + system CPU seconds of a process so far (Linux /proc), None elsewhere."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def measure(port: int, load: str, clients: int, seconds: float, db: int, driver: str = "snap7",
+            server_pid: int | None = None) -> dict[str, float]:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
     target = raw_worker if driver == "raw" else client_worker
     workers = [ctx.Process(target=target, args=(port, load, seconds, db, queue))
                for _ in range(clients)]
+    server_cpu_start = process_cpu_s(server_pid) if server_pid is not None else None
     for worker in workers:
         worker.start()
     latencies: list[float] = []
+    client_cpu_s = 0.0
     for _ in workers:
-        latencies.extend(queue.get(timeout=seconds + 60))
+        worker_latencies, worker_cpu_s = queue.get(timeout=seconds + 60)
+        latencies.extend(worker_latencies)
+        client_cpu_s += worker_cpu_s
     for worker in workers:
         worker.join()
+    server_cpu_end = process_cpu_s(server_pid) if server_pid is not None else None
     latencies.sort()
-    return {
+    figures = {
         "requests_per_s": len(latencies) / seconds,
         "p50_ms": 1000 * statistics.median(latencies),
         "p99_ms": 1000 * latencies[int(0.99 * (len(latencies) - 1))],
+        # CPU per request: the clients' includes their start-up (imports, connect), a small share.
+        "client_cpu_us": 1e6 * client_cpu_s / len(latencies),
     }
+    if server_cpu_start is not None and server_cpu_end is not None:
+        figures["server_cpu_us"] = 1e6 * (server_cpu_end - server_cpu_start) / len(latencies)
+    return figures
 
 
 def main() -> int:
@@ -189,7 +210,7 @@ def main() -> int:
             for driver in args.drivers:
                 for load in ("nck", "db"):
                     for clients in args.clients:
-                        figures = measure(port, load, clients, args.seconds, db, driver)
+                        figures = measure(port, load, clients, args.seconds, db, driver, process.pid)
                         results.append({"server": name, "driver": driver, "load": load, "clients": clients,
                                         **figures})
         finally:
@@ -199,13 +220,22 @@ def main() -> int:
     if args.json:
         print(json.dumps(results, indent=2))
         return 0
-    print(f"machine: {os.cpu_count()} cores; {args.seconds:.0f} s per point")
+    cores = os.cpu_count() or 1
+    print(f"machine: {cores} cores; {args.seconds:.0f} s per point; CPU in microseconds per request "
+          "(server process; all client processes together)")
     print(f"{'server':30} {'driver':6} {'load':5} {'clients':>7} {'req/s':>9} {'p50 ms':>8} {'p99 ms':>8} "
-          f"{'x anchor':>9}")
+          f"{'x anchor':>9} {'srv CPU':>8} {'cli CPU':>8}")
     for r in sorted(results, key=lambda r: (r["driver"], r["load"], r["clients"], r["server"])):
         ratio = r["requests_per_s"] / anchor[(r["driver"], r["load"], r["clients"])]["requests_per_s"]
+        server_cpu = f"{r['server_cpu_us']:8.1f}" if "server_cpu_us" in r else f"{'?':>8}"
         print(f"{r['server']:30} {r['driver']:6} {r['load']:5} {r['clients']:>7} {r['requests_per_s']:>9.0f} "
-              f"{r['p50_ms']:>8.3f} {r['p99_ms']:>8.3f} {ratio:>9.2f}")
+              f"{r['p50_ms']:>8.3f} {r['p99_ms']:>8.3f} {ratio:>9.2f} {server_cpu} {r['client_cpu_us']:8.1f}")
+    for r in results:
+        if r["server"] == "nckemu" and r["clients"] > cores and "server_cpu_us" in r:
+            bound = cores * 1e6 / (r["server_cpu_us"] + r["client_cpu_us"])
+            print(f"{r['driver']} {r['load']} x{r['clients']}: {cores} cores allow at most {bound:,.0f} req/s at "
+                  f"this CPU per request (nckemu {r['server_cpu_us']:.1f} us + clients {r['client_cpu_us']:.1f} us); "
+                  f"measured {r['requests_per_s']:,.0f}")
     return 0
 
 

@@ -9,6 +9,7 @@ with a header error).
 from __future__ import annotations
 
 import logging
+import struct
 from collections.abc import Callable
 
 from nckemu.protocol import pi, s7, szl
@@ -60,6 +61,10 @@ _ANSWER_TRANSPORT_SIZE: dict[int, int] = {
 }
 
 
+# An S7 ACK_DATA header (no error) and a read-var answer parameter (04, item count).
+_READ_ANSWER_HEAD = struct.Struct(">BBHHHHBBBB")
+
+
 def _error_item(return_code: int) -> s7.DataItem:
     return s7.DataItem(return_code, 0x00, b"")
 
@@ -83,12 +88,7 @@ class Dispatcher:
     def job(self, pdu: s7.S7Pdu, ctx: AccessContext) -> s7.S7Pdu | None:
         function = pdu.parameter[0]
         if function == s7.Function.READ_VAR:
-            request = self._read_requests.get(pdu.parameter)
-            if request is None:
-                request = s7.parse_read_var_request(pdu.parameter)
-                if len(self._read_requests) < MAX_CACHED_READ_REQUESTS:
-                    self._read_requests[pdu.parameter] = request
-            parameter, data = s7.build_read_var_response(self.read_var(request, ctx))
+            parameter, data = s7.build_read_var_response(self.read_var(self._read_request(pdu.parameter), ctx))
         elif function == s7.Function.WRITE_VAR:
             write = s7.parse_write_var_request(pdu.parameter, pdu.data)
             parameter, data = s7.build_write_var_response(self.write_var(write, ctx))
@@ -101,6 +101,22 @@ class Dispatcher:
         else:
             return None
         return s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref, parameter, data)
+
+    def _read_request(self, parameter: bytes) -> s7.ReadVarRequest:
+        request = self._read_requests.get(parameter)
+        if request is None:
+            request = s7.parse_read_var_request(parameter)
+            if len(self._read_requests) < MAX_CACHED_READ_REQUESTS:
+                self._read_requests[parameter] = request
+        return request
+
+    def read_answer(self, pdu_ref: int, parameter: bytes, ctx: AccessContext) -> bytes:
+        """The whole ACK_DATA PDU answering a read-var job: what ``job`` answers, without the S7Pdu
+        objects on the way (clients poll; this is most of the traffic). Raises as ``job`` does."""
+        request = self._read_request(parameter)
+        data = s7.build_data_items(tuple(self._read_item(address, ctx) for address in request.items))
+        return _READ_ANSWER_HEAD.pack(s7.PROTOCOL_ID, s7.Rosctr.ACK_DATA, 0, pdu_ref, 2, len(data), 0, 0,
+                                      s7.Function.READ_VAR, len(request.items)) + data
 
     def read_var(self, request: s7.ReadVarRequest, ctx: AccessContext) -> s7.ReadVarResponse:
         return s7.ReadVarResponse(tuple(self._read_item(item, ctx) for item in request.items))

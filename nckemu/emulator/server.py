@@ -44,6 +44,7 @@ class _Connection(asyncio.BufferedProtocol):
     def __init__(self, server: EmulatorServer) -> None:
         self.server = server
         self._read_buffer = bytearray(READ_CHUNK_BYTES)
+        self._read_view = memoryview(self._read_buffer)  # slicing a view copies once, a bytearray twice
         self.transport: asyncio.Transport | None = None
         self.session: ServerSession | None = None
         self.peer = ""
@@ -73,7 +74,7 @@ class _Connection(asyncio.BufferedProtocol):
         return self._read_buffer
 
     def buffer_updated(self, nbytes: int) -> None:
-        self.data_received(bytes(self._read_buffer[:nbytes]))
+        self.data_received(bytes(self._read_view[:nbytes]))
 
     def data_received(self, data: bytes) -> None:
         session, transport = self.session, self.transport

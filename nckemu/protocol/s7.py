@@ -309,7 +309,7 @@ def _parse_data_items(data: bytes, count: int) -> tuple[DataItem, ...]:
     return tuple(items)
 
 
-def _build_data_items(items: tuple[DataItem, ...]) -> bytes:
+def build_data_items(items: tuple[DataItem, ...]) -> bytes:
     parts: list[bytes] = []
     last = len(items) - 1
     for index, item in enumerate(items):
@@ -333,7 +333,7 @@ def build_read_var_request(request: ReadVarRequest) -> bytes:
 
 
 def build_read_var_response(response: ReadVarResponse) -> tuple[bytes, bytes]:
-    return bytes([Function.READ_VAR, len(response.items)]), _build_data_items(response.items)
+    return bytes([Function.READ_VAR, len(response.items)]), build_data_items(response.items)
 
 
 def parse_read_var_response(parameter: bytes, data: bytes) -> ReadVarResponse:
@@ -351,7 +351,7 @@ def parse_write_var_request(parameter: bytes, data: bytes) -> WriteVarRequest:
 def build_write_var_request(request: WriteVarRequest) -> tuple[bytes, bytes]:
     if len(request.items) != len(request.values):
         raise NckProtocolError(f"{len(request.items)} items but {len(request.values)} values")
-    return _build_items(Function.WRITE_VAR, request.items), _build_data_items(request.values)
+    return _build_items(Function.WRITE_VAR, request.items), build_data_items(request.values)
 
 
 def build_write_var_response(response: WriteVarResponse) -> tuple[bytes, bytes]:

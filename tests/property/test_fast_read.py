@@ -1,0 +1,45 @@
+"""The session answers a read job by a short path (no S7Pdu objects); it must answer exactly as the
+general path does, for any items, valid or not, in any PDU size, byte for byte."""
+
+from __future__ import annotations
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from nckemu.emulator.clock import SimulatedClock
+from nckemu.emulator.core import Emulator
+from nckemu.emulator.session import ServerSession, SessionLimits
+from nckemu.protocol import cotp, s7
+from nckemu.protocol.addresses import NckAddress, S7AnyAddress
+from tests.property.test_codec_properties import addresses
+
+CR = bytes.fromhex("0300001611E00000000100C0010AC1020100C2020104")
+EMULATOR = Emulator(clock=SimulatedClock(100.0))
+# Items that exist, so that answers carry values and not only item errors.
+KNOWN = st.sampled_from([NckAddress(3, 4, 43900, 1, 0x16), NckAddress(2, 1, 1, 1, 0x15, 3),
+                         NckAddress(0, 1, 5, 1, 0x7A), NckAddress(3, 1, 32750, 1, 0x1A),
+                         S7AnyAddress(0x02, 4, 130, 0x84, 0), S7AnyAddress(0x01, 1, 130, 0x84, 3, 5),
+                         S7AnyAddress(0x04, 3, 0, 0x83, 10), S7AnyAddress(0x02, 2, 0, 0x81, 0)])
+
+
+def _ready(pdu_size: int) -> ServerSession:
+    session = ServerSession(EMULATOR.dispatcher, limits=SessionLimits(pdu_size_max=pdu_size, max_amq=8))
+    session.receive(CR)
+    setup = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 1, s7.build_setup_communication(
+        s7.SetupCommunication(1, 1, pdu_size))))
+    session.receive(cotp.build_data_frame(setup))
+    return session
+
+
+@settings(max_examples=300, deadline=None)
+@given(items=st.lists(st.one_of(KNOWN, addresses), min_size=1, max_size=20), pdu_ref=st.integers(0, 0xFFFF),
+       pdu_size=st.sampled_from([240, 480, 960]))
+def test_fast_read_answers_as_the_general_path(items: list[object], pdu_ref: int, pdu_size: int) -> None:
+    job = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, pdu_ref, s7.build_read_var_request(s7.ReadVarRequest(tuple(items)))))
+    fast_session, general_session = _ready(pdu_size), _ready(pdu_size)
+    fast = fast_session.receive(cotp.build_data_frame(job))
+    general_answer = general_session._handle_pdu(job, over_amq=False)
+    assert general_answer is not None
+    assert fast == [cotp.build_data_frame(general_answer)]
+    assert fast_session.info.jobs == general_session.info.jobs
+    assert not fast_session.closed
