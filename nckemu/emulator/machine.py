@@ -25,6 +25,13 @@ class Axis:
     spindle: bool = False
     referenced: bool = True
     position_mm: float = 0.0
+    # Which component (1..3) of SD42960 TOOL_TEMP_COMP acts on this axis when MD32750 bit 2 is set;
+    # None: none. Unconfirmed: taken as the tool length components L1/L2/L3 under G17 (Z, Y, X).
+    tool_temp_comp_component: int | None = None
+
+
+# The default allocation of SD42960's components to geometry axes, by the first letter of the axis name.
+TOOL_TEMP_COMP_COMPONENTS = {"Z": 1, "Y": 2, "X": 3}
 
 
 @dataclass(frozen=True)
@@ -101,10 +108,17 @@ def _axis(table: dict[str, Any], index: int, source: str) -> Axis:
     rotary = _get(table, "rotary", bool, where, source, False)
     position = _get(table, "position_mm", float, where, source, 0.0 if travel[0] <= 0.0 <= travel[1]
                     else float(travel[0]))
-    return Axis(number=number, name=_get(table, "name", str, where, source),
+    name = _get(table, "name", str, where, source)
+    spindle = _get(table, "spindle", bool, where, source, False)
+    default_component = None if rotary or spindle else TOOL_TEMP_COMP_COMPONENTS.get(name[:1].upper())
+    component = table.get("tool_temp_comp_component", default_component)
+    if component is not None and (isinstance(component, bool) or component not in (1, 2, 3)):
+        raise NckConfigError("expected 1, 2 or 3 (the SD42960 component acting on this axis)", path=source,
+                             field=f"{where}tool_temp_comp_component")
+    return Axis(number=number, name=name,
                 travel_min_mm=float(travel[0]), travel_max_mm=float(travel[1]), rotary=rotary,
-                spindle=_get(table, "spindle", bool, where, source, False),
-                referenced=_get(table, "referenced", bool, where, source, True), position_mm=position)
+                spindle=spindle, referenced=_get(table, "referenced", bool, where, source, True),
+                position_mm=position, tool_temp_comp_component=component)
 
 
 def _sensor(table: dict[str, Any], index: int, source: str) -> Sensor:

@@ -101,6 +101,7 @@ class NckModel:
         self._apply_initial()
         self._active = {key: list(values) for key, values in self._stored.items()}
         self._positions_mm = {axis.number: axis.position_mm for axis in machine.axes}
+        self._axis_specs = {axis.number: axis for axis in machine.axes}
         self._referenced = {axis.number: axis.referenced for axis in machine.axes}
         now_s = clock.now_s()
         self._tc = {axis.number: _TcRamp(0.0, now_s) for axis in machine.axes}
@@ -340,7 +341,19 @@ class NckModel:
             slope = float(self._stored_value("TEMP_COMP_SLOPE", axis))
             p0_mm = float(self._stored_value("TEMP_COMP_REF_POSITION", axis))
             target += slope * (self._positions_mm[axis] - p0_mm)
+        if comp_type & TC_BIT_TOOL_DIRECTION:
+            target += self.tool_direction_tc_mm(axis)
         return target
+
+    def tool_direction_tc_mm(self, axis: int) -> float:
+        """SD42960 TOOL_TEMP_COMP[component] of channel 1, limited by MD20392 without an alarm, where
+        MD20390 is on. Which component acts on which axis is a machine setting (unconfirmed)."""
+        component = self._axis_specs[axis].tool_temp_comp_component
+        if component is None or not int(self._active_value("TOOL_TEMP_COMP_ON", 1)):
+            return 0.0
+        value_mm = float(self._stored_value("TOOL_TEMP_COMP", 1, component))
+        limit_mm = float(self._active_value("TOOL_TEMP_COMP_LIMIT", 1, component))
+        return max(-limit_mm, min(limit_mm, value_mm))
 
     def tc_max_step_mm(self, axis: int) -> float:
         """Largest change per IPO cycle: MD32760 · MD32000 · T_IPO (MD32000 is in mm/min)."""

@@ -105,6 +105,41 @@ def test_change_per_ipo_cycle_is_limited(nck: NckModel, clock: SimulatedClock) -
     assert nck.tc_value_mm(Z) == pytest.approx(1.0)
 
 
+def channel(number: int, module: int, line: int = 1) -> NckAddress:
+    return NckAddress(2, 1, number, line, module)
+
+
+def test_tc_in_tool_direction_needs_bit_2_and_md20390_and_is_limited(nck: NckModel, clock: SimulatedClock) -> None:
+    nck.write(channel(42960, 0x16, line=1), [0.05], USER)     # SD42960[0]: L1, on Z under G17
+    nck.write(channel(42960, 0x16, line=3), [0.02], USER)     # SD42960[2]: L3, on X
+    nck.write(md(32750), [4], ROOT)
+    nck.power_on()
+    settle(nck, clock)
+    assert nck.compensation_mm(Z) == 0.0                    # MD20390 still off
+    nck.write(channel(20390, 0x1A), [1], ROOT)
+    nck.power_on()
+    settle(nck, clock)
+    assert nck.compensation_mm(Z) == pytest.approx(0.05)
+    assert nck.compensation_mm(1) == 0.0                    # X1 has bit 2 off
+    nck.write(channel(42960, 0x16, line=1), [2.5], USER)      # beyond MD20392[0] = 1 mm: limited, no alarm
+    settle(nck, clock)
+    assert nck.compensation_mm(Z) == pytest.approx(1.0) and nck.alarms == []
+    nck.write(md(32750), [5], ROOT)                          # bits 0 and 2 add up
+    nck.write(sd(43900), [0.3], USER)
+    nck.power_on()
+    settle(nck, clock)
+    assert nck.compensation_mm(Z) == pytest.approx(1.3)
+
+
+def test_which_sd42960_component_acts_on_an_axis_is_a_setting() -> None:
+    default = load_machine()
+    assert {a.name: a.tool_temp_comp_component for a in default.axes} == {"X1": 3, "Y1": 2, "SP1": None, "Z1": 1}
+    text = '[[axis]]\nnumber = 1\nname = "W"\ntool_temp_comp_component = 1\n'
+    assert parse_machine(text).axes[0].tool_temp_comp_component == 1
+    with pytest.raises(NckConfigError, match="tool_temp_comp_component"):
+        parse_machine(text.replace("= 1\n", "= 4\n").replace("number = 4", "number = 1"))
+
+
 def test_840c_tc_is_immediate_and_erased_at_power_on(nck: NckModel) -> None:
     nck.set_axis_position(Z, -100.0)
     nck.apply_840c_tc(Z, 0.02, 0.0001, 100.0, True, True)
