@@ -28,6 +28,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parent.parent
 NCK_READ_PDU = bytes.fromhex("32010000000100 0c 0000 04 01 12088264AB7C00011601".replace(" ", ""))
@@ -72,7 +73,8 @@ def start_anchor(port: int) -> subprocess.Popen[bytes]:
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
-def client_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) -> None:  # type: ignore[type-arg]
+def client_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue,  # type: ignore[type-arg]
+                  start: Any) -> None:
     import logging
 
     import snap7
@@ -82,6 +84,8 @@ def client_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) 
     client.connect("127.0.0.1", 0, 4, port)
     latencies: list[float] = []
     request = bytearray(NCK_READ_PDU)
+    start.wait()  # all clients connected and idle: the measurement starts together
+    cpu_start_s = time.process_time()
     deadline = time.perf_counter() + seconds
     while True:
         start = time.perf_counter()
@@ -92,8 +96,9 @@ def client_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) 
         else:
             client.db_read(db, 0, 4)
         latencies.append(time.perf_counter() - start)
+    cpu_s = time.process_time() - cpu_start_s
     client.disconnect()
-    out.put((latencies, time.process_time()))
+    out.put((latencies, cpu_s))
 
 
 def _raw_frames(load: str, db: int) -> tuple[bytes, bytes, bytes]:
@@ -131,7 +136,8 @@ def _receive_frame(sock: socket.socket) -> bytes:
         data += more
 
 
-def raw_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) -> None:  # type: ignore[type-arg]
+def raw_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue,  # type: ignore[type-arg]
+               start: Any) -> None:
     connect, setup, request = _raw_frames(load, db)
     sock = socket.create_connection(("127.0.0.1", port))
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -139,6 +145,8 @@ def raw_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) -> 
         sock.sendall(frame)
         _receive_frame(sock)
     latencies: list[float] = []
+    start.wait()
+    cpu_start_s = time.process_time()
     deadline = time.perf_counter() + seconds
     while True:
         start = time.perf_counter()
@@ -149,8 +157,9 @@ def raw_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue) -> 
         if len(answer) < 22 or answer[21] != 0xFF:  # TPKT 4 + COTP 3 + ack header 12 + parameter 2
             raise RuntimeError(f"the read failed: {answer.hex()}")
         latencies.append(time.perf_counter() - start)
+    cpu_s = time.process_time() - cpu_start_s
     sock.close()
-    out.put((latencies, time.process_time()))
+    out.put((latencies, cpu_s))
 
 
 def process_cpu_s(pid: int) -> float | None:
@@ -167,11 +176,15 @@ def measure(port: int, load: str, clients: int, seconds: float, db: int, driver:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
     target = raw_worker if driver == "raw" else client_worker
-    workers = [ctx.Process(target=target, args=(port, load, seconds, db, queue))
+    # Clients start, import and connect first, then all begin together: Python start-up (a third of a
+    # second of CPU each) would otherwise fall into the others' measurement and into its tail.
+    start = ctx.Barrier(clients + 1)
+    workers = [ctx.Process(target=target, args=(port, load, seconds, db, queue, start))
                for _ in range(clients)]
-    server_cpu_start = process_cpu_s(server_pid) if server_pid is not None else None
     for worker in workers:
         worker.start()
+    start.wait(timeout=120)
+    server_cpu_start = process_cpu_s(server_pid) if server_pid is not None else None
     latencies: list[float] = []
     client_cpu_s = 0.0
     for _ in workers:
@@ -186,7 +199,6 @@ def measure(port: int, load: str, clients: int, seconds: float, db: int, driver:
         "requests_per_s": len(latencies) / seconds,
         "p50_ms": 1000 * statistics.median(latencies),
         "p99_ms": 1000 * latencies[int(0.99 * (len(latencies) - 1))],
-        # CPU per request: the clients' includes their start-up (imports, connect), a small share.
         "client_cpu_us": 1e6 * client_cpu_s / len(latencies),
     }
     if server_cpu_start is not None and server_cpu_end is not None:
