@@ -7,8 +7,10 @@ general path on generated input.
 
 from __future__ import annotations
 
+import itertools
 import json
 import struct
+from collections.abc import Callable
 from pathlib import Path
 
 import dpkt
@@ -75,27 +77,31 @@ def test_mapped_records_are_dpkts_records(tmp_path_factory: pytest.TempPathFacto
     assert capture.problems == []
 
 
+def _check_cut(path: Path, header_bytes: int, record_ends: list[int], frames: list[tuple[int, int, bytes]],
+               cut: int, walk: Callable[[Path], tuple[list[tuple[int, float, bytes]], object, Capture]]) -> None:
+    """Cut the file at some byte after its header: the whole records before the cut are read, and a
+    cut inside a record is one problem naming the frame where the file breaks."""
+    data = path.read_bytes()
+    keep = header_bytes + cut % (len(data) - header_bytes)
+    path.write_bytes(data[:keep])
+    whole = sum(1 for end in record_ends if end <= keep)
+    ours, _theirs, capture = walk(path)
+    assert [frame for _n, _ts, frame in ours] == [frame for _s, _f, frame in frames[:whole]]
+    if keep in record_ends or keep == header_bytes:
+        assert capture.problems == []
+    else:
+        assert len(capture.problems) == 1 and f"frame {whole + 1}: capture ends in a damaged record" \
+            in capture.problems[0]
+
+
 @settings(max_examples=80, deadline=None)
 @given(frames=_FRAMES.filter(bool), cut=st.integers(1, 10_000))
 def test_a_cut_pcap_gives_its_whole_records_and_says_where_it_breaks(
         tmp_path_factory: pytest.TempPathFactory, frames: list[tuple[int, int, bytes]], cut: int) -> None:
     path = tmp_path_factory.mktemp("pcap") / "cut.pcap"
     _write_pcap(path, frames, big_endian=False, nanoseconds=False)
-    data = path.read_bytes()
-    keep = 24 + cut % (len(data) - 24)
-    path.write_bytes(data[:keep])
-    ends, position = [], 24
-    for _s, _f, frame in frames:
-        position += 16 + len(frame)
-        ends.append(position)
-    whole = sum(1 for end in ends if end <= keep)
-    ours, _theirs, capture = _walk_both(path)
-    assert [frame for _n, _ts, frame in ours] == [frame for _s, _f, frame in frames[:whole]]
-    if keep in ends or keep == 24:
-        assert capture.problems == []
-    else:
-        assert len(capture.problems) == 1 and f"frame {whole + 1}: capture ends in a damaged record" \
-            in capture.problems[0]
+    ends = list(itertools.accumulate((16 + len(frame) for _s, _f, frame in frames), initial=24))[1:]
+    _check_cut(path, 24, ends, frames, cut, _walk_both)
 
 
 def test_a_cut_classic_pcap_is_shown_up_to_the_damage(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -250,19 +256,6 @@ def test_a_cut_pcapng_gives_its_whole_blocks_and_says_where_it_breaks(
         tmp_path_factory: pytest.TempPathFactory, frames: list[tuple[int, int, bytes]], cut: int) -> None:
     path = tmp_path_factory.mktemp("pcapng") / "cut.pcapng"
     _write_pcapng(path, frames, big_endian=False, resolution=None, offset_s=None, kinds=[6] * len(frames))
-    data = path.read_bytes()
     header = 28 + 20  # the section header and interface description blocks
-    keep = header + cut % (len(data) - header)
-    path.write_bytes(data[:keep])
-    ends, position = [], header
-    for _h, _l, frame in frames:
-        position += 32 + len(frame) + (-len(frame) % 4)
-        ends.append(position)
-    whole = sum(1 for end in ends if end <= keep)
-    ours, _theirs, capture = _walk_pcapng_both(path)
-    assert [frame for _n, _ts, frame in ours] == [frame for _h, _l, frame in frames[:whole]]
-    if keep in ends:
-        assert capture.problems == []
-    else:
-        assert len(capture.problems) == 1 and f"frame {whole + 1}: capture ends in a damaged record" \
-            in capture.problems[0]
+    blocks = (32 + len(frame) + (-len(frame) % 4) for _h, _l, frame in frames)
+    _check_cut(path, header, list(itertools.accumulate(blocks, initial=header))[1:], frames, cut, _walk_pcapng_both)
