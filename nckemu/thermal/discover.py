@@ -7,10 +7,12 @@ Method (docs/thermal.md):
    One common factor on the whole model that explains the mismatch is a ``gain_error``.
 2. Candidate effects from the vocabulary are fitted one at a time, jointly with the baseline's free
    coefficients. A candidate is accepted only if it lowers the blocked cross-validated RMS by at
-   least ``min_improvement`` in most folds, its coefficient passes an AR(1)-corrected t-test at a
-   Bonferroni-corrected level, and its parameters are physical. Candidates whose held-out RMS is
-   within ``equivalence`` of the best are equivalent explanations: the simplest wins, the others
-   are reported with it. Repeat until nothing passes.
+   least ``min_improvement`` in most folds, its coefficient passes an autocorrelation-corrected
+   t-test at a level Bonferroni-corrected over every hypothesis of the round (grid points of a time
+   constant included), and its parameters are physical. Candidates whose held-out RMS is within
+   ``equivalence`` of the best are equivalent explanations: the simplest wins, the others are
+   reported with it; a time constant must earn its place over the effect it extends. Repeat until
+   nothing passes.
 3. Gross outliers (far beyond the robust noise scale) are set aside and reported as data quality.
 """
 
@@ -49,6 +51,8 @@ class Candidate:
     term: Term
     feature: np.ndarray
     in_sample_rms_um: float = math.nan
+    # Values of a time constant tried to find this one: each was a hypothesis tested on the data.
+    grid_points: int = 1
 
     @property
     def label(self) -> str:
@@ -142,6 +146,17 @@ def _bounded(term: Term) -> bool:
     return math.isfinite(c)
 
 
+# Effects of one sensor that contain another as a special case (a time constant going to zero, or
+# heating and cooling at the same rate).
+_EXTENDS = {("thermal_lag", "temperature"), ("heating_cooling_hysteresis", "temperature"),
+            ("heating_cooling_hysteresis", "thermal_lag")}
+
+
+def _extends(complex_term: Term, simple_term: Term) -> bool:
+    return (complex_term.effect, simple_term.effect) in _EXTENDS \
+        and complex_term.parameters.get("sensor") == simple_term.parameters.get("sensor") is not None
+
+
 def _locate(t_s: np.ndarray, values: np.ndarray, fraction: float = 0.5) -> list[tuple[float, float, float]]:
     """Contiguous windows where |values| exceeds ``fraction`` of its peak: (start, end, weight)."""
     if len(values) == 0:
@@ -210,13 +225,13 @@ class Discoverer:
         duration_s = recording.duration_s
         out: list[Candidate] = []
 
-        def add(term: Term) -> None:
+        def add(term: Term, grid_points: int = 1) -> None:
             if term.effect == "gain_error":
                 return
             feature = problem.column(term.feature(recording, problem.axis))
             if np.ptp(feature) == 0 and term.effect != "offset":
                 return
-            out.append(Candidate(term, feature))
+            out.append(Candidate(term, feature, grid_points=grid_points))
 
         modelled = {(t.effect, t.parameters.get("sensor")) for t in problem.base_terms}
         if "offset" not in present and not any(t.effect == "offset" for t in problem.base_terms):
@@ -247,30 +262,35 @@ class Discoverer:
                 continue
             signal = recording.sensor(sensor)
             best: tuple[float, float] | None = None
+            tried = 0
             for tau in self.settings.lag_grid_s:
                 if tau > duration_s / 3:
                     continue
+                tried += 1
                 feature = problem.column(first_order_lag(recording.t_s, signal, tau)) - self._t_ref(sensor)
                 score = self._in_sample(design, feature)
                 if best is None or score < best[0]:
                     best = (score, tau)
             if best is not None:
                 for tau in best[1] * np.geomspace(0.8, 1.25, 9):
+                    tried += 1
                     feature = problem.column(first_order_lag(recording.t_s, signal, float(tau))) - self._t_ref(sensor)
                     score = self._in_sample(design, feature)
                     if score < best[0]:
                         best = (score, float(tau))
                 lag_scores.append((best[0], sensor, best[1]))
                 add(Term("thermal_lag", {"sensor": sensor, "t_ref_C": self._t_ref(sensor), "tau_s": best[1],
-                                         "coeff_um_per_K": 0.0}))
+                                         "coeff_um_per_K": 0.0}), tried)
         for _score, sensor, _tau in sorted(lag_scores)[:2]:
             if f"heating_cooling_hysteresis:{sensor}" in present:
                 continue
             signal = self._decimated_signal(sensor)
             best_h: tuple[float, float, float] | None = None
+            tried = 0
             for tau_heat, tau_cool in itertools.product(self.settings.hysteresis_grid_s, repeat=2):
                 if tau_heat == tau_cool or max(tau_heat, tau_cool) > duration_s / 3:
                     continue
+                tried += 1
                 feature = self._asymmetric_feature(signal, tau_heat, tau_cool) - self._t_ref(sensor)
                 score = self._in_sample(design, feature)
                 if best_h is None or score < best_h[0]:
@@ -278,13 +298,14 @@ class Discoverer:
             if best_h is not None:
                 for factor_heat, factor_cool in itertools.product(np.geomspace(0.7, 1.4, 5), repeat=2):
                     tau_heat, tau_cool = best_h[1] * float(factor_heat), best_h[2] * float(factor_cool)
+                    tried += 1
                     feature = self._asymmetric_feature(signal, tau_heat, tau_cool) - self._t_ref(sensor)
                     score = self._in_sample(design, feature)
                     if score < best_h[0]:
                         best_h = (score, tau_heat, tau_cool)
                 add(Term("heating_cooling_hysteresis", {"sensor": sensor, "t_ref_C": self._t_ref(sensor),
                                                         "tau_heat_s": best_h[1], "tau_cool_s": best_h[2],
-                                                        "coeff_um_per_K": 0.0}))
+                                                        "coeff_um_per_K": 0.0}), tried)
         return out
 
     def _decimated_signal(self, sensor: str) -> tuple[np.ndarray, np.ndarray]:
@@ -319,6 +340,17 @@ class Discoverer:
         significant = abs(evaluation.t_value) >= t_critical
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         return improved and consistent and significant and _bounded(term)
+
+    def _parsimonious(self, chosen: Evaluation, passing: list[Evaluation]) -> Evaluation:
+        """An effect that extends a simpler one of the same sensor by a time constant (a lag extends a
+        plain temperature term, an asymmetric lag a lag) must earn that parameter as an effect earns
+        its place: by ``min_improvement`` of held-out RMS over the simpler one, or the simpler wins."""
+        while True:
+            simpler = [e for e in passing if _extends(chosen.candidate.term, e.candidate.term)
+                       and chosen.cv.rms_um > (1 - self.settings.min_improvement) * e.cv.rms_um]
+            if not simpler:
+                return chosen
+            chosen = min(simpler, key=lambda e: e.cv.rms_um)
 
     @staticmethod
     def _t_critical(alpha: float, tests: int, dof: int) -> float:
@@ -401,7 +433,9 @@ class Discoverer:
             if not candidates:
                 break
             work_design = design if design.shape[1] else np.empty((len(self.y), 0))
-            t_critical = self._t_critical(s.alpha, len(candidates), len(self.y) - work_design.shape[1] - 1)
+            # Bonferroni over every hypothesis of the round, each time constant tried included.
+            tests = sum(c.grid_points for c in candidates)
+            t_critical = self._t_critical(s.alpha, tests, len(self.y) - work_design.shape[1] - 1)
             evaluations = [self._evaluate(work_design, c, folds, base_cv) for c in candidates]
             passing = [e for e in evaluations if self._passes(e, base_cv, t_critical)]
             if not passing:
@@ -409,6 +443,7 @@ class Discoverer:
             best = min(passing, key=lambda e: e.cv.rms_um)
             equivalent = [e for e in passing if e.cv.rms_um <= best.cv.rms_um * (1 + s.equivalence)]
             chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.cv.rms_um))
+            chosen = self._parsimonious(chosen, passing)
             term = chosen.candidate.term.with_coefficient(chosen.coefficient)
             window = _locate(self.problem.t_s, chosen.coefficient * (chosen.candidate.feature
                                                                      - np.median(chosen.candidate.feature)))

@@ -1,9 +1,9 @@
 """The few statistics discovery needs, on numpy: least squares, blocked cross-validation over time,
-AR(1)-corrected standard errors and a robust noise scale.
+autocorrelation-corrected standard errors and a robust noise scale.
 
 Residuals of thermal models are strongly autocorrelated, so nothing here treats samples as
-independent: folds are contiguous blocks of time, and standard errors are inflated by the
-effective-sample-size factor of an AR(1) fit to the residual.
+independent: folds are contiguous blocks of time, and standard errors are inflated by the residual's
+long-run variance under an AR(1)-plus-white-noise model.
 """
 
 from __future__ import annotations
@@ -64,14 +64,31 @@ def cross_validate(design: np.ndarray, target: np.ndarray, folds: list[np.ndarra
     return CrossValidation(float(np.sqrt(np.mean(squared))), tuple(per_fold))
 
 
-def ar1_coefficient(residual: np.ndarray) -> float:
-    if len(residual) < 3:
+def autocorrelation(residual: np.ndarray, lag: int) -> float:
+    if len(residual) <= lag + 1:
         return 0.0
     centred = residual - residual.mean()
-    denominator = float(np.dot(centred[:-1], centred[:-1]))
+    denominator = float(np.dot(centred, centred))
     if denominator == 0.0:
         return 0.0
-    return float(np.clip(np.dot(centred[1:], centred[:-1]) / denominator, -0.99, 0.99))
+    return float(np.dot(centred[lag:], centred[:-lag]) / denominator)
+
+
+def ar1_coefficient(residual: np.ndarray) -> float:
+    """The decay per sample of the residual's slow part: AR(1) plus white noise (a gauge's own noise on
+    a slowly wandering error) has r(k) = r(1)·φ^(k−1), so φ = r(2)/r(1); for a pure AR(1), r(1)."""
+    r1, r2 = autocorrelation(residual, 1), autocorrelation(residual, 2)
+    phi = r2 / r1 if 0.0 < r2 < r1 else r1
+    return float(np.clip(phi, -0.99, 0.99))
+
+
+def long_run_variance_factor(residual: np.ndarray) -> float:
+    """Var(mean of n samples) · n / Var(sample) for AR(1) plus white noise: 1 + 2·r(1)/(1 − φ).
+    A lag-1 AR(1) fit alone, (1 + r1)/(1 − r1), underestimates it badly when white noise dilutes r(1)."""
+    r1 = autocorrelation(residual, 1)
+    if r1 <= 0.0:
+        return 1.0
+    return 1.0 + 2.0 * r1 / (1.0 - ar1_coefficient(residual))
 
 
 @dataclass(frozen=True)
@@ -88,12 +105,13 @@ class Fit:
 
 
 def fit(design: np.ndarray, target: np.ndarray) -> Fit:
-    """OLS with standard errors inflated for AR(1) residuals (n_eff = n (1 − φ) / (1 + φ))."""
+    """OLS with standard errors inflated for autocorrelated residuals (AR(1) plus white noise:
+    n_eff = n / long_run_variance_factor)."""
     coefficients = least_squares(design, target)
     residual = target - design @ coefficients
     n, p = design.shape
     phi = ar1_coefficient(residual)
-    inflation = math.sqrt((1 + phi) / (1 - phi)) if phi > 0 else 1.0
+    inflation = math.sqrt(long_run_variance_factor(residual))
     dof = max(n - p, 1)
     sigma2 = float(np.dot(residual, residual)) / dof
     try:

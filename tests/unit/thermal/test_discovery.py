@@ -137,3 +137,14 @@ def test_fl_thermal_recording_claims_no_centrifugal_growth(shared_dir: Path) -> 
     result = discover(recording, model=model)
     assert "centrifugal_growth" not in [m["effect"] for m in result.missing_physics]
     assert result.heldout_rms_after_um <= result.heldout_rms_before_um
+
+
+@pytest.mark.parametrize(("name", "seed", "expected"), [
+    ("null_ar1", 4, None),            # AR(1) plus white noise: once an unfounded quadratic term
+    ("null_ar1", 7, None),            # once an unfounded hysteresis picked from its grid
+    ("temperature", 5, "temperature"),  # once a lag of 240 s, a temperature term in all but name
+])
+def test_seeds_that_once_fooled_discovery(name: str, seed: int, expected: str | None) -> None:
+    scenario = make_scenario(name, seed=seed)
+    found = [m["effect"] for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
+    assert found[:1] == ([expected] if expected else [])
