@@ -224,7 +224,13 @@ def _tcp(frame: bytes, link: int) -> tuple[str, str, dpkt.tcp.TCP | _Segment] | 
 # One unpack for the hot path, from the Ethernet type to the COTP DT header: Ethernet type; IPv4
 # version/IHL, total length, flags/fragment offset, protocol; addresses and ports (one connection
 # direction); TCP sequence number, data offset, flags; TPKT version/reserved and length; COTP DT.
-_HOT_HEADERS = struct.Struct(">12xHBxH2xHxB2x12sI4xBB6xHH3s")
+# Link types the hot path reads, by the length of their header (which ends in the 2-byte EtherType):
+# Ethernet, and Linux "cooked" captures (tcpdump -i any).
+_HOT_LINK_HEADERS = {dpkt.pcap.DLT_EN10MB: 14, dpkt.pcap.DLT_LINUX_SLL: 16}
+
+
+def _hot_headers(link_header: int) -> struct.Struct:
+    return struct.Struct(f">{link_header - 2}xHBxH2xHxB2x12sI4xBB6xHH3s")
 _NANOSECOND_MAGICS = (dpkt.pcap.TCPDUMP_MAGIC_NANO, dpkt.pcap.PMUDPCT_MAGIC_NANO)
 
 
@@ -240,16 +246,19 @@ class _Reassembly:
 
     def walk(self, records: Iterator[_Record], link: int) -> None:
         """Every record, as (frame number, time, buffer, start, captured length). Frames that are one whole
-        S7 frame in order (Ethernet, IPv4 without options, TCP, TPKT, COTP DT) on a known connection give
-        their PDU straight from the buffer: no dpkt objects, no reassembly. Anything else is reassembled."""
+        S7 frame in order (Ethernet or Linux cooked, IPv4 without options, TCP, TPKT, COTP DT) on a known
+        connection give their PDU straight from the buffer: no dpkt objects, no reassembly. Anything else
+        is reassembled."""
         general = self._general
         hot_connections = self.hot
-        unpack_headers = _HOT_HEADERS.unpack_from
         pdus = self.capture.pdus
-        ethernet = link == dpkt.pcap.DLT_EN10MB
+        ip = _HOT_LINK_HEADERS.get(link, 0)  # where IPv4 starts; 0: no hot path for this link type
+        unpack_headers = _hot_headers(ip or 14).unpack_from
+        tpkt_at = ip + 40  # after IPv4 and TCP without options
+        pdu_at = tpkt_at + 7  # after TPKT and COTP DT
         number = 0
         for number, ts, buffer, start, caplen in records:
-            if ethernet and caplen >= 61:
+            if ip and caplen >= pdu_at:
                 ethertype, version_ihl, total, fragment, protocol, key, seq, offset, flags, tpkt_head, \
                     tpkt_length, cotp_dt = unpack_headers(buffer, start)
                 if ethertype == 0x0800 and version_ihl == 0x45 and protocol == 6 and not fragment & 0x3FFF \
@@ -258,13 +267,13 @@ class _Reassembly:
                     known = hot_connections.get(key)
                     if known is not None:
                         connection, from_client, direction = known
-                        end = 14 + total if total else caplen
-                        if seq == direction.next_seq and tpkt_length == end - 54 and 61 < end <= caplen \
+                        end = ip + total if total else caplen
+                        if seq == direction.next_seq and tpkt_length == end - tpkt_at and pdu_at < end <= caplen \
                                 and not (direction.pending or direction.buffer or direction.fragments
                                          or direction.broken):
                             direction.next_seq = (seq + tpkt_length) & 0xFFFFFFFF
                             pdus.append(TracePdu(number, ts, connection.number, from_client, "s7",
-                                                 buffer[start + 61:start + end]))
+                                                 buffer[start + pdu_at:start + end]))
                             continue
             general(number, ts, buffer[start:start + caplen], link)
         self.capture.frames = number
@@ -286,8 +295,9 @@ class _Reassembly:
             connection = _Connection(len(self.connections) + 1, f"{key[0]}:{key[1]} -> {key[2]}:{port}")
             self.connections[key] = connection
             self.capture.connections[connection.number] = connection.label
-        if isinstance(segment, _Segment) and frame[14] == 0x45:  # the hot path's layout
-            self.hot.setdefault(frame[26:38], (connection, from_client, connection.directions[from_client]))
+        ip = _HOT_LINK_HEADERS.get(link)
+        if ip is not None and len(frame) >= ip + 24 and frame[ip - 2:ip + 1] == b"\x08\x00\x45":  # hot layout
+            self.hot.setdefault(frame[ip + 12:ip + 24], (connection, from_client, connection.directions[from_client]))
         _feed(self.capture, connection, from_client, segment, number, ts)
 
 @contextmanager

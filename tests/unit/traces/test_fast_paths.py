@@ -259,3 +259,27 @@ def test_a_cut_pcapng_gives_its_whole_blocks_and_says_where_it_breaks(
     header = 28 + 20  # the section header and interface description blocks
     blocks = (32 + len(frame) + (-len(frame) % 4) for _h, _l, frame in frames)
     _check_cut(path, header, list(itertools.accumulate(blocks, initial=header))[1:], frames, cut, _walk_pcapng_both)
+
+
+def test_linux_cooked_captures_decode_as_ethernet_ones(tmp_path: Path) -> None:
+    """tcpdump -i any writes Linux cooked (SLL) frames: the same traffic must decode the same."""
+    ethernet = tmp_path / "ethernet.pcap"
+    writer = CaptureWriter.open(ethernet)
+    for reference in range(1, 6):
+        job = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, reference, s7.build_read_var_request(s7.ReadVarRequest(_ITEMS[:2]))))
+        answer = s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, reference, *s7.build_read_var_response(s7.ReadVarResponse(
+            (s7.DataItem(0xFF, 0x09, struct.pack("<d", reference / 10)), s7.DataItem(0xFF, 0x09, b"\x01"))))))
+        writer.segment(1, True, cotp.build_data_frame(job))
+        writer.segment(1, False, cotp.build_data_frame(answer))
+    writer.close()
+    cooked = tmp_path / "cooked.pcap"
+    with ethernet.open("rb") as source, cooked.open("wb") as target:
+        out = dpkt.pcap.Writer(target, linktype=dpkt.pcap.DLT_LINUX_SLL)
+        for ts, frame in dpkt.pcap.Reader(source):
+            # packet type 0 (to us), ARPHRD_ETHER, 6-byte address padded to 8, then the EtherType
+            out.writepkt(struct.pack(">HHH8s", 0, 1, 6, frame[6:12]) + frame[12:], ts)
+    expected = read_capture(ethernet)
+    got = read_capture(cooked)
+    assert [(p.frame, p.from_client, p.data) for p in got.pdus] == [(p.frame, p.from_client, p.data) for p in expected.pdus]
+    assert [e.to_json() for e in decoder.decode(got)] == [e.to_json() for e in decoder.decode(expected)]
+    assert len(expected.pdus) >= 10
