@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import random
 import struct
+from collections.abc import Callable
 from pathlib import Path
 
 import dpkt
@@ -133,12 +134,7 @@ def test_reordered_and_duplicated_segments_decode_the_same(capture_path: Path, t
 def test_segmented_tpkt_frames(tmp_path: Path, capture_path: Path) -> None:
     """Every frame split into 3-byte TCP segments still decodes to the same PDUs."""
     path = tmp_path / "segmented.pcapng"
-    writer = CaptureWriter.open(path)
-    for pdu in read_capture(capture_path).pdus:
-        frame = pdu.data if pdu.kind != "s7" else struct.pack(">BBH", 3, 0, 7 + len(pdu.data)) + b"\x02\xf0\x80" + pdu.data
-        for start in range(0, len(frame), 3):
-            writer.segment(pdu.connection, pdu.from_client, frame[start:start + 3])
-    writer.close()
+    _in_three_byte_segments(capture_path, path)
     assert [p.data for p in read_capture(path).pdus] == [p.data for p in read_capture(capture_path).pdus]
 
 
@@ -161,16 +157,43 @@ def test_bad_input(tmp_path: Path, capture_path: Path, capsys: pytest.CaptureFix
     assert "not TPKT" in err and "no S7 traffic" in err
 
 
+def _as_classic_pcap(source: Path, target: Path) -> None:
+    _rewrite(target, _segments(source))
+
+
+def _in_three_byte_segments(source: Path, target: Path) -> None:
+    writer = CaptureWriter.open(target)
+    for pdu in read_capture(source).pdus:
+        frame = pdu.data if pdu.kind != "s7" else struct.pack(">BBH", 3, 0, 7 + len(pdu.data)) + b"\x02\xf0\x80" + pdu.data
+        for start in range(0, len(frame), 3):
+            writer.segment(pdu.connection, pdu.from_client, frame[start:start + 3])
+    writer.close()
+
+
+def _as_linux_cooked(source: Path, target: Path) -> None:
+    with target.open("wb") as handle:
+        writer = dpkt.pcap.Writer(handle, linktype=dpkt.pcap.DLT_LINUX_SLL)
+        for ts, frame in _segments(source):
+            writer.writepkt(struct.pack(">HHH8s", 0, 1, 6, frame[6:12]) + frame[12:], ts)
+
+
 @requires_tshark
-def test_items_match_tshark(capture_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    document = show_json(capture_path, capsys)
+@pytest.mark.parametrize("variant", [None, _as_classic_pcap, _in_three_byte_segments, _as_linux_cooked],
+                         ids=["recorded", "classic-pcap", "3-byte-segments", "linux-cooked"])
+def test_items_match_tshark(capture_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                            variant: Callable[[Path, Path], None] | None) -> None:
+    path = capture_path
+    if variant is not None:
+        path = tmp_path / f"variant.{'pcapng' if variant is _in_three_byte_segments else 'pcap'}"
+        variant(capture_path, path)
+    document = show_json(path, capsys)
     ours = {(e["frame"], i, item["area"], item["unit"], item["column"], item["line"], item["module"])
             for e in document["exchanges"] for i, item in enumerate(item for item in e["items"]
                                                                       if item["kind"] == "nck")}
     fields = ["frame.number", "s7comm.header.rosctr", "s7comm.param.item.nck.area", "s7comm.param.item.nck.unit",
               "s7comm.param.item.nck.column", "s7comm.param.item.nck.line", "s7comm.param.item.nck.module"]
     theirs = set()
-    for row in tshark_fields(capture_path, fields):
+    for row in tshark_fields(path, fields):
         if row["s7comm.header.rosctr"] != "1" or not row["s7comm.param.item.nck.area"]:
             continue
         columns = [row[f].split(",") for f in fields[2:]]
