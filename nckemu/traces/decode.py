@@ -198,7 +198,10 @@ def _fast_read_job(pdu: TracePdu, data: bytes) -> Exchange | None:
     parameter_length = data[6] << 8 | data[7]
     if data[8] or data[9] or len(data) != 10 + parameter_length or data[10] != _READ_VAR:
         return None
-    job = _read_job(data[10:])
+    try:
+        job = _read_job(data[10:])
+    except NckError:
+        return None  # the general path reports the job it cannot decode
     return Exchange(pdu.connection, pdu, None, "read", data[4] << 8 | data[5],
                     list(map(Item, job.addresses, job.names)), "", "", job)
 

@@ -15,12 +15,13 @@ from pathlib import Path
 
 import dpkt
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from nckemu.cli import main
 from nckemu.protocol import cotp, s7
 from nckemu.protocol.addresses import NckAddress, NckArea, S7AnyAddress
+from nckemu.protocol.errors import NckConfigError
 from nckemu.traces import decode as decoder
 from nckemu.traces.capture import CaptureWriter
 from nckemu.traces.reader import (
@@ -283,3 +284,39 @@ def test_linux_cooked_captures_decode_as_ethernet_ones(tmp_path: Path) -> None:
     assert [(p.frame, p.from_client, p.data) for p in got.pdus] == [(p.frame, p.from_client, p.data) for p in expected.pdus]
     assert [e.to_json() for e in decoder.decode(got)] == [e.to_json() for e in decoder.decode(expected)]
     assert len(expected.pdus) >= 10
+
+
+def _small_capture(path: Path) -> bytes:
+    writer = CaptureWriter.open(path)
+    for reference in (1, 2, 3):
+        job = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, reference, s7.build_read_var_request(s7.ReadVarRequest(_ITEMS[:3]))))
+        answer = s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, reference, *s7.build_read_var_response(s7.ReadVarResponse(
+            (s7.DataItem(0xFF, 0x09, bytes(8)), s7.DataItem(0xFF, 0x09, b"\x01"), s7.DataItem(0x0A, 0, b""))))))
+        writer.segment(1, True, cotp.build_data_frame(job))
+        writer.segment(1, False, cotp.build_data_frame(answer))
+    writer.close()
+    return path.read_bytes()
+
+
+@settings(max_examples=300, deadline=None)
+@example(pcapng=False, flips=[(322, 0)], cut=0)  # a read job's item cut short: crashed the decoder once
+@given(pcapng=st.booleans(), flips=st.lists(st.tuples(st.integers(0, 10_000), st.integers(0, 255)), min_size=1,
+                                              max_size=8), cut=st.integers(0, 10_000))
+def test_damaged_captures_give_a_message_never_a_crash(tmp_path_factory: pytest.TempPathFactory, pcapng: bool,
+                                                       flips: list[tuple[int, int]], cut: int) -> None:
+    """Any byte of a capture changed, and the file cut anywhere: the reader and decoder report what they
+    cannot read (a message naming the file when nothing is left), they never raise anything else."""
+    folder = tmp_path_factory.mktemp("damaged")
+    data = bytearray(_small_capture(folder / ("good.pcapng" if pcapng else "good.pcap")))
+    for position, value in flips:
+        data[position % len(data)] = value
+    damaged = folder / ("damaged.pcapng" if pcapng else "damaged.pcap")
+    damaged.write_bytes(bytes(data[:len(data) - cut % len(data)]))
+    try:
+        capture = read_capture(damaged)
+    except NckConfigError as exc:
+        assert str(damaged) in str(exc)
+        return
+    for exchange in decoder.decode(capture):  # and what `trace show` prints of it
+        decoder.format_exchange(exchange, 0.0)
+        json.dumps(exchange.to_json())
