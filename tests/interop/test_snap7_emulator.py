@@ -141,7 +141,20 @@ def test_pys7_cpu_status_and_info(emulator: EmulatorThread) -> None:
     try:
         assert client.get_cpu_status() == "RUN"
         info = client.get_cpu_info()
-        assert info
+        assert (info["module_type_name"], info["hardware_version"], info["firmware_version"]) == \
+            ("6FC5372-0AA30-0AA0", "V3", "V3.2.6")
+    finally:
+        client.disconnect()
+
+
+def test_python_snap7_order_code_shows_the_same_firmware_as_pys7(emulator: EmulatorThread) -> None:
+    import snap7
+
+    client = snap7.Client()
+    client.connect("127.0.0.1", 0, 2, emulator.port)
+    try:
+        order = client.get_order_code()
+        assert (order.OrderCode, order.V1, order.V2, order.V3) == (b"6FC5372-0AA30-0AA0", 3, 2, 6)
     finally:
         client.disconnect()
 

@@ -19,6 +19,8 @@ log = logging.getLogger(__name__)
 
 AREA_BYTES = 2048
 ORDER_NUMBER = "6FC5372-0AA30-0AA0"  # NCU 720.3 PN; the PLC part answers as the NCU
+HARDWARE_VERSION = 3
+FIRMWARE_VERSION = (3, 2, 6)  # of the PLC part (a CPU 317-2 PN/DP); not a measured value
 MODULE_NAME = "nckemu NCU"
 
 
@@ -113,8 +115,14 @@ class PlcModel:
     def szl(self, szl_id: int, szl_index: int) -> bytes:
         """The whole SZL: ID, index, record length, record count, records."""
         if szl_id == 0x0011:
-            records = [struct.pack(">H", index) + _text(ORDER_NUMBER, 20) + struct.pack(">HHH", 0, 3, 0)
-                       for index in (1, 6, 7)]
+            major, minor, patch = FIRMWARE_VERSION
+            # Index 7 carries the firmware as 'V', major, minor, patch (python-snap7's get_order_code
+            # reads its last three bytes); index 1 carries it packed, major.minor in one byte and the
+            # patch in the next, where pys7's get_cpu_info looks. Indexes 1 and 6: hardware version.
+            tails = {1: struct.pack(">HHBB", 0, HARDWARE_VERSION, major << 4 | minor, patch),
+                     6: struct.pack(">HHH", 0, HARDWARE_VERSION, 0),
+                     7: struct.pack(">HBBBB", 0, ord("V"), major, minor, patch)}
+            records = [struct.pack(">H", index) + _text(ORDER_NUMBER, 20) + tail for index, tail in tails.items()]
             return self._szl(szl_id, szl_index, 28, records)
         if szl_id == 0x001C:
             machine_name = getattr(self.machine, "name", "nckemu") if self.machine is not None else "nckemu"
