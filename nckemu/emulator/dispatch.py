@@ -114,7 +114,7 @@ class Dispatcher:
         """The whole ACK_DATA PDU answering a read-var job: what ``job`` answers, without the S7Pdu
         objects on the way (clients poll; this is most of the traffic). Raises as ``job`` does."""
         request = self._read_request(parameter)
-        data = s7.build_data_items(tuple(self._read_item(address, ctx) for address in request.items))
+        data = s7.build_data_items(self.read_var(request, ctx).items)
         return _READ_ANSWER_HEAD.pack(s7.PROTOCOL_ID, s7.Rosctr.ACK_DATA, 0, pdu_ref, 2, len(data), 0, 0,
                                       s7.Function.READ_VAR, len(request.items)) + data
 

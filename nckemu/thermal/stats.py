@@ -74,21 +74,27 @@ def autocorrelation(residual: np.ndarray, lag: int) -> float:
     return float(np.dot(centred[lag:], centred[:-lag]) / denominator)
 
 
-def ar1_coefficient(residual: np.ndarray) -> float:
-    """The decay per sample of the residual's slow part: AR(1) plus white noise (a gauge's own noise on
-    a slowly wandering error) has r(k) = r(1)·φ^(k−1), so φ = r(2)/r(1); for a pure AR(1), r(1)."""
+def _ar1_plus_white(residual: np.ndarray) -> tuple[float, float]:
+    """r(1) and the decay per sample φ of the residual's slow part: AR(1) plus white noise (a gauge's
+    own noise on a slowly wandering error) has r(k) = r(1)·φ^(k−1), so φ = r(2)/r(1); for a pure
+    AR(1), r(1)."""
     r1, r2 = autocorrelation(residual, 1), autocorrelation(residual, 2)
     phi = r2 / r1 if 0.0 < r2 < r1 else r1
-    return float(np.clip(phi, -0.99, 0.99))
+    return r1, float(np.clip(phi, -0.99, 0.99))
+
+
+def _variance_factor(r1: float, phi: float) -> float:
+    return 1.0 + 2.0 * r1 / (1.0 - phi) if r1 > 0.0 else 1.0
+
+
+def ar1_coefficient(residual: np.ndarray) -> float:
+    return _ar1_plus_white(residual)[1]
 
 
 def long_run_variance_factor(residual: np.ndarray) -> float:
     """Var(mean of n samples) · n / Var(sample) for AR(1) plus white noise: 1 + 2·r(1)/(1 − φ).
     A lag-1 AR(1) fit alone, (1 + r1)/(1 − r1), underestimates it badly when white noise dilutes r(1)."""
-    r1 = autocorrelation(residual, 1)
-    if r1 <= 0.0:
-        return 1.0
-    return 1.0 + 2.0 * r1 / (1.0 - ar1_coefficient(residual))
+    return _variance_factor(*_ar1_plus_white(residual))
 
 
 @dataclass(frozen=True)
@@ -110,8 +116,8 @@ def fit(design: np.ndarray, target: np.ndarray) -> Fit:
     coefficients = least_squares(design, target)
     residual = target - design @ coefficients
     n, p = design.shape
-    phi = ar1_coefficient(residual)
-    inflation = math.sqrt(long_run_variance_factor(residual))
+    r1, phi = _ar1_plus_white(residual)
+    inflation = math.sqrt(_variance_factor(r1, phi))
     dof = max(n - p, 1)
     sigma2 = float(np.dot(residual, residual)) / dof
     try:

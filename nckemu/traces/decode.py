@@ -147,15 +147,13 @@ class _ReadJob:
             position = value_end
         if position != len(data) or not value_spans:
             return
-        orders = {value_format[1] for value_format in self.value_formats if value_format is not None}
-        typed = None not in self.value_formats and len(orders) == 1 and all(
-            struct.calcsize("<" + value_format[0]) == value_length
-            for value_format, (_fixed, value_length) in zip(self.value_formats, lengths, strict=True)
-            if value_format is not None)
+        formats = self.value_formats
+        typed = None not in formats and len({big_endian for _code, big_endian in formats}) == 1 and all(
+            struct.calcsize("<" + code) == value_length
+            for (code, _big_endian), (_fixed, value_length) in zip(formats, lengths, strict=True))
         if typed:
-            codes = [value_format[0] for value_format in self.value_formats if value_format is not None]
-            layout = (">" if orders.pop() else "<") + "6x" + "".join(
-                f"{fixed_length}s{code}" for (fixed_length, _v), code in zip(lengths, codes, strict=True))
+            layout = (">" if formats[0][1] else "<") + "6x" + "".join(
+                f"{fixed_length}s{code}" for (fixed_length, _v), (code, _big) in zip(lengths, formats, strict=True))
         else:
             layout = ">6x" + "".join(f"{fixed_length}s{value_length}s" for fixed_length, value_length in lengths)
         self.answer_layout = struct.Struct(layout)
@@ -207,7 +205,7 @@ def _fast_read_job(pdu: TracePdu, data: bytes) -> Exchange | None:
 
 
 def _fill_items(items: list[Item], readers: tuple[_ValueReader | None, ...],
-                results: list[tuple[int, bytes]] | tuple[tuple[int, bytes], ...]) -> None:
+                results: list[tuple[int, bytes]]) -> None:
     for item, reader, (return_code, raw) in zip(items, readers, results, strict=True):
         item.return_code = return_code
         item.raw = raw.hex()
@@ -230,14 +228,7 @@ def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
                     item.value = value
                     item.raw = data[start:end].hex()
                 return True
-            for item, reader, raw in zip(exchange.items, job.readers, parts[1::2], strict=True):
-                item.return_code = 0xFF
-                item.raw = raw.hex()
-                if reader is not None:
-                    try:
-                        item.value = reader(raw)
-                    except NckError:
-                        item.value = None
+            _fill_items(exchange.items, job.readers, [(0xFF, raw) for raw in parts[1::2]])
             return True
     parameter_length = data[6] << 8 | data[7]
     data_length = data[8] << 8 | data[9]

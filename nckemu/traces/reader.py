@@ -67,6 +67,7 @@ class _Connection:
 
 
 _Record = tuple[int, float, "bytes | mmap.mmap", int, int]  # number, time, buffer, start, captured length
+_NANOSECOND_MAGICS = (dpkt.pcap.TCPDUMP_MAGIC_NANO, dpkt.pcap.PMUDPCT_MAGIC_NANO)
 
 
 def _dpkt_records(reader: dpkt.pcap.Reader | dpkt.pcapng.Reader, capture: Capture) -> Iterator[_Record]:
@@ -221,17 +222,16 @@ def _tcp(frame: bytes, link: int) -> tuple[str, str, dpkt.tcp.TCP | _Segment] | 
     return socket.inet_ntop(family, ip.src), socket.inet_ntop(family, ip.dst), segment
 
 
-# One unpack for the hot path, from the Ethernet type to the COTP DT header: Ethernet type; IPv4
-# version/IHL, total length, flags/fragment offset, protocol; addresses and ports (one connection
-# direction); TCP sequence number, data offset, flags; TPKT version/reserved and length; COTP DT.
 # Link types the hot path reads, by the length of their header (which ends in the 2-byte EtherType):
 # Ethernet, and Linux "cooked" captures (tcpdump -i any).
 _HOT_LINK_HEADERS = {dpkt.pcap.DLT_EN10MB: 14, dpkt.pcap.DLT_LINUX_SLL: 16}
 
 
 def _hot_headers(link_header: int) -> struct.Struct:
+    """One unpack for the hot path, from the EtherType to the COTP DT header: EtherType; IPv4
+    version/IHL, total length, flags/fragment offset, protocol; addresses and ports (one connection
+    direction); TCP sequence number, data offset, flags; TPKT version/reserved and length; COTP DT."""
     return struct.Struct(f">{link_header - 2}xHBxH2xHxB2x12sI4xBB6xHH3s")
-_NANOSECOND_MAGICS = (dpkt.pcap.TCPDUMP_MAGIC_NANO, dpkt.pcap.PMUDPCT_MAGIC_NANO)
 
 
 class _Reassembly:
@@ -299,6 +299,7 @@ class _Reassembly:
         if ip is not None and len(frame) >= ip + 24 and frame[ip - 2:ip + 1] == b"\x08\x00\x45":  # hot layout
             self.hot.setdefault(frame[ip + 12:ip + 24], (connection, from_client, connection.directions[from_client]))
         _feed(self.capture, connection, from_client, segment, number, ts)
+
 
 @contextmanager
 def collector_paused() -> Iterator[None]:

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import itertools
 import json
+import mmap
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import dpkt
@@ -48,21 +49,30 @@ def _write_pcap(path: Path, frames: list[tuple[int, int, bytes]], *, big_endian:
     path.write_bytes(b"".join(parts))
 
 
-def _walk_both(path: Path) -> tuple[list[tuple[int, float, bytes]], list[tuple[int, float, bytes]], Capture]:
-    mapped_capture = Capture(str(path))
+_Walked = list[tuple[int, float, bytes]]
+
+
+def _frames(records: Iterator[tuple[int, float, bytes | mmap.mmap, int, int]]) -> _Walked:
+    return [(n, ts, bytes(buffer[start:start + length])) for n, ts, buffer, start, length in records]
+
+
+def _walk_both(path: Path) -> tuple[_Walked, _Walked, Capture]:
+    """Our walk over the mapped file (pcap or pcapng, by the suffix) and dpkt's own reading of it."""
+    pcapng = path.suffix == ".pcapng"
+    reader_type = dpkt.pcapng.Reader if pcapng else dpkt.pcap.Reader
+    capture = Capture(str(path))
     with path.open("rb") as handle:
         magic = int.from_bytes(handle.read(4), "big")
         handle.seek(0)
-        dpkt.pcap.Reader(handle)
+        reader = reader_type(handle)
         mapped = _mapped(handle)
         assert mapped is not None
         with mapped:
-            ours = [(n, ts, bytes(buffer[start:start + length]))
-                    for n, ts, buffer, start, length in _mapped_pcap_records(mapped, magic, mapped_capture)]
+            ours = _frames(_mapped_pcapng_records(mapped, handle.tell(), reader, capture) if pcapng
+                           else _mapped_pcap_records(mapped, magic, capture))
     with path.open("rb") as handle:
-        theirs = [(n, ts, bytes(buffer[start:start + length]))
-                  for n, ts, buffer, start, length in _dpkt_records(dpkt.pcap.Reader(handle), Capture(str(path)))]
-    return ours, theirs, mapped_capture
+        theirs = _frames(_dpkt_records(reader_type(handle), Capture(str(path))))
+    return ours, theirs, capture
 
 
 @settings(max_examples=80, deadline=None)
@@ -220,21 +230,6 @@ def _write_pcapng(path: Path, frames: list[tuple[int, int, bytes]], *, big_endia
     path.write_bytes(b"".join(parts))
 
 
-def _walk_pcapng_both(path: Path) -> tuple[list[tuple[int, float, bytes]], list[tuple[int, float, bytes]], Capture]:
-    capture = Capture(str(path))
-    with path.open("rb") as handle:
-        reader = dpkt.pcapng.Reader(handle)
-        mapped = _mapped(handle)
-        assert mapped is not None
-        with mapped:
-            ours = [(n, ts, bytes(buffer[start:start + length])) for n, ts, buffer, start, length
-                    in _mapped_pcapng_records(mapped, handle.tell(), reader, capture)]
-    with path.open("rb") as handle:
-        theirs = [(n, ts, bytes(buffer[start:start + length])) for n, ts, buffer, start, length
-                  in _dpkt_records(dpkt.pcapng.Reader(handle), Capture(str(path)))]
-    return ours, theirs, capture
-
-
 @settings(max_examples=80, deadline=None)
 @given(frames=_FRAMES, big_endian=st.booleans(), resolution=st.sampled_from([None, 6, 9, 0x8A]),
        offset_s=st.sampled_from([None, 0, 1_700_000_000]), kinds=st.lists(st.sampled_from([6, 6, 2, 5]),
@@ -245,7 +240,7 @@ def test_mapped_pcapng_blocks_are_dpkts_records(tmp_path_factory: pytest.TempPat
                                                 kinds: list[int]) -> None:
     path = tmp_path_factory.mktemp("pcapng") / "f.pcapng"
     _write_pcapng(path, frames, big_endian=big_endian, resolution=resolution, offset_s=offset_s, kinds=kinds)
-    ours, theirs, capture = _walk_pcapng_both(path)
+    ours, theirs, capture = _walk_both(path)
     assert [(n, frame) for n, _ts, frame in ours] == [(n, frame) for n, _ts, frame in theirs]
     assert [ts for _n, ts, _f in ours] == [ts for _n, ts, _f in theirs]
     assert capture.problems == []
@@ -259,7 +254,7 @@ def test_a_cut_pcapng_gives_its_whole_blocks_and_says_where_it_breaks(
     _write_pcapng(path, frames, big_endian=False, resolution=None, offset_s=None, kinds=[6] * len(frames))
     header = 28 + 20  # the section header and interface description blocks
     blocks = (32 + len(frame) + (-len(frame) % 4) for _h, _l, frame in frames)
-    _check_cut(path, header, list(itertools.accumulate(blocks, initial=header))[1:], frames, cut, _walk_pcapng_both)
+    _check_cut(path, header, list(itertools.accumulate(blocks, initial=header))[1:], frames, cut, _walk_both)
 
 
 def test_linux_cooked_captures_decode_as_ethernet_ones(tmp_path: Path) -> None:
