@@ -28,6 +28,9 @@ class Axis:
     # Which component (1..3) of SD42960 TOOL_TEMP_COMP acts on this axis when MD32750 bit 2 is set;
     # None: none. Unconfirmed: taken as the tool length components L1/L2/L3 under G17 (Z, Y, X).
     tool_temp_comp_component: int | None = None
+    # The axis letter of this axis in a recording (pos_<letter>_mm, err_<letter>_um, sim_<letter>_um);
+    # `recording = "Z"` in the machine file, by default the first letter of the name ("" for none).
+    recording: str = ""
 
 
 # The default allocation of SD42960's components to geometry axes, by the first letter of the axis name.
@@ -115,7 +118,11 @@ def _axis(table: dict[str, Any], index: int, source: str) -> Axis:
     if component is not None and (isinstance(component, bool) or component not in (1, 2, 3)):
         raise NckConfigError("expected 1, 2 or 3 (the SD42960 component acting on this axis)", path=source,
                              field=f"{where}tool_temp_comp_component")
-    return Axis(number=number, name=name,
+    recording = table.get("recording", name[:1].upper() if name[:1].isalpha() else "")
+    if not isinstance(recording, str) or (recording and not recording.isidentifier()):
+        raise NckConfigError("expected the axis letter of a recording, e.g. \"Z\"", path=source,
+                             field=f"{where}recording")
+    return Axis(number=number, name=name, recording=recording,
                 travel_min_mm=float(travel[0]), travel_max_mm=float(travel[1]), rotary=rotary,
                 spindle=spindle, referenced=_get(table, "referenced", bool, where, source, True),
                 position_mm=position, tool_temp_comp_component=component)
