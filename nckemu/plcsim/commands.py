@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
+from typing import Any
 
 from nckemu.protocol.errors import NckConfigError
 
@@ -48,6 +50,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     stubs.add_argument("directory", help="where to write fb2_get.awl, fb3_put.awl and fb4_pi_serv.awl")
     stubs.set_defaults(func=write_stubs)
     plc.set_defaults(func=lambda args: plc.print_help() or 2)
+
+    loop = subparsers.add_parser(
+        "loop", help="your compensation program against a recording: what it misses, and the fixed program",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example: nckemu loop fixtures/plc/bed_only_z.awl --machine fixtures/machines/loop_mill.toml "
+               "--inputs rec.csv --axis Z --report loop.html --json loop.json --write-stl fixed.awl")
+    loop.add_argument("program", help="your STL source with OB1")
+    loop.add_argument("--machine", required=True, help="machine TOML: sensors with plc_input, axes")
+    loop.add_argument("--inputs", required=True, metavar="REC.csv", help="recording with temp_, pos_ and err_ columns")
+    loop.add_argument("--axis", required=True, help="recording letter of the axis, e.g. Z")
+    loop.add_argument("--cycle", default="1s", help="simulated PLC cycle (1s); the generated filters are exact for it")
+    loop.add_argument("--folds", type=int, default=5, help="held-out blocks of time (5)")
+    loop.add_argument("--report", metavar="loop.html", help="write one self-contained HTML report")
+    loop.add_argument("--json", dest="json_out", metavar="OUT.json", help="write the figures as JSON")
+    loop.add_argument("--write-stl", metavar="NEW.awl", help="write the generated program (fitted on all data)")
+    loop.set_defaults(func=run_loop_command)
+    discover = subparsers.choices.get("discover")
+    if discover is not None:  # `discover --write-stl`: the PLC side lives here, thermal never imports plcsim
+        discover.add_argument("--write-stl", metavar="NEW.awl",
+                              help="write an STL program computing the improved model (needs --machine)")
+        discover.add_argument("--machine", help="machine TOML: which sensors the PLC reads, and the axis")
+        discover.add_argument("--cycle", default="1s", help="PLC cycle the generated filters are exact for (1s)")
+        discover.set_defaults(func=functools.partial(discover_with_stl, discover.get_default("func")))
 
 
 def _speed(text: str) -> float | None:
@@ -165,3 +190,106 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
         for message in run.log.errors[:10]:
             print(f"error: {message}")
     return 1 if run.log.errors else 0
+
+
+def _cycle(text: str) -> float:
+    try:
+        cycle_s = _duration_s(text)
+    except ValueError:
+        raise NckConfigError("--cycle takes e.g. 1s, 15s, 1min") from None
+    if not cycle_s > 0:
+        raise NckConfigError("--cycle must be positive")
+    return cycle_s
+
+
+def _write_text_atomically(path: str, text: str) -> None:
+    from pathlib import Path
+
+    target = Path(path)
+    temporary = target.with_name(f".{target.name}.partial")
+    try:
+        temporary.write_text(text, encoding="utf-8")
+        temporary.replace(target)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
+def run_loop_command(args: argparse.Namespace) -> int:
+    import sys
+    from pathlib import Path
+
+    from nckemu.thermal.recording import load_recording
+
+    from .loop import run_loop, write_loop_report
+    from .replay import check_output_path
+
+    cycle_s = _cycle(args.cycle)
+    if args.folds < 2:
+        raise NckConfigError("--folds must be at least 2")
+    for option, path in (("--report", args.report), ("--json", args.json_out), ("--write-stl", args.write_stl)):
+        if path:
+            check_output_path(path, option)
+    recording = load_recording(args.inputs)
+    result = run_loop(args.program, args.machine, recording, args.axis, cycle_s=cycle_s, folds=args.folds)
+    for warning in result.warnings:
+        print(f"nckemu loop: warning: {warning}", file=sys.stderr)
+    if args.write_stl:
+        _write_text_atomically(args.write_stl, result.program.text)
+    if args.json_out:
+        _write_text_atomically(args.json_out, json.dumps(result.to_json(), indent=2) + "\n")
+    if args.report:
+        write_loop_report(args.report, result, f"nckemu loop: {Path(args.program).name} on {Path(args.inputs).name}")
+    print(f"axis {result.letter}: error RMS {result.rms_error_um:.3f} um; left after your program "
+          f"{result.rms_before_um:.3f} um; after the generated program {result.heldout_rms_after_um:.3f} um held-out "
+          f"({result.rms_after_um:.3f} um fitted on all)")
+    for heading, sentence in result.findings:
+        print(f"  {heading}: {sentence}")
+    for item in result.program.not_compensable:
+        print(f"  {item['effect']}: {item['why']}")
+    return 0
+
+
+def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
+    if not args.write_stl:
+        return int(thermal_discover(args) or 0)
+    from pathlib import Path
+
+    from nckemu.emulator.machine import load_machine
+    from nckemu.thermal.plcmodel import plc_model, terms_of
+    from nckemu.thermal.recording import load_recording
+
+    from .replay import check_output_path, recording_axis
+    from .stlgen import generate_program
+
+    if not args.machine:
+        raise NckConfigError("--write-stl needs --machine (which sensors the PLC reads, which axis)")
+    check_output_path(args.write_stl, "--write-stl")
+    cycle_s = _cycle(args.cycle)
+    machine = load_machine(args.machine)
+    recording = load_recording(args.recording)
+    letter = args.axis or (recording.axes()[0] if len(recording.axes()) == 1 else None)
+    if letter is None:
+        raise NckConfigError("several err_ columns: name one with --axis", path=args.recording)
+    axis = recording_axis(machine, letter)
+    status = int(thermal_discover(args) or 0)
+    discovery = args.discovery
+    origin = f"nckemu discover on {Path(args.recording).name}"
+    if args.model:  # the improved model carries every term
+        generated = generate_program(discovery.improved_model, machine, axis, cycle_s, origin=origin)
+    else:  # a program's sim_ column: its law read back, the found effects added
+        plc_sensors = [s.name for s in machine.sensors
+                       if s.plc_input and f"temp_{s.name}_C" in recording.temperatures_C]
+        model = plc_model(recording, discovery.axis, terms_of(discovery.missing_physics), plc_sensors)
+        generated = generate_program(model.model, machine, axis, cycle_s, extra_not_compensable=model.not_compensable,
+                                     origin=origin)
+    _write_text_atomically(args.write_stl, generated.text)
+    if args.json_out:
+        document = json.loads(Path(args.json_out).read_text(encoding="utf-8"))
+        document["stl"] = {"path": args.write_stl, **generated.to_json()}
+        _write_text_atomically(args.json_out, json.dumps(document, indent=2) + "\n")
+    print(f"  STL written to {args.write_stl}: {', '.join(g['effect'] for g in generated.generated)}")
+    for item in generated.not_compensable:
+        print(f"  {item['effect']}: {item['why']}")
+    if generated.position_dependent:
+        print(f"  the program writes tan beta and P0: set MD32750 bit 1 for machine axis {axis.number}")
+    return status

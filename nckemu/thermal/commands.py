@@ -73,17 +73,26 @@ def run_discover(args: argparse.Namespace) -> int:
     if model is None and args.axis and args.axis not in recording.simulated_um:
         raise NckConfigError(f"no baseline: give --model or a sim_{args.axis}_um column", path=args.recording)
     result = discover(recording, axis=args.axis, model=model)
+    args.discovery = result  # for options other components add to discover (plcsim: --write-stl)
     document = result.to_json()
+    findings = None
+    if model is None:  # the baseline is a program's compensation: say what it did and left out
+        from .wording import program_findings
+
+        findings = program_findings(result)
+        document["program"] = dict(findings)
     if args.json_out:
         Path(args.json_out).write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
     if args.report:
-        write_report(args.report, result, f"nckemu discover: {Path(args.recording).name}")
+        write_report(args.report, result, f"nckemu discover: {Path(args.recording).name}", findings)
     if args.write_model:
         note = "" if args.model else f"# baseline: the sim_{result.axis}_um column of {args.recording}\n"
         Path(args.write_model).write_text(note + render_model(result.improved_model), encoding="utf-8")
     print(f"axis {result.axis}: RMS as given {result.baseline_rms_um:.3f} um, recalibrated "
           f"{result.recalibrated_rms_um:.3f} um, held-out {result.heldout_rms_before_um:.3f} -> "
           f"{result.heldout_rms_after_um:.3f} um", file=sys.stderr if not args.json_out else sys.stdout)
+    for heading, sentence in findings or []:
+        print(f"  {heading}: {sentence}")
     for effect in result.missing_physics:
         print(f"  missing: {effect['effect']} {json.dumps(effect['parameters'])}")
     if not result.missing_physics:

@@ -60,27 +60,39 @@ def why_not_compensable(term: Term, plc_sensors: set[str], spindle_input: bool =
 
 
 def read_program_law(recording: Recording, axis: str, plc_sensors: list[str],
-                     min_share: float = 0.005) -> tuple[list[Term], float]:
-    """The program's compensation (``sim_<axis>_um``) as offset + temperature (+ position) terms."""
+                     min_gain: float = 0.3) -> tuple[list[Term], float]:
+    """The program's compensation (``sim_<axis>_um``) as offset + temperature (+ position) terms.
+
+    Forward selection: a term joins while it takes at least ``min_gain`` of what is left (the
+    column also carries the write rate and the NCK's rate limit, which no term should chase)."""
     if axis not in recording.simulated_um:
         raise NckConfigError(f"no sim_{axis}_um column to read the program's law from", path=recording.source)
     sim = recording.simulated_um[axis]
     rows = np.isfinite(sim)
-    terms = [Term("offset", {"value_um": 0.0})]
-    for sensor in plc_sensors:
-        terms.append(Term("temperature", {"sensor": sensor, "t_ref_C": 20.0, "coeff_um_per_K": 0.0}))
+    candidates = [Term("temperature", {"sensor": s, "t_ref_C": 20.0, "coeff_um_per_K": 0.0}) for s in plc_sensors]
     position = recording.positions_mm.get(axis)
     if position is not None and np.ptp(position[rows]) > 1.0:
-        for sensor in plc_sensors:
-            terms.append(Term("position_dependent_expansion", {"sensor": sensor, "t_ref_C": 20.0, "p0_mm": 0.0,
-                                                               "slope_um_per_m_per_K": 0.0}))
-    design = np.column_stack([t.feature(recording, axis)[rows] for t in terms])
+        candidates += [Term("position_dependent_expansion", {"sensor": s, "t_ref_C": 20.0, "p0_mm": 0.0,
+                                                             "slope_um_per_m_per_K": 0.0}) for s in plc_sensors]
+    columns = {id(t): t.feature(recording, axis)[rows] for t in candidates}
+    chosen = [Term("offset", {"value_um": 0.0})]
+    design = np.ones((int(rows.sum()), 1))
     coefficients = stats.least_squares(design, sim[rows])
-    spread = max(float(np.ptp(sim[rows])), 1e-9)
-    kept = [t.with_coefficient(c) for t, c, column in zip(terms, coefficients, design.T, strict=True)
-            if t.effect == "offset" or abs(c) * float(np.ptp(column)) >= min_share * spread]
-    law = ThermalModel(axis, kept).predict_um(recording)
-    return kept, stats.rms((law - sim)[rows])
+    left = stats.rms(sim[rows] - design @ coefficients)
+    floor = 1e-6 * max(float(np.max(np.abs(sim[rows]))), 1.0)
+    while candidates and left > floor:
+        trials = []
+        for term in candidates:
+            trial = np.column_stack([design, columns[id(term)]])
+            fitted = stats.least_squares(trial, sim[rows])
+            trials.append((stats.rms(sim[rows] - trial @ fitted), term, trial, fitted))
+        best_rms, term, trial, fitted = min(trials, key=lambda item: item[0])
+        if best_rms > (1 - min_gain) * left:
+            break
+        chosen.append(term)
+        candidates.remove(term)
+        design, coefficients, left = trial, fitted, best_rms
+    return [t.with_coefficient(float(c)) for t, c in zip(chosen, coefficients, strict=True)], left
 
 
 def terms_of(missing_physics: list[dict[str, Any]]) -> list[Term]:
