@@ -1,0 +1,125 @@
+"""The generated STL program: loads in awlsim, reads only declared inputs, and its 32-bit REALs stay
+within 0.1 um of the float64 model on a recording."""
+
+from __future__ import annotations
+
+import math
+import re
+import struct
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from nckemu.emulator.machine import load_machine
+from nckemu.plcsim.bridge import PlcRunner
+from nckemu.plcsim.replay import recording_axis, run_on_recording
+from nckemu.plcsim.stlgen import STATE_DB, generate_program, lag_coefficient
+from nckemu.thermal.recording import Recording
+from nckemu.thermal.scenarios import make_loop_scenario
+from nckemu.thermal.terms import Term, ThermalModel, first_order_lag
+
+FIXTURES = Path(__file__).resolve().parents[3] / "fixtures"
+MACHINE = load_machine(FIXTURES / "machines" / "loop_mill.toml")
+AXIS = recording_axis(MACHINE, "Z")
+
+
+def _probe(name: str) -> Callable[[PlcRunner], float]:
+    def read(runner: PlcRunner) -> float:
+        db = runner.sim.cpu.getDB(STATE_DB)
+        offset = db.struct.getField(name).offset.byteOffset
+        return float(struct.unpack_from(">f", bytes(db.structInstance.memory.getDataBytes()), offset)[0])
+    return read
+
+
+def plc_values_um(model: ThermalModel, recording: Recording, cycle_s: float, tmp_path: Path) -> np.ndarray:
+    """What the generated program computes at each row: K0 + tan beta * position, in um."""
+    program = generate_program(model, MACHINE, AXIS, cycle_s)
+    path = tmp_path / "generated.awl"
+    path.write_text(program.text)
+    run = run_on_recording(path, MACHINE, recording, "Z", cycle_s, progress=False,
+                           probes={"k0": _probe("K0_MM"), "tan_beta": _probe("TAN_BETA")})
+    assert run.log.errors == []
+    return (run.probes["k0"] + run.probes["tan_beta"] * recording.positions_mm["Z"]) * 1000.0
+
+
+EVERY_EFFECT = ThermalModel("Z", [
+    Term("offset", {"value_um": -1.5}),
+    Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": 2.0}),
+    Term("thermal_lag", {"sensor": "spindle", "t_ref_C": 20.0, "tau_s": 2400.0, "coeff_um_per_K": 3.0}),
+    Term("quadratic_temperature", {"sensor": "spindle", "t_ref_C": 20.0, "coeff_um_per_K2": 0.08}),
+    Term("thermal_gradient", {"sensors": ["spindle", "bed"], "coeff_um_per_K": -1.2}),
+    Term("heating_cooling_hysteresis", {"sensor": "bed", "t_ref_C": 20.0, "tau_heat_s": 1800.0,
+                                        "tau_cool_s": 5400.0, "coeff_um_per_K": 0.7}),
+    Term("position_dependent_expansion", {"sensor": "bed", "t_ref_C": 20.0, "p0_mm": 0.0,
+                                          "slope_um_per_m_per_K": 11.5}),
+    Term("gain_error", {"gain": 1.1}),
+])
+
+
+def test_float32_program_within_0_1_um_of_the_float64_model(tmp_path: Path) -> None:
+    recording = make_loop_scenario(seed=2).recording   # 36 h, one row a minute
+    plc = plc_values_um(EVERY_EFFECT, recording, 60.0, tmp_path)
+    reference = EVERY_EFFECT.predict_um(recording)
+    assert float(np.max(np.abs(plc - reference))) < 0.1
+
+
+def test_only_declared_inputs_and_the_rest_listed_as_not_compensable() -> None:
+    model = ThermalModel("Z", [
+        Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": 2.0}),
+        Term("temperature", {"sensor": "front", "t_ref_C": 20.0, "coeff_um_per_K": 1.0}),
+        Term("time_drift", {"um_per_h": 0.25}),
+        Term("centrifugal_growth", {"coeff_um_per_krpm2": -0.05})])
+    program = generate_program(model, MACHINE, AXIS)
+    declared = {s.plc_input for s in MACHINE.sensors}
+    used = {f"PIW{n}" for n in re.findall(r"L PIW (\d+)", program.text)}
+    assert used == {"PIW420"} and used <= declared
+    listed = {item["effect"] for item in program.not_compensable}
+    assert listed == {"temperature", "time_drift", "centrifugal_growth"}
+    assert all(item["why"].startswith("not compensable in the PLC") for item in program.not_compensable)
+    assert program.text.count("// not compensable in the PLC:") == 3
+    assert not program.position_dependent and "MD32750" not in program.text
+
+
+@given(st.floats(0.05, 10.0), st.floats(30.0, 20000.0), st.integers(1, 500), st.floats(-20.0, 20.0),
+       st.floats(-20.0, 20.0))
+def test_discrete_lag_is_the_continuous_solution(cycle_s: float, tau_s: float, cycles: int, start: float,
+                                                 target: float) -> None:
+    """For an input held over each cycle the recursion is exact: x(n) = u + (x0 - u) exp(-n dt / tau)."""
+    alpha = lag_coefficient(cycle_s, tau_s)
+    state = start
+    for _ in range(cycles):
+        state += alpha * (target - state)
+    exact = target + (start - target) * math.exp(-cycles * cycle_s / tau_s)
+    assert state == pytest.approx(exact, abs=1e-9 * (1 + abs(start) + abs(target)))
+    t = np.arange(cycles + 1) * cycle_s
+    signal = np.full(cycles + 1, target)
+    signal[0] = start
+    assert first_order_lag(t, signal, tau_s)[-1] == pytest.approx(exact, abs=1e-9 * (1 + abs(start) + abs(target)))
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.floats(-5.0, 5.0), st.floats(-8.0, 8.0), st.floats(60.0, 20000.0), st.floats(-0.2, 0.2),
+       st.floats(0.5, 2.0), st.integers(0, 2 ** 16))
+def test_float32_program_against_float64_model_property(tmp_path: Path, coeff_bed: float, coeff_lag: float,
+                                                        tau_s: float, quadratic: float, gain: float,
+                                                        walk_seed: int) -> None:
+    rng = np.random.default_rng(walk_seed)
+    t = np.arange(0.0, 600.0, 1.0)
+    bed = 20.0 + np.cumsum(rng.normal(0.0, 0.05, len(t)))
+    spindle = 25.0 + np.cumsum(rng.normal(0.0, 0.2, len(t)))
+    recording = Recording("<walk>", t, {"temp_bed_C": bed, "temp_spindle_C": spindle}, None,
+                          {"Z": np.full_like(t, -500.0)}, {"Z": np.zeros_like(t)})
+    model = ThermalModel("Z", [
+        Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": coeff_bed}),
+        Term("thermal_lag", {"sensor": "spindle", "t_ref_C": 20.0, "tau_s": tau_s, "coeff_um_per_K": coeff_lag}),
+        Term("quadratic_temperature", {"sensor": "spindle", "t_ref_C": 20.0, "coeff_um_per_K2": quadratic}),
+        Term("gain_error", {"gain": gain})])
+    plc = plc_values_um(model, recording, 1.0, tmp_path)
+    # The PLC reads quantized PIW words (1/276.48 K): the float64 model on those same inputs.
+    quantized = Recording("<walk>", t, {k: np.round(v * 276.48) / 276.48 for k, v in recording.temperatures_C.items()},
+                          None, recording.positions_mm, recording.errors_um)
+    assert float(np.max(np.abs(plc - model.predict_um(quantized)))) < 0.1
