@@ -252,6 +252,9 @@ def run_loop_command(args: argparse.Namespace) -> int:
 def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     if not args.write_stl:
         return int(thermal_discover(args) or 0)
+    import contextlib
+    import io
+    import sys
     from pathlib import Path
 
     from nckemu.emulator.machine import load_machine
@@ -271,7 +274,10 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     if letter is None:
         raise NckConfigError("several err_ columns: name one with --axis", path=args.recording)
     axis = recording_axis(machine, letter)
-    status = int(thermal_discover(args) or 0)
+    # discover's own lines are held back until the program is generated: a refusal stays one line.
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = int(thermal_discover(args) or 0)
     discovery = args.discovery
     origin = f"nckemu discover on {Path(args.recording).name}"
     if args.model:  # the improved model carries every term
@@ -282,6 +288,8 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
         model = plc_model(recording, discovery.axis, terms_of(discovery.missing_physics), plc_sensors)
         generated = generate_program(model.model, machine, axis, cycle_s, extra_not_compensable=model.not_compensable,
                                      origin=origin)
+    sys.stdout.write(out.getvalue())
+    sys.stderr.write(err.getvalue())
     _write_text_atomically(args.write_stl, generated.text)
     if args.json_out:
         document = json.loads(Path(args.json_out).read_text(encoding="utf-8"))

@@ -151,7 +151,10 @@ def run_loop(program: str | Path, machine: str | Path | Machine, recording: Reco
         if len(rows):
             fold_rms.append((stats.rms(error[rows] - old.sim_um[rows]), stats.rms(error[rows] - sim[rows])))
     findings = program_findings(found_discovery, _law_text(model))
-    warnings = list(old.warnings)
+    warnings = list(old.warnings) + [f"your program: {message}" for message in old.log.errors[:5]]
+    if not np.any(old.sim_um):
+        warnings.append(f"your program compensated nothing on axis {axis.name} (machine axis {axis.number}): check "
+                        f"the unit in its address DB and MD32750")
     if generated.position_dependent:
         from .replay import position_dependent_warning
 

@@ -51,6 +51,8 @@ class RecordingRun:
     cycles: int
     warnings: list[str] = field(default_factory=list)
     probes: dict[str, np.ndarray] = field(default_factory=dict)
+    # Recording time = the emulator's (and the job log's) simulated time + this.
+    clock_offset_s: float = 0.0
 
 
 def recording_axis(machine: Machine, letter: str) -> Axis:
@@ -125,8 +127,12 @@ def position_dependent_warning(program_text: str, machine: Machine, axis: Axis) 
 
 def run_on_recording(program: str | Path, machine: str | Path | Machine | None, recording: Recording,
                      axis_letter: str, cycle_s: float = 1.0, progress: bool | None = None,
-                     probes: dict[str, Callable[[PlcRunner], float]] | None = None) -> RecordingRun:
+                     probes: dict[str, Callable[[PlcRunner], float]] | None = None,
+                     warmup_s: float = 120.0) -> RecordingRun:
     """Run ``program`` over the whole ``recording``; sample the applied compensation at every row.
+
+    The PLC starts ``warmup_s`` before the first row with the first row's inputs (the machine ran
+    before the recording began), so a program writing once a minute has written by the first row.
 
     ``progress`` None: a tqdm bar on a terminal only. ``probes`` read the PLC (e.g. a DB value) at
     every row, for tests.
@@ -143,7 +149,7 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
     warnings = [w for w in [position_dependent_warning(program_text, machine, axis)] if w]
 
     t_rows = np.asarray(recording.t_s, dtype=float)
-    t0 = float(t_rows[0])
+    t0 = float(t_rows[0]) - math.ceil(max(warmup_s, 0.0) / cycle_s - 1e-9) * cycle_s
     cycles = int(math.floor((float(t_rows[-1]) - t0) / cycle_s + 1e-9)) + 1
     t_cycles = t0 + cycle_s * np.arange(cycles)
     sensor_series = [(s.name, np.interp(t_cycles, t_rows, recording.temperatures_C[f"temp_{s.name}_C"]).tolist())
@@ -156,7 +162,7 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
     sim_um = np.full(len(rows), math.nan)
     probe_values = {name: np.full(len(rows), math.nan) for name in probes or {}}
 
-    clock = SimulatedClock(t0)
+    clock = SimulatedClock(0.0)  # simulated time starts at 0 with the first cycle
     emulator = Emulator(machine, clock=clock)
     nck = emulator.nck
     from tqdm import tqdm
@@ -167,7 +173,7 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
             return emulator.plc.read(S7Area.P, 0, offset, size)
 
         def set_inputs(k: int) -> None:
-            clock.set(t_cycles[k])
+            clock.set(t_cycles[k] - t0)
             for name, series in sensor_series:
                 nck.set_sensor_temperature(name, series[k])
             for number, series in position_series:
@@ -188,7 +194,7 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
                 if end > next_row:
                     def sample(start: int = next_row, end: int = end) -> None:
                         for row in range(start, end):
-                            clock.set(rows[row])
+                            clock.set(rows[row] - t0)
                             sim_um[row] = sign * nck.tc_value_mm(axis.number) * 1000.0
                     emu.call(sample)
                     for name, probe in (probes or {}).items():
@@ -200,7 +206,7 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
         finally:
             bar.close()
             runner.shutdown()
-    return RecordingRun(axis, sim_um, runner.log, cycles, warnings, probe_values)
+    return RecordingRun(axis, sim_um, runner.log, cycles, warnings, probe_values, t0)
 
 
 def with_simulation(recording: Recording, letter: str, sim_um: np.ndarray) -> Recording:
