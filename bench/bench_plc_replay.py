@@ -9,6 +9,7 @@ which drives the sensors from the machine file's profile.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -37,16 +38,19 @@ def main() -> int:
     args = parser.parse_args()
     machine = ROOT / "fixtures" / "machines" / "bed_ramp.toml"
     recording = day_at_1hz(args.hours)
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     run = run_on_recording(args.program, machine, recording, "Z", cycle_s=1.0)
-    replay_s = time.perf_counter() - started
+    replay_s, replay_cpu_s = time.perf_counter() - started, time.process_time() - cpu_started
     residual = recording.errors_um["Z"] - run.sim_um
     started = time.perf_counter()
     run_program(args.program, machine=machine, duration_s=args.hours * 3600.0, cycle_s=1.0)
     anchor_s = time.perf_counter() - started
     print(f"plc run --inputs: {len(recording.t_s):,} rows, {run.cycles:,} PLC cycles, {len(run.log.puts)} FB3 PUT "
-          f"jobs in {replay_s:.1f} s ({run.cycles / replay_s:,.0f} cycles/s; target 24 h in < 60 s); "
+          f"jobs in {replay_s:.1f} s wall, {replay_cpu_s:.1f} s CPU ({run.cycles / replay_s:,.0f} cycles/s; "
+          f"target 24 h in < 60 s); "
           f"residual RMS {float(np.sqrt(np.mean(residual ** 2))):.2f} um")
+    load = os.getloadavg()[0]
+    print(f"load average {load:.1f} on {os.cpu_count()} cores (other work shares the machine)")
     print(f"anchor, plc run --duration {args.hours:g}h (profile-driven sensors): {anchor_s:.1f} s "
           f"({replay_s / anchor_s:.2f}x)")
     return 0 if replay_s < 60.0 * args.hours / 24.0 else 1
