@@ -113,3 +113,17 @@ def test_fl_thermal_through_the_loop() -> None:
                       recording, "ch3", cycle_s=15.0, progress=False)
     assert result.discovery.missing_physics
     assert result.heldout_rms_after_um < result.rms_before_um
+
+
+def test_loop_cli_writes_report_json_and_stl(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from nckemu.cli import main
+
+    write_recording(tmp_path / "rec.csv", make_loop_scenario(seed=1, duration_h=12.0).recording)
+    report, out_json, stl = tmp_path / "loop.html", tmp_path / "loop.json", tmp_path / "fixed.awl"
+    assert main(["loop", str(BED_ONLY), "--machine", str(LOOP_MILL), "--inputs", str(tmp_path / "rec.csv"),
+                 "--axis", "Z", "--cycle", "60s", "--folds", "3", "--report", str(report), "--json", str(out_json),
+                 "--write-stl", str(stl)]) == 0
+    assert "What physics it leaves out" in capsys.readouterr().out
+    document = json.loads(out_json.read_text())
+    assert len(document["heldout"]["blocks"]) == 3 and "program" in document and "not_compensable" in document["generated"]
+    assert "ORGANIZATION_BLOCK OB 1" in stl.read_text() and report.read_text().startswith("<!doctype html>")

@@ -3,6 +3,7 @@ within 0.1 um of the float64 model on a recording."""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import struct
@@ -123,3 +124,30 @@ def test_float32_program_against_float64_model_property(tmp_path: Path, coeff_be
     quantized = Recording("<walk>", t, {k: np.round(v * 276.48) / 276.48 for k, v in recording.temperatures_C.items()},
                           None, recording.positions_mm, recording.errors_um)
     assert float(np.max(np.abs(plc - model.predict_um(quantized)))) < 0.1
+
+
+def test_plc_run_warns_when_md32750_bit_1_is_missing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from nckemu.cli import main
+    from nckemu.thermal.recording import write_recording
+
+    model = ThermalModel("Z", [Term("position_dependent_expansion", {"sensor": "bed", "t_ref_C": 20.0, "p0_mm": -100.0,
+                                                                     "slope_um_per_m_per_K": 11.5})])
+    program = generate_program(model, MACHINE, AXIS)
+    assert program.position_dependent and "MD32750 bit 1" in program.text
+    (tmp_path / "pos.awl").write_text(program.text)
+    recording = make_loop_scenario(seed=1, duration_h=0.5).recording
+    write_recording(tmp_path / "rec.csv", recording)
+    args = ["plc", "run", str(tmp_path / "pos.awl"), "--machine", str(FIXTURES / "machines" / "loop_mill.toml"),
+            "--inputs", str(tmp_path / "rec.csv"), "--axis", "Z", "--json"]
+    assert main(args) == 0
+    assert "does not set MD32750 bit 1 for axis 4" in capsys.readouterr().err
+    fixed = tmp_path / "bit1.toml"
+    fixed.write_text((FIXTURES / "machines" / "loop_mill.toml").read_text().replace("MD32750 = { 4 = 1 }",
+                                                                                     "MD32750 = { 4 = 3 }"))
+    args[4] = str(fixed)
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert "MD32750" not in captured.err
+    summary = json.loads(captured.out)
+    # With bit 1 set the NCK applies tan beta * (P - P0): the generated program's compensation follows the model.
+    assert summary["rms_residual_um"] < summary["rms_error_um"] or summary["sim_max_um"] != 0.0
