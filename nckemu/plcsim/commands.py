@@ -261,7 +261,7 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     from nckemu.thermal.plcmodel import plc_model, terms_of
     from nckemu.thermal.recording import load_recording
 
-    from .replay import check_output_path, recording_axis
+    from .replay import check_output_path, plc_inputs, recording_axis
     from .stlgen import generate_program
 
     if not args.machine:
@@ -283,9 +283,9 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     if args.model:  # the improved model carries every term
         generated = generate_program(discovery.improved_model, machine, axis, cycle_s, origin=origin)
     else:  # a program's sim_ column: its law read back, the found effects added
-        plc_sensors = [s.name for s in machine.sensors
-                       if s.plc_input and f"temp_{s.name}_C" in recording.temperatures_C]
-        model = plc_model(recording, discovery.axis, terms_of(discovery.missing_physics), plc_sensors)
+        plc_sensors, spindle_input = plc_inputs(machine, recording)
+        model = plc_model(recording, discovery.axis, terms_of(discovery.missing_physics), plc_sensors,
+                          spindle_input=spindle_input)
         generated = generate_program(model.model, machine, axis, cycle_s, extra_not_compensable=model.not_compensable,
                                      origin=origin)
     sys.stdout.write(out.getvalue())

@@ -32,7 +32,7 @@ from nckemu.thermal.plcmodel import PlcModel, plc_model, terms_of
 from nckemu.thermal.recording import Recording
 from nckemu.thermal.wording import program_findings
 
-from .replay import check_program, recording_axis, run_on_recording, with_simulation
+from .replay import check_program, plc_inputs, recording_axis, run_on_recording, with_simulation
 from .stlgen import GeneratedProgram, generate_program
 
 
@@ -131,9 +131,9 @@ def run_loop(program: str | Path, machine: str | Path | Machine, recording: Reco
     with_old = with_simulation(recording, letter, old.sim_um)
     found_discovery = discover(with_old, axis=letter)
     found = terms_of(found_discovery.missing_physics)
-    plc_sensors = [s.name for s in machine.sensors if s.plc_input and f"temp_{s.name}_C" in recording.temperatures_C]
+    plc_sensors, spindle_input = plc_inputs(machine, recording)
     origin = f"nckemu loop on {Path(recording.source).name} (program {program.name})"
-    model = plc_model(with_old, letter, found, plc_sensors)
+    model = plc_model(with_old, letter, found, plc_sensors, spindle_input=spindle_input)
     generated = generate_program(model.model, machine, axis, cycle_s, write_period_s, model.not_compensable, origin)
     sim_new = _run_generated(generated, machine, recording, letter, cycle_s, progress)
     heldout = np.full(len(recording.t_s), math.nan)
@@ -142,7 +142,7 @@ def run_loop(program: str | Path, machine: str | Path | Machine, recording: Reco
     for block in blocks(len(recording.t_s), folds):
         train = np.ones(len(recording.t_s), dtype=bool)
         train[block] = False
-        fold_model = plc_model(with_old, letter, found, plc_sensors, train=train)
+        fold_model = plc_model(with_old, letter, found, plc_sensors, train=train, spindle_input=spindle_input)
         fold_program = generate_program(fold_model.model, machine, axis, cycle_s, write_period_s,
                                         fold_model.not_compensable, origin)
         sim = _run_generated(fold_program, machine, recording, letter, cycle_s, progress)

@@ -40,6 +40,10 @@ TC_BIT_POSITION_DEPENDENT = 2
 # The marker a generated program carries when it writes tan beta (SD43910) and P0 (SD43920).
 POSITION_DEPENDENT_MARKER = "nckemu: position-dependent compensation"
 
+# A [[sensor]] with this name carries the spindle speed to the PLC (its "degrees" are rpm): driven
+# from the recording's spindle_rpm column; the generator computes centrifugal growth from it.
+SPINDLE_SPEED_SENSOR = "spindle_rpm"
+
 _OB1 = re.compile(r"^\s*ORGANIZATION_BLOCK\s+OB\s*1\b", re.IGNORECASE | re.MULTILINE)
 
 
@@ -89,6 +93,12 @@ def check_program(program: Path) -> str:
 def _check_inputs(machine: Machine, recording: Recording, axis: Axis) -> dict[int, np.ndarray]:
     for sensor in machine.sensors:
         key = f"temp_{sensor.name}_C"
+        if sensor.name == SPINDLE_SPEED_SENSOR:
+            if sensor.plc_input and recording.spindle_rpm is None:
+                raise NckConfigError(f"the recording has no spindle_rpm column, which the spindle speed input "
+                                     f"({sensor.plc_input}) of {machine.source} needs", path=recording.source,
+                                     line=1, field="spindle_rpm")
+            continue
         if sensor.plc_input and key not in recording.temperatures_C:
             raise NckConfigError(f"the recording has no column {key!r}, which sensor {sensor.name!r} "
                                  f"({sensor.plc_input}) of {machine.source} needs", path=recording.source,
@@ -109,6 +119,21 @@ def _check_inputs(machine: Machine, recording: Recording, axis: Axis) -> dict[in
         raise NckConfigError(f"the recording has neither err_{axis.recording}_um nor pos_{axis.recording}_mm "
                              f"for axis {axis.name}", path=recording.source, line=1)
     return positions
+
+
+def _sensor_column(recording: Recording, name: str) -> np.ndarray | None:
+    if name == SPINDLE_SPEED_SENSOR:
+        return recording.spindle_rpm
+    return recording.temperatures_C.get(f"temp_{name}_C")
+
+
+def plc_inputs(machine: Machine, recording: Recording) -> tuple[list[str], bool]:
+    """The temperature sensors the PLC reads (with a column), and whether it reads the spindle speed."""
+    sensors = [s.name for s in machine.sensors if s.plc_input and s.name != SPINDLE_SPEED_SENSOR
+               and f"temp_{s.name}_C" in recording.temperatures_C]
+    spindle = any(s.plc_input and s.name == SPINDLE_SPEED_SENSOR for s in machine.sensors) \
+        and recording.spindle_rpm is not None
+    return sensors, spindle
 
 
 def position_dependent_warning(program_text: str, machine: Machine, axis: Axis) -> str | None:
@@ -152,8 +177,8 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
     t0 = float(t_rows[0]) - math.ceil(max(warmup_s, 0.0) / cycle_s - 1e-9) * cycle_s
     cycles = int(math.floor((float(t_rows[-1]) - t0) / cycle_s + 1e-9)) + 1
     t_cycles = t0 + cycle_s * np.arange(cycles)
-    sensor_series = [(s.name, np.interp(t_cycles, t_rows, recording.temperatures_C[f"temp_{s.name}_C"]).tolist())
-                     for s in machine.sensors if f"temp_{s.name}_C" in recording.temperatures_C]
+    sensor_series = [(s.name, np.interp(t_cycles, t_rows, _sensor_column(recording, s.name)).tolist())
+                     for s in machine.sensors if _sensor_column(recording, s.name) is not None]
     position_series = [(number, np.interp(t_cycles, t_rows, values).tolist()) for number, values in positions.items()]
     sign = -machine.settings.compensation_sign
     # The first row index at or after each cycle's start: rows in [t_k, t_k+1) are sampled after cycle k.

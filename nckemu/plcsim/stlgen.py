@@ -10,6 +10,8 @@ NCVar-selector address DB, at the rate of a self-restarting timer.
   for an input held over the cycle; heating_cooling_hysteresis: the same with alpha of heating or
   cooling; the states live in a DB and start settled on the first cycle;
 - position_dependent_expansion: tan beta and P0 (needs MD32750 bit 1);
+- centrifugal_growth: from the spindle speed, when the machine wires it to the PLC as a
+  ``[[sensor]]`` named ``spindle_rpm`` (its "degrees" are rpm);
 - gain_error: a factor on the whole output.
 Effects the PLC cannot compute (time_drift, effects of sensors not wired to the PLC, centrifugal
 growth without a speed input) are not generated; the header lists them as "not compensable in the PLC".
@@ -29,7 +31,7 @@ from nckemu.errors import NckConfigError
 from nckemu.thermal.plcmodel import why_not_compensable
 from nckemu.thermal.terms import Term, ThermalModel
 
-from .replay import POSITION_DEPENDENT_MARKER
+from .replay import POSITION_DEPENDENT_MARKER, SPINDLE_SPEED_SENSOR
 
 ADDRESS_DB = 150
 STATE_DB = 151
@@ -118,7 +120,7 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
             gain *= term.coefficient
             generated.append({"effect": "gain_error", "parameters": dict(term.parameters)})
             continue
-        reason = why_not_compensable(term, set(sensors))
+        reason = why_not_compensable(term, set(sensors), spindle_input=SPINDLE_SPEED_SENSOR in sensors)
         if reason is None and term.effect not in _GENERATORS:
             reason = f"no PLC form for {term.effect}"
         if reason:
@@ -135,7 +137,8 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
     # Inputs.
     for name in used_sensors:
         sensor = sensors[name]
-        e.op(f"// {name}: {sensor.plc_input} = {sensor.raw_offset:g} + {sensor.raw_per_C:g} * T [degC]",
+        unit = "rpm" if name == SPINDLE_SPEED_SENSOR else "degC"
+        e.op(f"// {name}: {sensor.plc_input} = {sensor.raw_offset:g} + {sensor.raw_per_C:g} * value [{unit}]",
              f"L {sensor.plc_input[:3]} {sensor.plc_input[3:]}", "ITD", "DTR", f"L {_real(sensor.raw_offset)}",
              "-R", f"L {_real(sensor.raw_per_C)}", "/R", f"T {e.temperature(name)}")
     # Filters start settled on the first cycle.
@@ -174,6 +177,8 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
 
 
 def _sensors_of(term: Term) -> list[str]:
+    if term.effect == "centrifugal_growth":
+        return [SPINDLE_SPEED_SENSOR]
     p = term.parameters
     if "sensors" in p:
         return [str(s) for s in p["sensors"]]
@@ -253,7 +258,16 @@ def _position(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, t
     return "tan beta += slope * (T - t_ref) * 1e-6"
 
 
-_GENERATORS = {"offset": _offset, "temperature": _temperature, "quadratic_temperature": _quadratic,
+def _centrifugal(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: str) -> str:
+    e.op(f"// centrifugal_growth: {term.coefficient:.6g} um/krpm^2 from the spindle speed input",
+         f"L {e.temperature(SPINDLE_SPEED_SENSOR)}", f"L {_real(1000.0)}", "/R", f"T {e.field('D')}",
+         f"L {e.field('D')}", "*R", f"L {_real(term.coefficient)}", "*R")
+    e.accumulate(total)
+    return "c * (rpm / 1000)^2"
+
+
+_GENERATORS = {"offset": _offset, "centrifugal_growth": _centrifugal, "temperature": _temperature,
+               "quadratic_temperature": _quadratic,
                "thermal_gradient": _gradient, "thermal_lag": _lag, "heating_cooling_hysteresis": _lag,
                "position_dependent_expansion": _position}
 

@@ -43,6 +43,8 @@ class PlcModel:
 
 def _sensors_of(term: Term) -> list[str]:
     p = term.parameters
+    if term.effect == "centrifugal_growth":
+        return []
     if "sensors" in p:
         return [str(s) for s in p["sensors"]]
     return [str(p["sensor"])] if "sensor" in p else []
@@ -52,7 +54,7 @@ def why_not_compensable(term: Term, plc_sensors: set[str], spindle_input: bool =
     if term.effect == "time_drift":
         return "the PLC cannot know how long the machine has drifted (no physical input carries it)"
     if term.effect == "centrifugal_growth" and not spindle_input:
-        return "no spindle speed input: the machine file wires none to the PLC"
+        return "no spindle speed input: the machine file wires none to the PLC (a [[sensor]] named spindle_rpm)"
     missing = [s for s in _sensors_of(term) if s not in plc_sensors]
     if missing:
         return f"sensor {', '.join(missing)} is not wired to a PLC input in the machine file"

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from nckemu.emulator.machine import load_machine
+from nckemu.emulator.machine import Machine, load_machine, parse_machine
 from nckemu.plcsim.bridge import PlcRunner
 from nckemu.plcsim.replay import recording_axis, run_on_recording
 from nckemu.plcsim.stlgen import STATE_DB, generate_program, lag_coefficient
@@ -26,6 +26,10 @@ from nckemu.thermal.terms import Term, ThermalModel, first_order_lag
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures"
 MACHINE = load_machine(FIXTURES / "machines" / "loop_mill.toml")
 AXIS = recording_axis(MACHINE, "Z")
+# The same mill with the spindle speed on PIW 424 (0..10000 rpm = 0..27648).
+MACHINE_RPM = parse_machine((FIXTURES / "machines" / "loop_mill.toml").read_text()
+                            + '\n[[sensor]]\nname = "spindle_rpm"\nplc_input = "PIW424"\nraw_per_C = 2.7648\n',
+                            "loop_mill + spindle speed")
 
 
 def _probe(name: str) -> Callable[[PlcRunner], float]:
@@ -36,12 +40,14 @@ def _probe(name: str) -> Callable[[PlcRunner], float]:
     return read
 
 
-def plc_values_um(model: ThermalModel, recording: Recording, cycle_s: float, tmp_path: Path) -> np.ndarray:
+def plc_values_um(model: ThermalModel, recording: Recording, cycle_s: float, tmp_path: Path,
+                  machine: Machine = MACHINE) -> np.ndarray:
     """What the generated program computes at each row: K0 + tan beta * position, in um."""
-    program = generate_program(model, MACHINE, AXIS, cycle_s)
+    program = generate_program(model, machine, AXIS, cycle_s)
+    assert program.not_compensable == []
     path = tmp_path / "generated.awl"
     path.write_text(program.text)
-    run = run_on_recording(path, MACHINE, recording, "Z", cycle_s, progress=False,
+    run = run_on_recording(path, machine, recording, "Z", cycle_s, progress=False,
                            probes={"k0": _probe("K0_MM"), "tan_beta": _probe("TAN_BETA")})
     assert run.log.errors == []
     return (run.probes["k0"] + run.probes["tan_beta"] * recording.positions_mm["Z"]) * 1000.0
@@ -57,13 +63,14 @@ EVERY_EFFECT = ThermalModel("Z", [
                                         "tau_cool_s": 5400.0, "coeff_um_per_K": 0.7}),
     Term("position_dependent_expansion", {"sensor": "bed", "t_ref_C": 20.0, "p0_mm": 0.0,
                                           "slope_um_per_m_per_K": 11.5}),
+    Term("centrifugal_growth", {"coeff_um_per_krpm2": -0.05}),
     Term("gain_error", {"gain": 1.1}),
 ])
 
 
 def test_float32_program_within_0_1_um_of_the_float64_model(tmp_path: Path) -> None:
     recording = make_loop_scenario(seed=2).recording   # 36 h, one row a minute
-    plc = plc_values_um(EVERY_EFFECT, recording, 60.0, tmp_path)
+    plc = plc_values_um(EVERY_EFFECT, recording, 60.0, tmp_path, MACHINE_RPM)
     reference = EVERY_EFFECT.predict_um(recording)
     assert float(np.max(np.abs(plc - reference))) < 0.1
 
