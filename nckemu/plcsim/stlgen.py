@@ -23,6 +23,7 @@ to well below 0.1 um; only the outputs are scaled to mm.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -69,8 +70,7 @@ class GeneratedProgram:
 
 
 class _Emitter:
-    def __init__(self, sensors: dict[str, Sensor]) -> None:
-        self.sensors = sensors
+    def __init__(self) -> None:
         self.lines: list[str] = []
         self.state: list[str] = []     # REAL fields of the state DB, in order
         self.labels = 0
@@ -88,7 +88,7 @@ class _Emitter:
         self.lines.extend(f"  {s}" for s in statements)
 
     def temperature(self, sensor: str) -> str:
-        return self.field(f"T_{sensor.upper()}")
+        return self.field("T_" + re.sub(r"[^A-Za-z0-9]", "_", sensor).upper())
 
     def deviation(self, sensor: str, t_ref_C: float) -> None:
         """ACCU1 = T(sensor) - t_ref."""
@@ -98,7 +98,8 @@ class _Emitter:
         self.op(f"L {total}", "+R", f"T {total}")
 
 
-def _check_sensors(model: ThermalModel, machine: Machine) -> dict[str, Sensor]:
+def _plc_sensors(machine: Machine) -> dict[str, Sensor]:
+    """Only what the machine file wires to a PLC input can be read by the program."""
     return {s.name: s for s in machine.sensors if s.plc_input}
 
 
@@ -108,8 +109,8 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
     """STL source computing ``model`` (um, in the direction of the error) for machine axis ``axis``."""
     if not cycle_s > 0:
         raise NckConfigError("the PLC cycle must be positive")
-    sensors = _check_sensors(model, machine)
-    e = _Emitter(sensors)
+    sensors = _plc_sensors(machine)
+    e = _Emitter()
     total, tanb = e.field("TOTAL_UM"), e.field("TANB_UM_PER_M")
     not_compensable = list(extra_not_compensable or [])
     generated: list[dict[str, Any]] = []
