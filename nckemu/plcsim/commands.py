@@ -120,6 +120,8 @@ def run_plc(args: argparse.Namespace) -> int:
     speed = _speed(args.speed)
     if args.emulator and speed not in (None, 1.0):
         raise NckConfigError("--speed applies to the in-process emulator; --emulator runs in real time")
+    if not args.emulator:
+        _warn_position_dependent(args.program, args.machine, args.axis)
     result = run_program(args.program, machine=args.machine, emulator=args.emulator, duration_s=duration_s,
                          cycle_s=cycle_s, axis=args.axis, speed=speed)
     if args.json:
@@ -136,6 +138,25 @@ def run_plc(args: argparse.Namespace) -> int:
         for error in result.log.errors[:10]:
             print(f"error: {error}")
     return 1 if result.log.errors else 0
+
+
+def _warn_position_dependent(program: str, machine_path: str | None, axis_number: int) -> None:
+    import sys
+    from pathlib import Path
+
+    from nckemu.emulator.machine import load_machine
+
+    from .replay import position_dependent_warning
+
+    try:
+        text = Path(program).read_text("utf-8", errors="replace")
+    except OSError:
+        return  # run_program names the problem
+    machine = load_machine(machine_path)
+    axis = machine.axis(axis_number)
+    warning = position_dependent_warning(text, machine, axis) if axis is not None else None
+    if warning:
+        print(f"nckemu plc run: warning: {warning}", file=sys.stderr)
 
 
 def run_plc_on_recording(args: argparse.Namespace) -> int:
