@@ -195,10 +195,14 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
     summary = {"axis": column, "machine_axis": run.axis.number, "rows": len(run.sim_um), "cycles": run.cycles,
                "puts": len(run.log.puts), "errors": run.log.errors[:10], "out": args.out,
                "sim_min_um": round(float(np.nanmin(run.sim_um)), 4), "sim_max_um": round(float(np.nanmax(run.sim_um)), 4)}
+    previous = recording.simulated_um.get(column)  # e.g. SIM.csv of the old program as --inputs
     if error is not None:
         measured = ~np.isnan(error)
         summary["rms_error_um"] = round(float(np.sqrt(np.mean(error[measured] ** 2))), 4)
         summary["rms_residual_um"] = round(float(np.sqrt(np.mean((error - run.sim_um)[measured] ** 2))), 4)
+        if previous is not None:
+            rows = measured & ~np.isnan(previous)
+            summary["rms_residual_before_um"] = round(float(np.sqrt(np.mean((error - previous)[rows] ** 2))), 4)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -208,6 +212,9 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
         if error is not None:
             print(f"RMS error {summary['rms_error_um']:.3f} um before compensation, "
                   f"{summary['rms_residual_um']:.3f} um left after it (err - sim)")
+        if "rms_residual_before_um" in summary:
+            print(f"residual before (the recording's sim_{column}_um) {summary['rms_residual_before_um']:.3f} um, "
+                  f"after (this program) {summary['rms_residual_um']:.3f} um")
         for message in run.log.errors[:10]:
             print(f"error: {message}")
     return 1 if run.log.errors else 0
