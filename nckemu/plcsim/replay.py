@@ -194,7 +194,8 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
 
     with EmulatorThread(emulator=emulator) as emu, NckClient("127.0.0.1", emu.port) as client:
         def read_peripheral(offset: int, size: int) -> bytes:
-            # Between cycles no job runs: the emulator's thread is idle (jobs are awaited below).
+            # A PIW read only looks up sensor values, which only this thread sets: no hop needed
+            # even while a job started in this cycle is on the emulator's thread.
             return emulator.plc.read(S7Area.P, 0, offset, size)
 
         def set_inputs(k: int) -> None:
