@@ -55,7 +55,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "loop", help="your compensation program against a recording: what it misses, and the fixed program",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example: nckemu loop fixtures/plc/bed_only_z.awl --machine fixtures/machines/loop_mill.toml "
-               "--inputs rec.csv --axis Z --report loop.html --json loop.json --write-stl fixed.awl")
+               "--inputs fixtures/thermal/loop_bed_program_spindle_lag.csv --axis Z --cycle 60s --report loop.html "
+               "--json loop.json --write-stl fixed.awl")
     loop.add_argument("program", help="your STL source with OB1")
     loop.add_argument("--machine", required=True, help="machine TOML: sensors with plc_input, axes")
     loop.add_argument("--inputs", required=True, metavar="REC.csv", help="recording with temp_, pos_ and err_ columns")
