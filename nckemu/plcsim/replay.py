@@ -181,6 +181,7 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
                      for s in machine.sensors if _sensor_column(recording, s.name) is not None]
     position_series = [(number, np.interp(t_cycles, t_rows, values).tolist()) for number, values in positions.items()]
     sign = -machine.settings.compensation_sign
+    ipo_s = machine.ipo_cycle_s
     # The first row index at or after each cycle's start: rows in [t_k, t_k+1) are sampled after cycle k.
     row_bounds = np.searchsorted(t_rows, np.append(t_cycles[1:], math.inf), side="left").tolist()
     rows = t_rows.tolist()
@@ -221,8 +222,11 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
                     concurrent.futures.wait(pending, timeout=JOB_WAIT_S)
                 end = row_bounds[k]
                 if end > next_row:
+                    # One interpolation cycle after the row: the NCK recomputes the TC from the new
+                    # position (and a value just written) in its next IPO cycle, not at the same instant.
+                    limit = t_cycles[k + 1] - t0 if k + 1 < cycles else math.inf
                     for row in range(next_row, end):
-                        clock.set(rows[row] - t0)
+                        clock.set(min(rows[row] - t0 + ipo_s, limit))
                         sim_um[row] = sign * nck.tc_value_mm(axis.number) * 1000.0
                     for name, probe in (probes or {}).items():
                         probe_values[name][next_row:end] = probe(runner)

@@ -158,3 +158,33 @@ def test_plc_run_warns_when_md32750_bit_1_is_missing(tmp_path: Path, capsys: pyt
     summary = json.loads(captured.out)
     # With bit 1 set the NCK applies tan beta * (P - P0): the generated program's compensation follows the model.
     assert summary["rms_residual_um"] < summary["rms_error_um"] or summary["sim_max_um"] != 0.0
+
+
+def test_position_dependent_program_on_the_nck_follows_the_model(tmp_path: Path) -> None:
+    """With MD32750 bit 1 the NCK applies K0 + tan beta (P - P0) from the generated SD43910/43920."""
+    model = ThermalModel("Z", [
+        Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": 2.0}),
+        Term("position_dependent_expansion", {"sensor": "bed", "t_ref_C": 20.0, "p0_mm": -100.0,
+                                              "slope_um_per_m_per_K": 11.5})])
+    machine = parse_machine((FIXTURES / "machines" / "loop_mill.toml").read_text()
+                            .replace("MD32750 = { 4 = 1 }", "MD32750 = { 4 = 3 }"), "loop_mill, MD32750 = 3")
+    program = generate_program(model, machine, AXIS, cycle_s=1.0)
+    (tmp_path / "pos.awl").write_text(program.text)
+    t = np.arange(0.0, 1800.0, 1.0)
+    bed = 20.0 + 10.0 * t / 1800.0
+    position = -1000.0 + 1000.0 * (t % 600.0) / 600.0   # a sawtooth over the whole travel
+    recording = Recording("<saw>", t, {"temp_bed_C": bed, "temp_spindle_C": np.full_like(t, 20.0)}, None,
+                          {"Z": position}, {"Z": np.zeros_like(t)})
+    run = run_on_recording(tmp_path / "pos.awl", machine, recording, "Z", 1.0, progress=False)
+    assert run.warnings == [] and run.log.errors == []
+    settled = (t % 600.0) >= 5.0   # the MD32760 ramp after each jump back to -1000 mm
+    # Exactly what the NCK does with the last PUT: K0 + tan beta (P - P0), at the position of the row.
+    put_times = np.asarray([p.time_s + run.clock_offset_s for p in run.log.puts])
+    last = np.searchsorted(put_times, t + 1e-6, side="right") - 1  # a job is awaited within its cycle
+    applied = np.asarray([1000.0 * (run.log.puts[i].values["SD1"] + run.log.puts[i].values["SD2"]
+                                    * (p - run.log.puts[i].values["SD3"])) for i, p in zip(last, position, strict=True)])
+    assert float(np.max(np.abs(run.sim_um - applied)[settled])) < 1e-3
+    # And the model, up to one write period (10 s + two cycles) of a temperature rising 10 K in 30 min.
+    expected = model.predict_um(recording)
+    assert float(np.max(np.abs(run.sim_um - expected)[settled])) < 12.0 * 10.0 / 1800.0 * (2.0 + 11.5 * 0.9)
+    assert float(np.max(np.abs(expected))) > 50.0   # the position part matters: up to -100 um
