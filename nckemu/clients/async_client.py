@@ -19,28 +19,28 @@ from typing import Any, TypeVar
 from snap7.async_client import AsyncClient
 from snap7.type import Area
 
-from nckemu.protocol import pi, s7
-from nckemu.protocol.addresses import NckType
-from nckemu.protocol.codes import describe_return_code
-from nckemu.protocol.errors import (
+from nckemu.catalogue.names import Variable, as_variable
+from nckemu.errors import (
     NckConfigError,
     NckConnectionError,
     NckError,
     NckItemError,
-    NckProtocolError,
-    NckServiceError,
     NckTimeoutError,
+    ReturnCode,
     item_error_for,
+    service_error_for,
 )
+from nckemu.protocol import pi, s7
+from nckemu.protocol.addresses import NckType
+from nckemu.protocol.codes import describe_return_code
+from nckemu.protocol.errors import NckProtocolError
 from nckemu.protocol.values import NCK_TRANSPORT_SIZE, decode_nck_values, encode_nck_values
-
-from .names import Variable, as_variable
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 MAX_VARIABLES = 8  # NumVar of FB2/FB3
-RC_SUCCESS = 0xFF
+RC_SUCCESS = ReturnCode.SUCCESS
 
 
 @dataclass(frozen=True)
@@ -150,9 +150,9 @@ class AsyncNckClient:
                                         lambda client: client.iso_exchange_buffer(request))
         answer = s7.parse_pdu(bytes(raw))
         if answer.error_class or answer.error_code:
-            raise NckServiceError(f"the controller refused the job: header error "
-                                  f"0x{answer.error_class:02X}{answer.error_code:02X}",
-                                  error_class=answer.error_class, error_code=answer.error_code)
+            raise service_error_for(answer.error_class, answer.error_code,
+                                    f"the controller refused the job: header error "
+                                    f"0x{answer.error_class:02X}{answer.error_code:02X}")
         if answer.parameter[:1] != parameter[:1]:
             raise NckProtocolError(f"answer to function 0x{parameter[0]:02X} carries function "
                                    f"0x{answer.parameter[0] if answer.parameter else 0:02X}")

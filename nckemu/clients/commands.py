@@ -9,13 +9,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from nckemu.catalogue.names import Variable, parse_variable
+from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckType
 from nckemu.protocol.codes import describe_return_code
-from nckemu.protocol.errors import NckConfigError, NckError
 
 from .async_client import AsyncNckClient, ItemResult
 from .channel840c import Channel840C
-from .names import Variable, parse_variable
 
 
 def _connection_options(parser: argparse.ArgumentParser) -> None:
@@ -181,7 +181,7 @@ def run_comp840c(args: argparse.Namespace) -> int:
 def _check_leadscrew_program(path: Path) -> None:
     """Syntax, index gaps and parameters, checked here so that errors name the line; the axes and
     MD38000 are checked by the controller."""
-    from nckemu.emulator.nck.leadscrew import parse_leadscrew_program
+    from nckemu.catalogue.leadscrew import parse_leadscrew_program
 
     try:
         text = path.read_text(encoding="utf-8")
@@ -193,7 +193,7 @@ def _check_leadscrew_program(path: Path) -> None:
 
 
 def run_lec(args: argparse.Namespace) -> int:
-    from nckemu.emulator.nck.model import PI_LOAD_LEADSCREW, PI_POWER_ON
+    from nckemu.catalogue.pi_services import PI_LOAD_LEADSCREW, PI_POWER_ON
 
     path = Path(args.program).resolve()
     _check_leadscrew_program(path)

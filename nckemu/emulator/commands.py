@@ -11,7 +11,7 @@ import signal
 import sys
 from collections.abc import Callable
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 from .core import Emulator
 from .server import EmulatorServer, ServerLimits

@@ -12,7 +12,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 
 @dataclass(frozen=True)

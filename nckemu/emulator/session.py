@@ -25,21 +25,15 @@ from dataclasses import dataclass, field
 
 from nckemu.emulator.dispatch import Dispatcher
 from nckemu.emulator.nck.access import AccessContext
+from nckemu.errors import HeaderError, NckError
 from nckemu.protocol import cotp, s7, tpkt
-from nckemu.protocol.errors import NckError, NckProtocolError
+from nckemu.protocol.errors import NckProtocolError
 
 log = logging.getLogger(__name__)
 
-# Header errors the session itself answers with (class, code); one place to correct them.
-ERROR_WRONG_FRAMES = (0x85, 0x00)
-ERROR_NOT_IMPLEMENTED = (0x81, 0x04)
-ERROR_INVALID_SEQUENCE = (0x84, 0x01)
-ERROR_NO_RESOURCES = (0x83, 0x02)
-ERROR_PDU_TOO_LARGE = (0x85, 0x00)
-
 SETUP_PARAMETER_BYTES = 8
-_ROSCTR_JOB = int(s7.Rosctr.JOB)
-_READ_VAR = int(s7.Function.READ_VAR)
+# Where the S7 PDU starts in a frame with one whole PDU in one DT: TPKT (4) + COTP DT (3).
+_PDU_OFFSET = 7
 
 
 class SessionState(enum.Enum):
@@ -47,6 +41,42 @@ class SessionState(enum.Enum):
     CONNECTED = "connected"
     READY = "ready"
     CLOSED = "closed"
+
+
+class Event(enum.Enum):
+    """What the peer did, as far as the session's state is concerned."""
+
+    CONNECT_REQUEST = "COTP CR"
+    DATA = "COTP DT"
+    SETUP = "S7 setup communication"
+    JOB = "S7 job or userdata"
+    DISCONNECT_REQUEST = "COTP DR"
+
+
+# Rule 1 (after h11's _state.py): every change of ``ServerSession.state`` is decided by this table,
+# through ``_advance``. A pair maps to the next state, or to the header error the job is answered
+# with while the state stays; a pair that is absent closes the connection. (CLOSED takes nothing.)
+_TRANSITIONS: dict[tuple[SessionState, Event], SessionState | HeaderError] = {
+    (SessionState.WAIT_CONNECT, Event.CONNECT_REQUEST): SessionState.CONNECTED,
+    (SessionState.CONNECTED, Event.DATA): SessionState.CONNECTED,
+    (SessionState.CONNECTED, Event.SETUP): SessionState.READY,
+    (SessionState.CONNECTED, Event.JOB): HeaderError.INVALID_SEQUENCE,
+    (SessionState.READY, Event.DATA): SessionState.READY,
+    # A second setup communication renegotiates the PDU size, as real CPUs and snap7 allow.
+    (SessionState.READY, Event.SETUP): SessionState.READY,
+    (SessionState.READY, Event.JOB): SessionState.READY,
+}
+
+_CLOSE_REASONS: dict[tuple[SessionState, Event], str] = {
+    (SessionState.WAIT_CONNECT, Event.DATA): "COTP data before connect",
+    (SessionState.CONNECTED, Event.CONNECT_REQUEST): "second COTP connect request on one connection",
+    (SessionState.READY, Event.CONNECT_REQUEST): "second COTP connect request on one connection",
+}
+
+
+def next_state(state: SessionState, event: Event) -> SessionState | HeaderError:
+    """The table's answer for ``event`` in ``state`` (CLOSED where the table has none)."""
+    return _TRANSITIONS.get((state, event), SessionState.CLOSED)
 
 
 @dataclass(frozen=True)
@@ -115,6 +145,8 @@ class ServerSession:
         return self.state is SessionState.CLOSED
 
     def close(self, reason: str) -> None:
+        """End the connection from any state: the table's closing pairs, and faults it does not name
+        (bytes that are not TPKT/COTP/S7, limits, floods)."""
         if self.state is SessionState.CLOSED:
             return
         self.state = SessionState.CLOSED
@@ -122,6 +154,18 @@ class ServerSession:
         log.info("connection %s closed: %s", self.info.peer, reason)
         if self._on_close is not None:
             self._on_close(reason)
+
+    def _advance(self, event: Event, reason: str = "") -> HeaderError | None:
+        """Move as ``_TRANSITIONS`` says; the header error to answer with where it names one."""
+        outcome = next_state(self.state, event)
+        if isinstance(outcome, HeaderError):
+            return outcome
+        if outcome is SessionState.CLOSED:
+            self.close(reason or _CLOSE_REASONS.get((self.state, event),
+                                                    f"{event.value} in state {self.state.value}"))
+        else:
+            self.state = outcome
+        return None
 
     # ------------------------------------------------------------------ input
     def receive(self, data: bytes) -> list[bytes]:
@@ -155,7 +199,7 @@ class ServerSession:
                     if read_answer is not None:
                         out.append(read_answer)
                         continue
-                answer = self._handle_pdu(frame[7:], over_amq=over_amq)
+                answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=over_amq)
                 if answer is not None:
                     out.append(cotp.build_data_frame(answer))
                 continue
@@ -177,14 +221,14 @@ class ServerSession:
                 out.extend(self._handle_connect(tpdu))
             elif isinstance(tpdu, cotp.DisconnectRequest):
                 out.append(cotp.build_frame(cotp.DisconnectConfirm(tpdu.src_ref, tpdu.dst_ref)))
-                self.close("client sent DR")
+                self._advance(Event.DISCONNECT_REQUEST, "client sent DR")
             else:
                 self.close(f"unexpected COTP {type(tpdu).__name__}")
         return out
 
     def _reassemble(self, tpdu: cotp.DataTpdu) -> bytes | None:
-        if self.state is SessionState.WAIT_CONNECT:
-            self.close("COTP data before connect")
+        self._advance(Event.DATA)
+        if self.closed:
             return None
         if not tpdu.payload and not tpdu.eot:
             return None  # "fast acknowledge" some peers send; nothing to answer
@@ -201,8 +245,8 @@ class ServerSession:
         return pdu
 
     def _handle_connect(self, request: cotp.ConnectRequest) -> list[bytes]:
-        if self.state is not SessionState.WAIT_CONNECT:
-            self.close("second COTP connect request on one connection")
+        self._advance(Event.CONNECT_REQUEST)
+        if self.closed:
             return []
         self.info.calling_tsap = request.calling_tsap
         self.info.called_tsap = request.called_tsap
@@ -215,19 +259,17 @@ class ServerSession:
             calling_tsap=request.calling_tsap, called_tsap=request.called_tsap,
             tpdu_size=self.info.tpdu_size,
         )
-        self.state = SessionState.CONNECTED
         return [cotp.build_frame(confirm)]
 
     # ------------------------------------------------------------------ S7
     def _fast_read(self, frame: bytes) -> bytes | None:
         """The answer frame to a well-formed read-var job within the limits, straight from the header;
         None leaves the job to ``_handle_pdu``, which also gives every error its answer."""
-        if len(frame) < 19 or frame[7] != s7.PROTOCOL_ID or frame[8] != _ROSCTR_JOB or frame[17] != _READ_VAR \
-                or frame[15] or frame[16] or (frame[13] << 8 | frame[14]) != len(frame) - 17 \
-                or len(frame) - 7 > self.info.pdu_size:
+        job = s7.peek_read_var_job(frame, _PDU_OFFSET)
+        if job is None or len(frame) - _PDU_OFFSET > self.info.pdu_size:
             return None
         try:
-            answer = self.dispatcher.read_answer(frame[11] << 8 | frame[12], frame[17:], self.access)
+            answer = self.dispatcher.read_answer(job[0], job[1], self.access)
         except Exception:  # noqa: BLE001 - the general path answers (or logs) the same job properly
             return None
         if len(answer) > self.info.pdu_size:
@@ -246,16 +288,17 @@ class ServerSession:
             return None
         self.info.jobs += 1
         if not pdu.parameter:
-            return self._error_answer(pdu, ERROR_WRONG_FRAMES)
+            return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         function = pdu.parameter[0]
         if pdu.rosctr == s7.Rosctr.JOB and function == s7.Function.SETUP_COMMUNICATION:
             return self._handle_setup(pdu)
-        if self.state is not SessionState.READY:
-            return self._error_answer(pdu, ERROR_INVALID_SEQUENCE)
+        refused = self._advance(Event.JOB)
+        if refused is not None:
+            return self._error_answer(pdu, refused)
         if over_amq:
-            return self._error_answer(pdu, ERROR_NO_RESOURCES)
+            return self._error_answer(pdu, HeaderError.NO_RESOURCES)
         if len(raw) > self.info.pdu_size:
-            return self._error_answer(pdu, ERROR_PDU_TOO_LARGE)
+            return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         try:
             if pdu.rosctr == s7.Rosctr.USERDATA:
                 answer = self.dispatcher.userdata(pdu, self.access)
@@ -264,42 +307,44 @@ class ServerSession:
         except NckError as exc:
             self.info.errors += 1
             log.info("job 0x%02X from %s refused: %s", function & 0xFF, self.info.peer, exc)
-            return self._error_answer(pdu, (exc.error_class, exc.error_code))
+            return self._error_answer(pdu, exc.header_error)
         except Exception:  # a bug in a job must never reach the socket loop
             self.info.errors += 1
             log.exception("job 0x%02X from %s failed inside the emulator", function & 0xFF, self.info.peer)
-            return self._error_answer(pdu, ERROR_NOT_IMPLEMENTED)
+            return self._error_answer(pdu, HeaderError.NOT_IMPLEMENTED)
         if answer is None:
-            return self._error_answer(pdu, ERROR_NOT_IMPLEMENTED)
+            return self._error_answer(pdu, HeaderError.NOT_IMPLEMENTED)
         encoded = s7.build_pdu(answer)
         if len(encoded) > self.info.pdu_size:
-            return self._error_answer(pdu, ERROR_PDU_TOO_LARGE)
+            return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         return encoded
 
     def _handle_setup(self, pdu: s7.S7Pdu) -> bytes:
         try:
             request = s7.parse_setup_communication(pdu.parameter)
         except NckProtocolError:
-            return self._error_answer(pdu, ERROR_WRONG_FRAMES)
+            return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         # The granted AMQ is the server's own (as real CPUs and python-snap7's server answer a
         # fixed value); python-snap7 3.3 asks for 1 and then pipelines up to 8 jobs anyway.
         pdu_size = max(min(request.pdu_length, self.limits.pdu_size_max), 240) \
             if request.pdu_length >= 240 else request.pdu_length
         self.info.pdu_size = pdu_size
         self.info.amq = self.limits.max_amq
-        self.state = SessionState.READY
+        self._advance(Event.SETUP)
         granted = s7.SetupCommunication(self.limits.max_amq, self.limits.max_amq, pdu_size)
         return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref,
                                      s7.build_setup_communication(granted)))
 
-    def _error_answer(self, pdu: s7.S7Pdu, error: tuple[int, int]) -> bytes:
+    def _error_answer(self, pdu: s7.S7Pdu, error: int) -> bytes:
+        """ACK_DATA with header error ``error`` (class << 8 | code), echoing the job's function."""
         self.info.errors += 1
+        error_class, error_code = error >> 8, error & 0xFF
         function = pdu.parameter[:1]
         if pdu.rosctr == s7.Rosctr.USERDATA:
             return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref, function,
-                                         error_class=error[0], error_code=error[1]))
+                                         error_class=error_class, error_code=error_code))
         parameter = function
         if function and function[0] in (s7.Function.READ_VAR, s7.Function.WRITE_VAR):
             parameter = function + b"\x00"
         return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref, parameter,
-                                     error_class=error[0], error_code=error[1]))
+                                     error_class=error_class, error_code=error_code))

@@ -6,7 +6,7 @@ import argparse
 import json
 import math
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 
 def _duration_s(text: str) -> float:

@@ -11,8 +11,8 @@ import concurrent.futures
 import logging
 from typing import Any
 
+from nckemu.errors import NckError
 from nckemu.protocol.addresses import S7Area
-from nckemu.protocol.errors import NckError
 
 log = logging.getLogger(__name__)
 

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 from .decode import decode, format_exchange
 from .reader import read_capture
@@ -82,13 +82,14 @@ def run_replay(args: argparse.Namespace) -> int:
             _seed_remote(host, int(port_text), capture)
         report = replay(capture, host, int(port_text), realtime=args.realtime, progress=progress)
     else:
-        from nckemu.emulator.nck.access import AccessContext
+        # The one place where a trace tool starts an emulator (``--spawn``): the command composes the
+        # two; the trace library itself stays independent of the emulator (see .importlinter).
         from nckemu.emulator.runner import EmulatorThread
 
         with EmulatorThread(args.machine) as emulator:
             if args.seed_state:
                 values = seed_values(decode(capture))
-                emulator.call(lambda: _seed_model(emulator.nck, values, AccessContext(level=0)))
+                emulator.call(lambda: emulator.emulator.seed_nck(values))
             report = replay(capture, "127.0.0.1", emulator.port, realtime=args.realtime, progress=progress)
     if args.json:
         print(json.dumps(report.to_json()))
@@ -103,27 +104,10 @@ def run_replay(args: argparse.Namespace) -> int:
     return 0 if report.all_match else 1
 
 
-def _seed_model(nck: object, values: dict, ctx: object) -> int:
-    from nckemu.protocol.errors import NckError
-    from nckemu.protocol.values import decode_nck_values
-
-    written = 0
-    for address, data in values.items():
-        try:
-            nck_type, length = nck.variable_type(address)  # type: ignore[attr-defined]
-            decoded = decode_nck_values(nck_type, data, area=address.area, line_count=address.line_count,
-                                        string_length=length)
-            nck.write(address, decoded, ctx)  # type: ignore[attr-defined]
-            written += 1
-        except NckError:
-            continue  # state data and the like cannot be set; the replay will show them
-    return written
-
-
 def _seed_remote(host: str, port: int, capture: object) -> None:
+    from nckemu.catalogue.names import variable_for_address
     from nckemu.clients import NckClient
-    from nckemu.clients.names import variable_for_address
-    from nckemu.protocol.errors import NckError
+    from nckemu.errors import NckError
     from nckemu.protocol.values import decode_nck_values
 
     values = seed_values(decode(capture))  # type: ignore[arg-type]

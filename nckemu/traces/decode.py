@@ -7,11 +7,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from nckemu.emulator.nck.table import display_name, table_index
+from nckemu.catalogue.table import display_name, table_index
+from nckemu.errors import NckError, ReturnCode
 from nckemu.protocol import pi, s7, szl
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
-from nckemu.protocol.errors import NckError
 from nckemu.protocol.values import decode_nck_values, nck_value_format, nck_value_reader
 
 from .reader import Capture, TracePdu, collector_paused
@@ -115,7 +115,7 @@ def _value(address: object, data: bytes, nck_type: NckType | None, length: int |
 _S7_PROTOCOL_ID = 0x32
 _ROSCTR_JOB = int(s7.Rosctr.JOB)
 _ROSCTR_ACK_DATA = int(s7.Rosctr.ACK_DATA)
-_READ_VAR = int(s7.Function.READ_VAR)
+_SUCCESS = int(ReturnCode.SUCCESS)
 
 
 _ValueReader = Callable[[bytes], Any]
@@ -193,14 +193,15 @@ def _read_job(parameter: bytes) -> _ReadJob:
 
 def _fast_read_job(pdu: TracePdu, data: bytes) -> Exchange | None:
     """A read-var job with no data part, straight from the header (the hot path of field traces)."""
-    parameter_length = data[6] << 8 | data[7]
-    if data[8] or data[9] or len(data) != 10 + parameter_length or data[10] != _READ_VAR:
+    peeked = s7.peek_read_var_job(data)
+    if peeked is None:
         return None
+    pdu_ref, parameter = peeked
     try:
-        job = _read_job(data[10:])
+        job = _read_job(parameter)
     except NckError:
         return None  # the general path reports the job it cannot decode
-    return Exchange(pdu.connection, pdu, None, "read", data[4] << 8 | data[5],
+    return Exchange(pdu.connection, pdu, None, "read", pdu_ref,
                     list(map(Item, job.addresses, job.names)), "", "", job)
 
 
@@ -209,7 +210,7 @@ def _fill_items(items: list[Item], readers: tuple[_ValueReader | None, ...],
     for item, reader, (return_code, raw) in zip(items, readers, results, strict=True):
         item.return_code = return_code
         item.raw = raw.hex()
-        if return_code == 0xFF and reader is not None:
+        if return_code == _SUCCESS and reader is not None:
             try:
                 item.value = reader(raw)
             except NckError:
@@ -224,19 +225,16 @@ def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
         if parts[0::2] == job.answer_fixed:  # all good, as the first time: only the values are new
             if job.answer_typed:
                 for item, value, (start, end) in zip(exchange.items, parts[1::2], job.value_spans, strict=True):
-                    item.return_code = 0xFF
+                    item.return_code = _SUCCESS
                     item.value = value
                     item.raw = data[start:end].hex()
                 return True
-            _fill_items(exchange.items, job.readers, [(0xFF, raw) for raw in parts[1::2]])
+            _fill_items(exchange.items, job.readers, [(_SUCCESS, raw) for raw in parts[1::2]])
             return True
-    parameter_length = data[6] << 8 | data[7]
-    data_length = data[8] << 8 | data[9]
     item_count = len(exchange.items)
-    if data[10] or data[11] or parameter_length != 2 or len(data) != 12 + 2 + data_length \
-            or data[12] != _READ_VAR or data[13] != item_count:
+    if s7.peek_read_var_answer(data) != item_count:
         return False
-    offset = 14
+    offset = s7.READ_ANSWER_DATA_OFFSET
     end = len(data)
     results = []
     spans = []
@@ -256,7 +254,7 @@ def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
     if offset != end:
         return False
     _fill_items(exchange.items, job.readers, results)
-    if job.answer_layout is None and all(code == 0xFF for code, _raw in results):
+    if job.answer_layout is None and all(code == _SUCCESS for code, _raw in results):
         job.learn_answer(data, spans)
     return True
 
@@ -352,7 +350,7 @@ def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> 
             for item, data_item in zip(exchange.items, response.items, strict=False):
                 item.return_code = data_item.return_code
                 item.raw = data_item.data.hex()
-                if data_item.return_code == 0xFF:
+                if data_item.return_code == _SUCCESS:
                     _name, nck_type, length, _unit = name_of(item.target)
                     item.value = _value(item.target, data_item.data, nck_type, length)
         elif exchange.function == "write":
@@ -400,7 +398,7 @@ def format_exchange(exchange: Exchange, start_s: float) -> list[str]:
                 text += f"  -> {RETURN_CODE_TEXTS.get(item.return_code, hex(item.return_code))}"
         else:
             text = f"    {item.name}"
-            if item.return_code == 0xFF:
+            if item.return_code == _SUCCESS:
                 text += f" = {shown}{suffix}"
             elif item.return_code is not None:
                 text += f"  -> {RETURN_CODE_TEXTS.get(item.return_code, hex(item.return_code))}"

@@ -9,10 +9,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from nckemu.errors import NckError
 from nckemu.protocol import cotp, s7, tpkt
 from nckemu.protocol.addresses import NckAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS
-from nckemu.protocol.errors import NckError
 
 from .decode import Exchange, _value, decode, name_of
 from .reader import Capture

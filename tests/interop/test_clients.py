@@ -18,7 +18,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 from nckemu.clients import AsyncNckClient, Channel840C, Channel840CError, FbPut, NckClient, parse_variable
 from nckemu.clients.fb import STATE_NUMVAR_INVALID, item_state
 from nckemu.emulator.runner import EmulatorThread
-from nckemu.protocol.errors import (
+from nckemu.errors import (
     NckAccessDenied,
     NckConfigError,
     NckConnectionError,

@@ -11,9 +11,9 @@ import logging
 import struct
 from typing import Any
 
+from nckemu.errors import NckAddressOutOfRange, NckError, NckObjectDoesNotExist, NckServiceError
 from nckemu.protocol import c840, db41
 from nckemu.protocol.addresses import S7Area
-from nckemu.protocol.errors import NckAddressOutOfRange, NckError, NckObjectDoesNotExist, NckServiceError
 
 log = logging.getLogger(__name__)
 
