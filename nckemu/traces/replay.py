@@ -98,7 +98,7 @@ def _difference(report: ReplayReport, exchange: Exchange, kind: str, name: str, 
 def _compare(report: ReplayReport, exchange: Exchange, recorded: s7.S7Pdu, emulated: s7.S7Pdu) -> None:
     if (recorded.error_class, recorded.error_code) != (emulated.error_class, emulated.error_code):
         report.differing_errors += 1
-        _difference(report, exchange, "header error", exchange.detail or exchange.function,
+        _difference(report, exchange, "header error", exchange.detail or exchange.service_name,
                     f"0x{recorded.error_class:02X}{recorded.error_code:02X}",
                     f"0x{emulated.error_class:02X}{emulated.error_code:02X}")
         return
@@ -210,7 +210,7 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
             answer = link.receive_pdu()
             if answer is None:
                 report.missing_answers += 1
-                _difference(report, exchange, "missing answer", exchange.detail or exchange.function, "answer", None)
+                _difference(report, exchange, "missing answer", exchange.detail or exchange.service_name, "answer", None)
                 link.close()
                 links.pop(pdu.connection)
             elif exchange.answer is not None:  # a job whose answer was not captured is not compared

@@ -121,11 +121,11 @@ def write_field_corpus(path: Path) -> Expected:
     def send(connection: int, from_client: bool, pdu: bytes) -> None:
         clock[0] += 0.001
         writer.segment(connection, from_client, cotp.build_data_frame(pdu), timestamp=clock[0],
-                       client=("192.168.0.%d" % (10 + connection), 49000 + connection))
+                       client=(f"192.168.0.{10 + connection}", 49000 + connection))
 
     def connect(connection: int, called_tsap: bytes = b"\x01\x02") -> None:
         clock[0] += 0.001
-        client = ("192.168.0.%d" % (10 + connection), 49000 + connection)
+        client = (f"192.168.0.{10 + connection}", 49000 + connection)
         writer.segment(connection, True, cotp.build_frame(cotp.ConnectRequest(
             src_ref=connection, calling_tsap=b"\x01\x00", called_tsap=called_tsap, tpdu_size=1024)),
             timestamp=clock[0], client=client)
