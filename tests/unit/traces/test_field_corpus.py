@@ -3,13 +3,16 @@ every frame's function named as tshark names it, and replay skipping what it can
 
 from __future__ import annotations
 
+import asyncio
 import json
 import re
+import struct
 from pathlib import Path
 
 import pytest
 
 from nckemu.cli import main
+from nckemu.clients.async_client import AsyncNckClient
 from nckemu.emulator.runner import EmulatorThread
 from nckemu.protocol import s7
 from nckemu.traces.decode import PUSH, S7COMM_PLUS, Exchange, decode
@@ -142,3 +145,15 @@ def test_replay_skips_pushes_block_transfers_and_s7comm_plus(corpus: tuple[Path,
     assert main(["trace", "replay", str(path), "--spawn", "--quiet"]) in (0, 1)
     assert f"not replayed: {expected.pushes} pushes, {expected.block_transfers} block transfers, " \
            f"{expected.client_s7comm_plus_frames} S7comm-plus frames" in capsys.readouterr().out
+
+
+def test_our_client_takes_error_items_with_a_length(monkeypatch: pytest.MonkeyPatch) -> None:
+    """NckClient's GET against an answer as an S7-300 gives it: error items ``0A 00 00 04``, no data, and a
+    good value after them."""
+    async def answer(_self: AsyncNckClient, _what: str, _operation: object) -> bytes:
+        data = b"\x0a\x00\x00\x04" * 2 + b"\xff\x09\x00\x08" + struct.pack("<d", 2.5)
+        return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, 1, b"\x04\x03", data))
+
+    monkeypatch.setattr(AsyncNckClient, "_on_connection", answer)
+    results = asyncio.run(AsyncNckClient("127.0.0.1").get_items("R1", "R2", "R3"))
+    assert [(r.return_code, r.value) for r in results] == [(0x0A, None), (0x0A, None), (0xFF, 2.5)]
