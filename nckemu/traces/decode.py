@@ -371,6 +371,10 @@ def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture
             exchange.detail = f"read SZL 0x{request.szl_id:04X} index 0x{request.szl_index:04X}"
         except NckError:
             pass
+    elif header.type == userdata.TYPE_REQUEST and header.long:
+        # The next part of a long answer (SZL lists over several PDUs): the answer's sequence number
+        # in the 8-byte parameter form, data 0A 00 00 00 (python-snap7 reading SZL 0x001C).
+        exchange.detail = f"next part of sequence {header.sequence}"
     return exchange, None
 
 
@@ -423,9 +427,11 @@ def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> 
         elif parsed.rosctr == s7.Rosctr.USERDATA:
             if exchange.function == PUSH:
                 exchange.function = "userdata"  # answered: a request sent as type 0 (pyS7 sends SZL reads so)
-            code = userdata.parse_userdata_parameter(parsed.parameter).error_code
-            if code:
-                exchange.header_error = describe_header_error(code >> 8, code & 0xFF)
+            header = userdata.parse_userdata_parameter(parsed.parameter)
+            if header.error_code:
+                exchange.header_error = describe_header_error(header.error_code >> 8, header.error_code & 0xFF)
+            elif header.last_data_unit:
+                exchange.detail += f"{' ' if exchange.detail else ''}-> more follows (sequence {header.sequence})"
         elif parsed.parameter and parsed.parameter[0] in blocks.FUNCTIONS:
             _describe_block_answer(exchange, blocks.parse_block_control(parsed.parameter), parsed.data)
     except NckError as exc:

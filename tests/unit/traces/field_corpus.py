@@ -169,6 +169,19 @@ def write_field_corpus(path: Path) -> Expected:
     exchange(1, True, s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, ref, bytes(pys7), szl_data)),
              s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, ref, answer_parameter, answer_data)))
     ref += 1
+    # A long SZL in two parts: the CPU says more follows (last data unit 1, sequence 2); the client asks
+    # for the next part with the 8-byte parameter form and 0A 00 00 00 (python-snap7 reading SZL 0x001C).
+    first = userdata.UserdataParameter(userdata.METHOD_RESPONSE, userdata.TYPE_RESPONSE, userdata.GROUP_CPU, 0x01,
+                                       2, True, 0xD5, 1, 0)
+    exchange(1, True, szl_job[:4] + bytes([0, ref]) + szl_job[6:],
+             _userdata(ref, first, answer_data[:4] + answer_data[4:20]))
+    ref += 1
+    follow = userdata.UserdataParameter(userdata.METHOD_RESPONSE, userdata.TYPE_REQUEST, userdata.GROUP_CPU, 0x01,
+                                        2, True, 0, 0, 0)
+    last = userdata.UserdataParameter(userdata.METHOD_RESPONSE, userdata.TYPE_RESPONSE, userdata.GROUP_CPU, 0x01,
+                                      2, True, 0xD5, 0, 0)
+    exchange(1, True, _userdata(ref, follow, _ud_data(b"", 0x0A, 0x00)), _userdata(ref, last, _ud_data(bytes(16))))
+    ref += 1
     missing_parameter, missing_data = szl.build_szl_error_response(szl.SzlReadRequest(0x0F99, 0))
     exchange(1, True, _userdata(ref, _request(userdata.GROUP_CPU, 0x01), _ud_data(b"\x0f\x99\x00\x00")),
              s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, ref, missing_parameter, missing_data)))
