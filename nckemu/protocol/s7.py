@@ -105,6 +105,10 @@ _DATA_HEADER = struct.Struct(">BBH")
 
 # Data transport sizes whose length field counts bits.
 BIT_LENGTH_TRANSPORT_SIZES = frozenset({0x03, 0x04, 0x05})
+# Return codes of data items followed by data: success in answers, 0x00 in write jobs. An error item
+# has no data even where its length says otherwise: a real S7-300 answers a read of missing objects
+# with ``0A 00 00 04`` and nothing after it, and Wireshark reads data only after 0xFF and 0x00.
+DATA_RETURN_CODES = frozenset({0x00, 0xFF})
 
 
 @dataclass(frozen=True, slots=True)
@@ -292,7 +296,9 @@ def _parse_data_items(data: bytes, count: int) -> tuple[DataItem, ...]:
             raise NckTruncatedError(f"data item {index + 1} of {count} cut short")
         return_code, transport_size, length = _DATA_HEADER.unpack_from(data, offset)
         offset += 4
-        if transport_size in BIT_LENGTH_TRANSPORT_SIZES:
+        if return_code not in DATA_RETURN_CODES:
+            size = 0  # an error item: no data follows, whatever its length says
+        elif transport_size in BIT_LENGTH_TRANSPORT_SIZES:
             size = length if transport_size == 0x03 else (length + 7) // 8
         else:
             size = length
