@@ -2,7 +2,7 @@
 
 It never sees bytes. ``store`` holds stored and active values by typed address, ``axes`` and
 ``sensors`` the machine's state, ``compensation`` the TC and LEC engines, ``programs`` and
-``alarm_list`` what the NCK reports; variables with a named ``source`` are computed through
+``alarm_list`` and ``channels`` (program run state) what the NCK reports; variables with a named ``source`` are computed through
 ``sources.SOURCES`` and PI services run through ``pi_services``. The dispatcher sees only the
 ``NckDatastore`` methods (read_typed, variable_type, read, write, pi_service, power_on).
 """
@@ -25,6 +25,7 @@ from . import pi_services
 from .access import AccessContext
 from .alarms import Alarms
 from .axes import Axes
+from .channel import Channel
 from .compensation import (  # noqa: F401 (old import path)
     TC_BIT_POSITION_DEPENDENT,
     TC_BIT_POSITION_INDEPENDENT,
@@ -72,7 +73,10 @@ class NckModel:
         self.sensors = Sensors(machine, clock)
         self.compensation = Compensation(machine, clock, self.store, self.axes)
         self.programs = Programs()
-        self.alarm_list = Alarms()
+        self.alarm_list = Alarms(clock)
+        spindles = sum(axis.spindle for axis in machine.axes)
+        self.channels = {number: Channel(number, clock, spindles if number == 1 else 0)
+                         for number in range(1, machine.channels + 1)}
         self._power_on_hooks: list[Callable[[], None]] = []
 
     def _units(self, spec: VariableSpec) -> list[int]:
