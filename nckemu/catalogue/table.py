@@ -185,6 +185,15 @@ def load_table() -> tuple[VariableSpec, ...]:
     return build_table(rows, BUILTIN_SOURCE, row_lines(text))
 
 
+def machine_table(rows: object, source: str, text: str = "") -> tuple[VariableSpec, ...]:
+    """The catalogue of a machine file: the built-in rows, with the file's ``[[var]]`` rows added or
+    overriding built-in rows by name (same format as ``variables.toml``). ``text`` is the file's
+    text, so an error names the row's line."""
+    if not isinstance(rows, list) or not all(isinstance(row, dict) for row in rows):
+        raise NckConfigError("expected [[var]] tables", path=source, field="var")
+    return build_table(rows, source, row_lines(text), base=load_table())
+
+
 def index_by_address(specs: Iterable[VariableSpec]) -> dict[tuple[int, int, int], VariableSpec]:
     """(module, column, area) -> spec."""
     return {key: spec for spec in specs for key in _keys(spec)}
