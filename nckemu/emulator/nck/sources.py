@@ -72,7 +72,10 @@ def _channel_axis_name(model: NckModel, unit: int, line: int) -> object:
     without its trailing digits (X1 -> X), the way SINUMERIK's defaults pair MD10000 and MD20080
     (assumed). Other channels and lines past the last axis: ""."""
     axes = sorted(model.machine.axes, key=lambda axis: axis.number) if unit == 1 else []
-    return axes[line - 1].name.rstrip("0123456789") or axes[line - 1].name if line <= len(axes) else ""
+    if line > len(axes):
+        return ""
+    name = axes[line - 1].name
+    return name.rstrip("0123456789") or name
 
 
 def _channel(model: NckModel, unit: int) -> Channel:
