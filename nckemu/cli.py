@@ -18,6 +18,7 @@ from nckemu.errors import NckError
 
 COMMAND_MODULES = (
     "nckemu.emulator.commands",   # serve
+    "nckemu.catalogue.commands",  # vars
     "nckemu.clients.commands",    # get, put, pi, comp840c
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover

@@ -13,6 +13,7 @@ from .clock import Clock, MonotonicClock
 from .dispatch import Dispatcher
 from .machine import Machine, load_machine
 from .nck.access import HIGHEST_LEVEL, AccessContext
+from .nck.alarms import ALARM_RETAINED_STATE
 from .nck.model import NckModel
 from .plc import PlcModel
 from .state import RetainedStore
@@ -57,7 +58,7 @@ class Emulator:
             if self.persist_alarm is not None:
                 self.nck.alarm_list.clear(self.persist_alarm)
             self.persist_alarm = f"retained state not saved: {exc}"
-            self.nck.alarm_list.raise_alarm(self.persist_alarm)
+            self.nck.alarm_list.raise_alarm(self.persist_alarm, ALARM_RETAINED_STATE, (str(exc),))
         else:
             if self.persist_alarm is not None:
                 log.warning("retained state written again to %s; alarm cleared", self.store.path)

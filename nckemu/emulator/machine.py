@@ -12,6 +12,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from nckemu.catalogue.table import VariableSpec, machine_table
 from nckemu.errors import NckConfigError
 
 
@@ -73,6 +74,9 @@ class Machine:
     data_blocks: dict[int, int] = field(default_factory=dict)
     # {"MD32750": {4: 1}, "SD43900": {4: 0.0}}: variable name -> unit -> value (or list of lines)
     initial: dict[str, dict[int, Any]] = field(default_factory=dict)
+    # The NCK variable table with the file's [[var]] rows (added, or overriding built-in rows by name);
+    # empty: the built-in catalogue.
+    variables: tuple[VariableSpec, ...] = ()
 
     def axis(self, number: int) -> Axis | None:
         for axis in self.axes:
@@ -190,6 +194,7 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         connection_access_level=_get(data, "connection_access_level", int, "", source, 7),
         passwords=dict(passwords), settings=settings, axes=axes, sensors=sensors,
         data_blocks=data_blocks, initial=initial,
+        variables=machine_table(data["var"], source, text) if "var" in data else (),
     )
 
 

@@ -12,7 +12,7 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
-from nckemu.catalogue.table import VariableSpec
+from nckemu.catalogue.table import VariableSpec, index_by_address
 from nckemu.errors import (
     NckAddressOutOfRange,
     NckConfigError,
@@ -33,14 +33,14 @@ class VariableStore:
     def __init__(self, specs: Iterable[VariableSpec], units_of: Callable[[VariableSpec], list[int]],
                  limit_violation_return_code: int) -> None:
         self.specs = tuple(specs)
-        self._index = {(spec.module, spec.column): spec for spec in self.specs}
+        self._index = index_by_address(self.specs)
         self._by_name = {spec.name: spec for spec in self.specs}
         self._modules = frozenset(spec.module for spec in self.specs)
         self._limit_rc = limit_violation_return_code
         self._valid_units = {spec.name: frozenset(units_of(spec)) for spec in self.specs}
         self._resolved: dict[NckAddress, tuple[VariableSpec, int]] = {}
         self.stored: dict[tuple[str, int], list[Any]] = {
-            (spec.name, unit): [spec.default] * spec.lines
+            (spec.name, unit): list(spec.default) if isinstance(spec.default, tuple) else [spec.default] * spec.lines
             for spec in self.specs if not spec.computed for unit in units_of(spec)
         }
         self.active: dict[tuple[str, int], list[Any]] = {}
@@ -61,8 +61,8 @@ class VariableStore:
     def _resolve_uncached(self, address: NckAddress) -> tuple[VariableSpec, int]:
         if address.module not in self._modules:
             raise NckObjectDoesNotExist(f"module 0x{address.module:02X} is not served")
-        spec = self._index.get((address.module, address.column))
-        if spec is None or address.area not in spec.areas:
+        spec = self._index.get((address.module, address.column, address.area))
+        if spec is None:
             raise NckObjectDoesNotExist(f"no variable at module 0x{address.module:02X} column "
                                         f"{address.column} in area {NckArea(address.area).name}")
         unit = address.unit
