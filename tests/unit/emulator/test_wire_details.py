@@ -344,3 +344,19 @@ def test_clock_bcd_round_trip() -> None:
     data = szl.build_clock(moment)
     assert data == bytes.fromhex("FF09000A" "0020261122235958" "98" "71")
     assert szl.parse_clock(data) == moment
+
+
+# ---------------------------------------------------------------- 8. the 828D collector's connect (LSC)
+def test_828d_collector_handshake_and_extra_empty_dt() -> None:
+    """LSC `_siemenscnc_828d_connect` (notes/catalogue.md 2.1): CC exactly 22 bytes, setup answer
+    exactly 27 bytes, then every job followed by 03 00 00 07 02 F0 00 in the same send buffer."""
+    session = ServerSession(Emulator().dispatcher)
+    (cc,) = session.receive(bytes.fromhex("0300001611E00000004800C1020400C2020D04C0010A"))
+    assert len(cc) == 22 and cc[5] == 0xD0
+    (setup,) = session.receive(bytes.fromhex("0300001902F08032010000000100080000F0000064006403C0"))
+    assert len(setup) == 27 and s7_of(setup)[-2:] == struct.pack(">H", 960)
+    for ref in range(2, 6):
+        answers = session.receive(dt(job(ref, b"\x04\x01" + SD43900_AX4)) + EMPTY_DT)
+        assert len(answers) == 1 and s7_of(answers[0])[4:6] == struct.pack(">H", ref)
+        assert s7_of(answers[0])[14:18] == bytes.fromhex("FF090008")
+    assert not session.closed and session.info.errors == 0
