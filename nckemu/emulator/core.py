@@ -39,7 +39,8 @@ class Emulator:
                 log.info("retained state loaded from %s", self.store.path)
         self.dispatcher = Dispatcher(self.nck, self.plc, persist=self.persist,
                                      default_access_level=self.default_access_level,
-                                     userdata_not_served_error=self.machine.settings.userdata_not_served_error)
+                                     userdata_not_served_error=self.machine.settings.userdata_not_served_error,
+                                     unsupported_function_error=self.machine.settings.unsupported_function_error)
 
     @property
     def default_access_level(self) -> int:

@@ -12,6 +12,7 @@ import logging
 from collections.abc import Callable
 
 from nckemu.errors import (
+    HeaderError,
     NckAddressOutOfRange,
     NckError,
     NckItemError,
@@ -78,10 +79,13 @@ class Dispatcher:
     def __init__(self, nck: NckDatastore, plc: PlcDatastore, *,
                  persist: Callable[[], None] | None = None,
                  default_access_level: int = 7,
-                 userdata_not_served_error: int = USERDATA_NOT_SERVED) -> None:
+                 userdata_not_served_error: int = USERDATA_NOT_SERVED,
+                 unsupported_function_error: int = HeaderError.NOT_IMPLEMENTED) -> None:
         self.nck = nck
         self.plc = plc
         self.userdata_not_served_error = userdata_not_served_error
+        # The session answers a job this dispatcher returns None for with an ACK carrying this error.
+        self.unsupported_function_error = unsupported_function_error
         self._persist = persist
         self.default_access_level = default_access_level
         self._read_requests: dict[bytes, s7.ReadVarRequest] = {}

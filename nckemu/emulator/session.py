@@ -11,10 +11,11 @@ Policy for bad input, in order of how much of the frame we could understand:
   does not parse: the connection is closed (the controller cannot even tell whom to answer);
 * an S7 job whose header parses but whose parameters do not: ACK_DATA with header error 0x85/0x00
   ("wrong frames"), echoing the PDU reference and function, the connection stays open;
-* an S7 function we do not serve (upload, download, ...): ACK (ROSCTR 2) with 0x81/0x04 and no
-  parameter, the form C snap7 and python-snap7 answer and tshark decodes for every function (ROSCTR 3
-  with the function byte alone is "malformed" for 0x1D start upload: notes/catalogue.md 5 (c));
-  0x8104 is what a real 840D sl answered (GH107);
+* an S7 function we do not serve (upload, download, ...): ACK (ROSCTR 2) with the header error and
+  no parameter, the form C snap7 and python-snap7 answer and tshark decodes for every function
+  (ROSCTR 3 with the function byte alone is "malformed" for 0x1D start upload: notes/catalogue.md
+  5 (c)); the error is the machine's settings.unsupported_function_error, by default 0x81/0x04, what
+  a real 840D sl answered (GH107);
 * a userdata group we do not serve: a userdata answer with the error in its parameter (dispatch.py);
 * an empty COTP DT (with or without EOT, e.g. the 7-byte DT some collectors send after every job in
   the same TCP write) is ignored, as C snap7 does: no answer, the connection stays open;
@@ -335,7 +336,7 @@ class ServerSession:
             log.exception("job 0x%02X from %s failed inside the emulator", function & 0xFF, self.info.peer)
             return self._error_answer(pdu, HeaderError.NOT_IMPLEMENTED)
         if answer is None:
-            return self._error_answer(pdu, HeaderError.NOT_IMPLEMENTED)
+            return self._error_answer(pdu, self.dispatcher.unsupported_function_error)
         encoded = s7.build_pdu(answer)
         if len(encoded) > self.info.pdu_size:
             return self._error_answer(pdu, HeaderError.WRONG_FRAMES)

@@ -138,6 +138,13 @@ def test_unsupported_functions_get_an_ack_with_the_error_and_no_parameter(
     assert not session.closed
 
 
+def test_unsupported_function_error_is_a_setting() -> None:
+    machine = parse_machine("[settings]\nunsupported_function_error = 0xD241\n")
+    session = connected(ServerSession(Emulator(machine).dispatcher))
+    (answer,) = session.receive(dt(job(4, bytes.fromhex("1D00000000000000"))))
+    assert s7_of(answer) == bytes.fromhex("32020000000400000000" "D241")
+
+
 def test_unsupported_function_before_setup_is_an_ack_too() -> None:
     session = ServerSession(Emulator().dispatcher)
     session.receive(CR_NCK)
