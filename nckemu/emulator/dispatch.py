@@ -36,9 +36,10 @@ from .nck.access import AccessContext
 
 log = logging.getLogger(__name__)
 
-RC_SUCCESS = ReturnCode.SUCCESS
-RC_HARDWARE_ERROR = ReturnCode.HARDWARE_ERROR
-RC_OBJECT_DOES_NOT_EXIST = ReturnCode.OBJECT_DOES_NOT_EXIST
+# Plain ints on the hot path (an IntEnum member costs more to compare and to pack).
+RC_SUCCESS = int(ReturnCode.SUCCESS)
+RC_HARDWARE_ERROR = int(ReturnCode.HARDWARE_ERROR)
+RC_OBJECT_DOES_NOT_EXIST = int(ReturnCode.OBJECT_DOES_NOT_EXIST)
 # Read jobs by parameter bytes: clients poll the same items; the parsed request is immutable.
 MAX_CACHED_READ_REQUESTS = 1024
 

@@ -97,6 +97,9 @@ def run_replay(args: argparse.Namespace) -> int:
         print(f"{report.jobs} jobs replayed: {report.matching_items} items match, {report.differing_values} "
               f"values differ, {report.differing_return_codes} return codes differ, {report.differing_errors} "
               f"header errors differ, {report.missing_answers} answers missing")
+        skipped = ", ".join(f"{count} {what}" for what, count in report.skipped.items() if count)
+        if skipped:
+            print(f"not replayed: {skipped}")
         for difference in report.differences:
             print(f"  frame {difference['frame']} c{difference['connection']} {difference['function']} "
                   f"{difference['item']}: {difference['kind']}: recorded {difference['recorded']!r}, "

@@ -251,3 +251,46 @@ class PutGetAgreement(RuleBasedStateMachine):
 
 TestPutGetAgreement = PutGetAgreement.TestCase
 TestPutGetAgreement.settings = settings(max_examples=15, stateful_step_count=12, deadline=None)
+
+
+def test_sync_facade_mirrors_every_public_coroutine() -> None:
+    """One copy of the protocol code: every public coroutine of AsyncNckClient has its sync twin."""
+    import inspect
+
+    from nckemu.clients import AsyncNckClient, NckClient
+
+    coroutines = {name for name, member in inspect.getmembers(AsyncNckClient)
+                  if not name.startswith("_") and inspect.iscoroutinefunction(member)}
+    assert coroutines <= {name for name in dir(NckClient) if not name.startswith("_")}
+
+
+def test_sync_clients_share_a_loop_and_a_failed_connect_leaks_no_thread() -> None:
+    import socket
+    import threading
+
+    from nckemu.clients import NckClient
+    from nckemu.clients.sync import ClientLoop
+    from nckemu.emulator.runner import EmulatorThread
+    from nckemu.errors import NckConnectionError
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        closed_port = probe.getsockname()[1]
+    before = threading.active_count()
+    for _ in range(3):
+        with pytest.raises(NckConnectionError):
+            with NckClient("127.0.0.1", closed_port, timeout_s=1.0):
+                pass
+    assert threading.active_count() <= before
+    loop = ClientLoop()
+    try:
+        with EmulatorThread() as emulator:
+            with NckClient("127.0.0.1", emulator.port, loop=loop) as one, \
+                    NckClient("127.0.0.1", emulator.port, loop=loop) as two:
+                one.put({"SD43900[AX1]": 0.25})
+                assert two.get("SD43900[AX1]") == [0.25]
+        assert loop.loop.is_running()  # a shared loop outlives its clients
+    finally:
+        loop.stop()
+    with pytest.raises(NckConnectionError, match="not running"):
+        loop.run(asyncio.sleep(0))
