@@ -172,7 +172,7 @@ class Dispatcher:
             else:
                 parameter, data = szl.build_szl_response(szl_request, records)
         elif service == (szl.GROUP_BLOCK_FUNCTIONS, szl.SUBFUNCTION_LIST_BLOCKS):
-            parameter, data = szl.build_userdata_response(request, szl.build_block_list(self.plc.block_counts()))
+            parameter, data = szl.build_userdata_response(request, szl.build_block_counts(self.plc.block_counts()))
         elif service == (szl.GROUP_TIME_FUNCTIONS, szl.SUBFUNCTION_READ_CLOCK):
             parameter, data = szl.build_userdata_response(request, szl.build_clock(self.plc.now()))
         else:

@@ -19,19 +19,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 
+from . import userdata
 from .errors import NckProtocolError, NckServiceError, NckTruncatedError
+from .userdata import METHOD_REQUEST, METHOD_RESPONSE, TYPE_PUSH, TYPE_REQUEST, TYPE_RESPONSE
 
-METHOD_REQUEST = 0x11
-METHOD_RESPONSE = 0x12
-GROUP_BLOCK_FUNCTIONS = 0x03
-GROUP_CPU_FUNCTIONS = 0x04
-GROUP_TIME_FUNCTIONS = 0x07
+GROUP_BLOCK_FUNCTIONS = userdata.GROUP_BLOCK
+GROUP_CPU_FUNCTIONS = userdata.GROUP_CPU
+GROUP_TIME_FUNCTIONS = userdata.GROUP_TIME
 SUBFUNCTION_READ_SZL = 0x01
 SUBFUNCTION_LIST_BLOCKS = 0x01
 SUBFUNCTION_READ_CLOCK = 0x01
-TYPE_PUSH = 0x0
-TYPE_REQUEST = 0x4
-TYPE_RESPONSE = 0x8
 # Userdata error codes for an SZL the CPU does not have. Wireshark 4.0 gives both the text
 # "Information function unavailable"; its 2015 plugin named 0xD401 "invalid SZL ID" and 0xD402
 # "invalid index"; C snap7 answers 0xD402 for every SZL it lacks (notes/catalogue.md 5 (b)).
@@ -40,7 +37,8 @@ ERROR_SZL_INVALID_INDEX = 0xD402
 # Data part of every userdata error answer: return code 0x0A "object does not exist", no data.
 ERROR_DATA = b"\x0A\x00\x00\x00"
 # Block types of the "list blocks" answer, in the order S7 CPUs and C snap7 list them: OB, DB, SDB,
-# FC, SFC, FB, SFB (python-snap7 3.3 requires exactly these seven entries, 28 bytes).
+# FC, SFC, FB, SFB (python-snap7 3.3 requires exactly these seven entries, 28 bytes). Each entry's
+# type is two ASCII characters, "0" and these codes ("0A" = DB, as in block names: protocol/blocks.py).
 BLOCK_TYPES = (0x38, 0x41, 0x42, 0x43, 0x44, 0x45, 0x46)
 BLOCK_TYPE_DB = 0x41
 
@@ -56,36 +54,35 @@ class UserdataRequest:
 
 
 def parse_userdata_request(parameter: bytes, data: bytes) -> UserdataRequest:
-    if len(parameter) < 8 or parameter[:3] != b"\x00\x01\x12":
-        raise NckProtocolError("userdata parameter head is not 00 01 12")
-    method, type_group, subfunction, sequence = parameter[4], parameter[5], parameter[6], parameter[7]
+    head = userdata.parse_userdata_parameter(parameter)
     # pyS7 (0.x) sends its SZL reads with type 0 ("push") and the request method; it works against
     # real CPUs, which go by the method, so we do too.
-    if method != METHOD_REQUEST or type_group >> 4 not in (TYPE_REQUEST, TYPE_PUSH):
+    if head.method != METHOD_REQUEST or head.type not in (TYPE_REQUEST, TYPE_PUSH):
         raise NckProtocolError("userdata is not a request")
-    return UserdataRequest(type_group & 0x0F, subfunction, sequence, data)
+    return UserdataRequest(head.group, head.subfunction, head.sequence, data)
 
 
 def build_userdata_response(request: UserdataRequest, data: bytes, error_code: int = 0
                             ) -> tuple[bytes, bytes]:
     """Answer parameter ``00 01 12 08 12 8<group> <subfunction> <seq> 00 00 <error>`` and ``data``."""
-    parameter = bytes([0x00, 0x01, 0x12, 0x08, METHOD_RESPONSE, (TYPE_RESPONSE << 4) | (request.group & 0x0F),
-                       request.subfunction, request.sequence_number & 0xFF, 0x00, 0x00])
-    return parameter + struct.pack(">H", error_code), data
+    parameter = userdata.build_userdata_parameter(userdata.UserdataParameter(
+        METHOD_RESPONSE, TYPE_RESPONSE, request.group, request.subfunction, request.sequence_number & 0xFF,
+        long=True, error_code=error_code))
+    return parameter, data
 
 
 def build_userdata_error_response(request: UserdataRequest, error_code: int) -> tuple[bytes, bytes]:
     return build_userdata_response(request, ERROR_DATA, error_code)
 
 
-def build_block_list(counts: Mapping[int, int]) -> bytes:
+def build_block_counts(counts: Mapping[int, int]) -> bytes:
     """Data of the "list blocks" answer: ``FF 09 00 1C`` + ``30 <type> <count>`` for the seven types."""
     entries = b"".join(struct.pack(">BBH", 0x30, block_type, min(counts.get(block_type, 0), 0xFFFF))
                        for block_type in BLOCK_TYPES)
     return struct.pack(">BBH", 0xFF, 0x09, len(entries)) + entries
 
 
-def parse_block_list(data: bytes) -> dict[int, int]:
+def parse_block_counts(data: bytes) -> dict[int, int]:
     if len(data) < 4 or data[0] != 0xFF:
         raise NckProtocolError("block list answer without return code 0xFF")
     (length,) = struct.unpack_from(">H", data, 2)
@@ -167,8 +164,8 @@ def build_szl_request(request: SzlReadRequest) -> tuple[bytes, bytes]:
 
 
 def _response_parameter(sequence: int, error_code: int) -> bytes:
-    return bytes([0x00, 0x01, 0x12, 0x08, METHOD_RESPONSE, (TYPE_RESPONSE << 4) | GROUP_CPU_FUNCTIONS,
-                  SUBFUNCTION_READ_SZL, sequence & 0xFF, 0x00, 0x00]) + struct.pack(">H", error_code)
+    request = UserdataRequest(GROUP_CPU_FUNCTIONS, SUBFUNCTION_READ_SZL, sequence)
+    return build_userdata_response(request, b"", error_code)[0]
 
 
 def build_szl_response(request: SzlReadRequest, szl: bytes) -> tuple[bytes, bytes]:
