@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from nckemu.emulator.dispatch import Dispatcher
 from nckemu.emulator.nck.access import AccessContext
 from nckemu.errors import HeaderError, NckError
-from nckemu.protocol import cotp, s7, tpkt
+from nckemu.protocol import cotp, s7, szl, tpkt, userdata
 from nckemu.protocol.errors import NckProtocolError
 
 log = logging.getLogger(__name__)
@@ -147,6 +147,10 @@ class ServerSession:
         self._fragment_bytes = 0
         self._src_ref = 0x0001
         self._on_close = on_close
+        # The parts still to send of one userdata answer longer than the PDU: sequence number and the
+        # (parameter, data) pairs; one long answer at a time, as a client reads them one by one.
+        self._userdata_parts: tuple[int, list[tuple[bytes, bytes]]] | None = None
+        self._userdata_sequence = 0
 
     @property
     def has_partial_frame(self) -> bool:
@@ -322,6 +326,10 @@ class ServerSession:
             return self._error_answer(pdu, HeaderError.NO_RESOURCES)
         if len(raw) > self.info.pdu_size:
             return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
+        if pdu.rosctr == s7.Rosctr.USERDATA and self._userdata_parts is not None:
+            next_part = self._next_userdata_part(pdu)
+            if next_part is not None:
+                return next_part
         try:
             if pdu.rosctr == s7.Rosctr.USERDATA:
                 answer = self.dispatcher.userdata(pdu, self.access)
@@ -339,8 +347,35 @@ class ServerSession:
             return self._error_answer(pdu, self.dispatcher.unsupported_function_error)
         encoded = s7.build_pdu(answer)
         if len(encoded) > self.info.pdu_size:
+            if answer.rosctr == s7.Rosctr.USERDATA:
+                return self._userdata_in_parts(answer)
             return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         return encoded
+
+    def _userdata_in_parts(self, answer: s7.S7Pdu) -> bytes:
+        """The first part of a userdata answer longer than the PDU (a long SZL at PDU 240); the client
+        asks for the others with next-part requests naming the sequence number."""
+        head = userdata.parse_userdata_parameter(answer.parameter)
+        self._userdata_sequence = self._userdata_sequence % 255 + 1
+        parts = szl.split_userdata_answer(head.group, head.subfunction, answer.data,
+                                          self.info.pdu_size - szl.PART_OVERHEAD, self._userdata_sequence)
+        self._userdata_parts = (self._userdata_sequence, parts[1:])
+        return s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, answer.pdu_ref, *parts[0]))
+
+    def _next_userdata_part(self, pdu: s7.S7Pdu) -> bytes | None:
+        """The next part, where ``pdu`` asks for it; None leaves the PDU to the dispatcher."""
+        assert self._userdata_parts is not None
+        try:
+            head = userdata.parse_userdata_parameter(pdu.parameter)
+        except NckProtocolError:
+            return None
+        sequence, parts = self._userdata_parts
+        if not szl.is_next_part_request(head) or head.sequence != sequence or not parts:
+            return None
+        parameter, data = parts.pop(0)
+        if not parts:
+            self._userdata_parts = None
+        return s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, pdu.pdu_ref, parameter, data))
 
     def _handle_setup(self, pdu: s7.S7Pdu) -> bytes:
         try:

@@ -71,6 +71,38 @@ def build_userdata_response(request: UserdataRequest, data: bytes, error_code: i
     return parameter, data
 
 
+# Bytes around each part of an answer in several PDUs: S7 header (10), long parameter (12), data header (4).
+PART_OVERHEAD = 10 + 12 + 4
+
+
+def is_next_part_request(head: userdata.UserdataParameter) -> bool:
+    """The client's request for the next part of a long answer: method 0x12 with type request and the
+    8-byte parameter carrying the answer's sequence number (python-snap7 3.3's
+    ``build_userdata_followup_request``; the two-part SZL of icsnpp-s7comm's snap7.pcap)."""
+    return head.method == METHOD_RESPONSE and head.type == TYPE_REQUEST and head.long
+
+
+def split_userdata_answer(group: int, subfunction: int, data: bytes, room: int, sequence: int
+                          ) -> list[tuple[bytes, bytes]]:
+    """One userdata answer's data part (``FF 09 len`` + payload) as parameter/data pairs of at most
+    ``room`` payload bytes each: every part but the last says "last data unit: no" (1) and all carry
+    ``sequence`` (as sequence number and data unit reference), which the client's next-part requests
+    name. A CPU answers a long SZL so (snap7.pcap: sequence 2, last data unit 1, then 0)."""
+    if len(data) < 4 or room <= 0:
+        raise NckProtocolError("userdata answer to split has no data header or no room")
+    return_code, transport_size = data[0], data[1]
+    payload = data[4:]
+    chunks = [payload[offset:offset + room] for offset in range(0, len(payload), room)] or [b""]
+    parts = []
+    for index, chunk in enumerate(chunks):
+        more = index < len(chunks) - 1
+        parameter = userdata.build_userdata_parameter(userdata.UserdataParameter(
+            METHOD_RESPONSE, TYPE_RESPONSE, group, subfunction, sequence & 0xFF, long=True,
+            data_unit_ref=sequence & 0xFF, last_data_unit=1 if more else 0))
+        parts.append((parameter, struct.pack(">BBH", return_code, transport_size, len(chunk)) + chunk))
+    return parts
+
+
 def build_userdata_error_response(request: UserdataRequest, error_code: int) -> tuple[bytes, bytes]:
     return build_userdata_response(request, ERROR_DATA, error_code)
 

@@ -12,6 +12,7 @@ import subprocess
 from pathlib import Path
 
 import snap7
+from snap7.type import Parameter
 
 from nckemu.emulator.runner import EmulatorThread
 
@@ -117,6 +118,13 @@ def _python_snap7_session(port: int) -> None:
         client.get_plc_datetime()
     finally:
         client.disconnect()
+    small = snap7.Client()  # PDU 240: SZL 0x001C comes in parts, asked for one by one
+    small.set_param(Parameter.PDURequest, 240)
+    small.connect("127.0.0.1", 0, 2, port)
+    try:
+        small.read_szl(0x001C, 0)
+    finally:
+        small.disconnect()
 
 
 @requires_tshark
@@ -134,7 +142,7 @@ def test_every_answer_decodes_without_malformed(tmp_path: Path) -> None:
     fields = ["tcp.srcport", "s7comm.header.rosctr", "s7comm.header.errcls", "s7comm.header.errcod",
               "s7comm.param.func", "s7comm.param.userdata.funcgroup", "s7comm.param.userdata.subfunc",
               "s7comm.param.errcod", "s7comm.param.pistart.servicename", "s7comm.param.pdu_length",
-              "s7comm.data.returncode", "s7comm.data.transportsize"]
+              "s7comm.data.returncode", "s7comm.data.transportsize", "s7comm.param.userdata.lastdataunit"]
     rows = tshark_fields(capture, fields)
     answers_rows = [r for r in rows if r["tcp.srcport"] == "102"]
     # every answer is seen by tshark as an S7 answer (ack, ack_data or userdata)
@@ -151,5 +159,7 @@ def test_every_answer_decodes_without_malformed(tmp_path: Path) -> None:
     assert ("4", "1", "0xd401") in userdata and ("4", "1", "0xd402") in userdata
     reads = [r for r in answers_rows if r["s7comm.param.func"] == "0x04" and r["s7comm.data.transportsize"]]
     assert any(r["s7comm.data.transportsize"] == "0x09,0x05" for r in reads)
+    last_units = [r["s7comm.param.userdata.lastdataunit"] for r in answers_rows if r["s7comm.header.rosctr"] == "7"]
+    assert "0x01" in last_units  # an answer in parts ("last data unit: no")
     services = {r["s7comm.param.pistart.servicename"] for r in rows if r["s7comm.param.pistart.servicename"]}
     assert {"_N_CONFIG", "_N_TMFPBP", "_N_TMPOSM", "_N_TSEARC"} <= services

@@ -145,3 +145,29 @@ def test_node_snap7_reads_cp_info_protection_blocks_and_clock(emulator: Emulator
     # (src/node_snap7_client.cpp, GetPlcDateTime), so the Date may be off by the one-hour DST shift.
     moment = datetime.fromtimestamp(out["GetPlcDateTime"] / 1000)
     assert any(_close_to_now(moment + timedelta(hours=shift)) for shift in (-1, 0, 1))
+
+
+def test_python_snap7_at_pdu_240_reads_a_long_szl_in_parts(emulator: EmulatorThread) -> None:
+    """Granted 240, SZL 0x001C (9 records of 34 bytes) does not fit one PDU: python-snap7 follows the
+    parts with its next-part requests and gets the whole list."""
+    from snap7.type import Parameter
+
+    whole = snap7.Client()
+    whole.connect("127.0.0.1", 0, 2, emulator.port)
+    try:
+        expected = whole.read_szl(0x001C, 0)
+    finally:
+        whole.disconnect()
+    assert expected.Header.LengthDR > 240
+    client = snap7.Client()
+    client.set_param(Parameter.PDURequest, 240)
+    client.connect("127.0.0.1", 0, 2, emulator.port)
+    try:
+        assert client.get_pdu_length() == 240
+        szl = client.read_szl(0x001C, 0)
+        assert szl.Header.LengthDR == expected.Header.LengthDR
+        assert bytes(szl.Data[:szl.Header.LengthDR]) == bytes(expected.Data[:expected.Header.LengthDR])
+        assert client.get_cpu_info().ModuleTypeName.rstrip(b"\x00") == b"CPU 317-2 PN/DP (NCU PLC)"
+        assert client.list_blocks().DBCount == len(emulator.plc.data_blocks)
+    finally:
+        client.disconnect()

@@ -367,3 +367,38 @@ def test_828d_collector_handshake_and_extra_empty_dt() -> None:
         assert len(answers) == 1 and s7_of(answers[0])[4:6] == struct.pack(">H", ref)
         assert s7_of(answers[0])[14:18] == bytes.fromhex("FF090008")
     assert not session.closed and session.info.errors == 0
+
+
+# ---------------------------------------------------------------- 4./5. a long SZL at PDU 240
+def test_long_szl_at_pdu_240_comes_in_parts() -> None:
+    """After the clamp to 240 an SZL longer than the PDU is sent in parts (last data unit 1, then 0);
+    the client asks for each next part with method 0x12, type request and the answer's sequence number
+    (python-snap7 3.3 build_userdata_followup_request; snap7.pcap in icsnpp-s7comm)."""
+    whole_session = connected(ServerSession(Emulator().dispatcher))
+    (whole,) = whole_session.receive(dt(szl_read(0x001C, 0)))
+    expected = split_userdata_answer(whole)[1][4:]
+    assert len(expected) > 240
+    session = ServerSession(Emulator().dispatcher)
+    session.receive(CR_NCK)
+    session.receive(dt(job(1, bytes.fromhex("F000000800080000"))))  # PDU 0 -> 240
+    (first,) = session.receive(dt(szl_read(0x001C, 0, pdu_ref=0x40)))
+    assert len(s7_of(first)) <= 240
+    parameter, data = split_userdata_answer(first)
+    sequence = parameter[7]
+    assert parameter[4:7] == bytes.fromhex("128401") and parameter[9] == 1 and sequence != 0
+    assert data[:2] == b"\xFF\x09" and struct.unpack(">H", data[2:4])[0] == len(data) - 4
+    collected = data[4:]
+    for ref in range(0x41, 0x50):
+        # 00 01 12 08, method 12, type 4 / group 4, subfunction 01, the sequence, 00 00 00 00
+        follow = bytes.fromhex("00011208124401") + bytes([sequence]) + bytes(4)
+        (part,) = session.receive(dt(userdata(ref, follow, bytes.fromhex("0A000000"))))
+        assert len(s7_of(part)) <= 240 and s7_of(part)[4:6] == struct.pack(">H", ref)
+        parameter, data = split_userdata_answer(part)
+        collected += data[4:]
+        if parameter[9] == 0:
+            break
+    assert collected == expected
+    # a next-part request when nothing is pending is refused as any malformed userdata is
+    (refused,) = session.receive(dt(userdata(0x60, bytes.fromhex("000112081244010100000000"),
+                                             bytes.fromhex("0A000000"))))
+    assert s7_of(refused)[1] == 3 and s7_of(refused)[10:12] == b"\x85\x00"
