@@ -29,7 +29,7 @@ class Emulator:
         self.machine = machine if isinstance(machine, Machine) else load_machine(machine)
         self.clock = clock or MonotonicClock()
         self.nck = NckModel(self.machine, self.clock)
-        self.plc = PlcModel(self.machine, self.nck)
+        self.plc = PlcModel(self.machine, self.nck, clock=self.clock)
         self.store = RetainedStore(Path(state_path)) if state_path is not None else None
         # An alarm text while retained state cannot be written (disk full, read-only directory).
         self.persist_alarm: str | None = None
@@ -39,7 +39,9 @@ class Emulator:
                 self.nck.restore_retained(snapshot)
                 log.info("retained state loaded from %s", self.store.path)
         self.dispatcher = Dispatcher(self.nck, self.plc, persist=self.persist,
-                                     default_access_level=self.default_access_level)
+                                     default_access_level=self.default_access_level,
+                                     userdata_not_served_error=self.machine.settings.userdata_not_served_error,
+                                     unsupported_function_error=self.machine.settings.unsupported_function_error)
 
     @property
     def default_access_level(self) -> int:

@@ -56,6 +56,18 @@ class Settings:
     tc_requires_referenced: bool = False
     r_parameter_line_offset: int = 1
     limit_violation_return_code: int = 0x05
+    # Userdata error codes (docs/assumptions.md): an SZL ID the PLC lacks, a known SZL ID with an index
+    # it lacks, a userdata group or subfunction it does not serve.
+    szl_unknown_id_error: int = 0xD401
+    szl_unknown_index_error: int = 0xD402
+    userdata_not_served_error: int = 0x8104
+    # Header error of the ACK to a job function we do not serve (upload, download, ...); C snap7 gives
+    # upload/download 0xD241 (protection level), python-snap7 and GH107's 840D sl 0x8104.
+    unsupported_function_error: int = 0x8104
+    # SZL 0x0131 / 0x0232 index 0 in the layout python-snap7 3.3 reads (no real CPU defines index 0).
+    szl_index0_python_snap7: bool = True
+    # 840C TC: refuse P0 = 0 with the A flag (the manual only advises against it).
+    c840_refuse_p0_at_zero: bool = False
 
 
 @dataclass(frozen=True)
@@ -161,7 +173,20 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         r_parameter_line_offset=_get(settings_table, "r_parameter_line_offset", int, "settings.", source, 1),
         limit_violation_return_code=_get(settings_table, "limit_violation_return_code", int, "settings.",
                                          source, 0x05),
+        szl_unknown_id_error=_get(settings_table, "szl_unknown_id_error", int, "settings.", source, 0xD401),
+        szl_unknown_index_error=_get(settings_table, "szl_unknown_index_error", int, "settings.", source,
+                                     0xD402),
+        userdata_not_served_error=_get(settings_table, "userdata_not_served_error", int, "settings.", source,
+                                       0x8104),
+        unsupported_function_error=_get(settings_table, "unsupported_function_error", int, "settings.", source,
+                                        0x8104),
+        szl_index0_python_snap7=_get(settings_table, "szl_index0_python_snap7", bool, "settings.", source, True),
+        c840_refuse_p0_at_zero=_get(settings_table, "c840_refuse_p0_at_zero", bool, "settings.", source, False),
     )
+    for name in ("szl_unknown_id_error", "szl_unknown_index_error", "userdata_not_served_error",
+                 "unsupported_function_error"):
+        if not 0x0001 <= getattr(settings, name) <= 0xFFFF:
+            raise NckConfigError("expected an error code 0x0001..0xFFFF", path=source, field=f"settings.{name}")
     if settings.compensation_sign not in (-1, 1):
         raise NckConfigError("expected -1 or 1", path=source, field="settings.compensation_sign")
     axes = tuple(_axis(t, i, source) for i, t in enumerate(data.get("axis", [])))

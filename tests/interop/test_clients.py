@@ -191,9 +191,9 @@ def test_channel_840c(emulator: EmulatorThread) -> None:
     async def run() -> None:
         async with AsyncNckClient("127.0.0.1", emulator.port, slot=2) as client:
             channel = Channel840C(client, user_db=131)
+            # P0 = 0 with the A flag is accepted (issue 14 2.10: the manual only advises against it)
+            await channel.send(axis=4, k_tcabs_mm=0.0, tan_beta=0.00001, p0_mm=0.0)
             await channel.send(axis=4, k_tcabs_mm=0.05, tan_beta=0.00001, p0_mm=-200.0)
-            with pytest.raises(Channel840CError, match="error 10"):
-                await channel.send(axis=4, k_tcabs_mm=0.0, tan_beta=0.00001, p0_mm=0.0)
             with pytest.raises(Channel840CError, match="error 6"):
                 await channel.send(axis=7, k_tcabs_mm=0.05, tan_beta=0.0, p0_mm=10.0)
 
@@ -202,6 +202,22 @@ def test_channel_840c(emulator: EmulatorThread) -> None:
     tan_beta = round(0.00001 * (2**31 - 1)) / (2**31 - 1)  # what 2^-31 fixed point carries
     expected = 0.05 + tan_beta * (position + 200.0)
     assert emulator.call(lambda: emulator.nck.tc_value_mm(4)) == pytest.approx(expected, abs=1e-12)
+
+
+def test_channel_840c_refuses_p0_at_zero_when_the_machine_says_so() -> None:
+    import nckemu.emulator
+    from nckemu.emulator.machine import parse_machine
+
+    text = (Path(nckemu.emulator.__file__).parent / "machines" / "default.toml").read_text()
+    machine = parse_machine(text.replace("c840_refuse_p0_at_zero = false", "c840_refuse_p0_at_zero = true"))
+
+    async def run(port: int) -> None:
+        async with AsyncNckClient("127.0.0.1", port, slot=2) as client:
+            with pytest.raises(Channel840CError, match="error 10"):
+                await Channel840C(client, user_db=131).send(axis=4, k_tcabs_mm=0.0, tan_beta=0.00001, p0_mm=0.0)
+
+    with EmulatorThread(machine) as strict:
+        asyncio.run(run(strict.port))
 
 
 class PutGetAgreement(RuleBasedStateMachine):

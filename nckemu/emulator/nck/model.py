@@ -153,6 +153,12 @@ class NckModel:
     def pi_service(self, service: str, arguments: Sequence[str], ctx: AccessContext) -> None:
         pi_services.run_service(self, service, arguments, ctx)
 
+    def activate_new_config(self) -> list[str]:
+        """PI _N_CONFIG: machine data with effectiveness "new_conf" take effect (as at power-on, but
+        nothing else of a power-on happens); the names activated."""
+        self.compensation.advance_all()
+        return self.store.activate("new_conf")
+
     def power_on(self) -> None:
         """Power-on: new machine data take effect, LEC activates, 840C TC data are erased."""
         self.compensation.advance_all()

@@ -111,6 +111,19 @@ class VariableStore:
         """Stored values become active (power-on)."""
         self.active = {key: list(values) for key, values in self.stored.items()}
 
+    def activate(self, effective: str) -> list[str]:
+        """Stored values of the variables with this effectiveness become active (e.g. "new_conf" on
+        PI _N_CONFIG); the names of those variables."""
+        names = []
+        for spec in self.specs:
+            if spec.effective != effective or spec.computed:
+                continue
+            names.append(spec.name)
+            for key, values in self.stored.items():
+                if key[0] == spec.name:
+                    self.active[key] = list(values)
+        return names
+
     def apply_initial(self, initial: Mapping[str, Mapping[int, object]], find: Callable[[str], Any],
                       source: str) -> None:
         """A machine file's ``[initial]`` values, by Siemens number or name."""
