@@ -109,11 +109,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if func is None:
         parser.print_help()
         return 2
+    command = " ".join(part for part in (args.command, getattr(args, "plc_command", None),
+                                         getattr(args, "trace_command", None),
+                                         getattr(args, "machine_command", None)) if part)
     try:
         _configure_logging(args)
         return int(func(args) or 0)
     except NckError as exc:
-        print(f"nckemu {args.command}: {exc}", file=sys.stderr)
+        print(f"nckemu {command}: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 130
@@ -122,7 +125,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     except (OSError, UnicodeDecodeError) as exc:  # last resort: each known case is caught where it happens
         where = f" ({exc.filename})" if isinstance(exc, OSError) and exc.filename else ""
-        print(f"nckemu {args.command}: {exc.__class__.__name__}{where}: {exc}", file=sys.stderr)
+        print(f"nckemu {command}: {exc.__class__.__name__}{where}: {exc}", file=sys.stderr)
         return 1
 
 

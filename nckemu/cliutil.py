@@ -105,3 +105,35 @@ def progress_bar(total: float | None, *, description: str = "", enabled: bool = 
 
     return tqdm(total=total, desc=description, unit=unit, disable=None if enabled else True, leave=False,
                 file=sys.stderr)
+
+
+class working:  # noqa: N801 (used as `with working("discover"):`, like a function)
+    """An elapsed-time bar on a terminal while work without its own progress runs (quiet when piped)."""
+
+    def __init__(self, description: str, *, enabled: bool = True) -> None:
+        self.description = description
+        self.enabled = enabled
+        self._stop: Any = None
+        self._thread: Any = None
+
+    def __enter__(self) -> working:
+        if not self.enabled or not sys.stderr.isatty():
+            return self
+        import threading
+
+        bar = progress_bar(None, description=self.description, unit="s")
+        self._stop = threading.Event()
+
+        def tick() -> None:
+            while not self._stop.wait(1.0):
+                bar.update(1)
+            bar.close()
+
+        self._thread = threading.Thread(target=tick, name="nckemu-progress", daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._thread is not None:
+            self._stop.set()
+            self._thread.join()

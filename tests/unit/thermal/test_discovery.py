@@ -62,7 +62,7 @@ def test_seed003_table_names_the_gain_error(tmp_path: Path) -> None:
     out = tmp_path / "out.json"
     report = tmp_path / "out.html"
     improved = tmp_path / "improved.toml"
-    assert main(["discover", str(FIXTURES / "seed003_spindle_elongation.csv"), "--axis", "Z", "--json", str(out),
+    assert main(["discover", str(FIXTURES / "seed003_spindle_elongation.csv"), "--axis", "Z", "--json-out", str(out),
                  "--report", str(report), "--write-model", str(improved)]) == 0
     document = json.loads(out.read_text())
     for key in ("baseline_rms_um", "recalibrated_rms_um", "mismatch", "missing_physics", "heldout_rms_before_um",
@@ -85,7 +85,7 @@ def test_improved_model_is_a_baseline_again(tmp_path: Path) -> None:
     model_path = tmp_path / "baseline.toml"
     model_path.write_text((FIXTURES / "baseline_spindle_bed.toml").read_text())
     improved_path = tmp_path / "improved.toml"
-    assert main(["discover", str(recording_path), "--model", str(model_path), "--json", str(tmp_path / "a.json"),
+    assert main(["discover", str(recording_path), "--model", str(model_path), "--json-out", str(tmp_path / "a.json"),
                  "--write-model", str(improved_path)]) == 0
     again = discover(load_recording(recording_path), model=load_model(improved_path))
     assert again.missing_physics == []
