@@ -126,7 +126,18 @@ def test_bad_models_and_missing_baseline(tmp_path: Path) -> None:
         parse_model('axis = "Z"\n[[term]]\neffect = "offset"\ncolour = 1\n', "m.toml")
     path = tmp_path / "rec.csv"
     path.write_text("t_s,err_Z_um\n" + "".join(f"{i},{i}\n" for i in range(20)))
-    assert main(["discover", str(path), "--axis", "Z"]) == 1
+    assert main(["discover", str(path), "--axis", "X"]) == 1  # no err_X_um column
+
+
+def test_discover_without_a_baseline_starts_from_an_offset(shared_dir: Path, capsys) -> None:
+    # "which sensors explain ch3" on FL_THERMAL needs no hand-written zero model (issue 15)
+    assert main(["discover", str(shared_dir / "data" / "fl_thermal" / "recording.csv"), "--axis", "ch3",
+                 "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "baseline: a constant offset" in captured.err
+    document = json.loads(captured.out)
+    assert document["axis"] == "ch3"
+    assert document["heldout_rms_after_um"] <= document["heldout_rms_before_um"]
 
 
 def test_fl_thermal_recording_claims_no_centrifugal_growth(shared_dir: Path) -> None:
