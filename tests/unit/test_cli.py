@@ -192,6 +192,16 @@ BAD_INPUT = [
     (["trace", "replay", "{capture}", "--timeout", "0"], "--timeout 0.0: expected a positive number"),
     (["discover", "{recording}", "--json", "out.json"], "unrecognized arguments: out.json"),
     (["machine", "show", "--machine", "{tmp}/missing.toml"], "missing.toml: cannot read"),
+    # and the ordinary ones, kept so
+    (["trace", "show", "{recording}"], "not a pcap or pcapng file"),
+    (["trace", "show", "{tmp}/missing.pcapng"], "cannot read"),
+    (["get", "--port", "{port}", "FOO[AX1]"], "unknown NCK variable 'FOO'"),
+    (["get", "--port", "{dead}", "R5"], "cannot connect to 127.0.0.1:"),
+    (["get", "--port", "{port}", "--timeout", "0", "R5"], "expected a positive number of seconds"),
+    (["put", "--port", "{port}", "SD43900[AX4]=abc"], "'abc' is not a REAL8 value"),
+    (["comp840c", "--port", "{port}", "--axis", "4", "--flags", "Q"], "only U and A"),
+    (["serve", "--state", "/nonexistent/s.json", "--port", "0"], "/nonexistent does not exist"),
+    (["discover", "{tmp}/missing.csv"], "missing.csv: cannot read"),
 ]
 
 
