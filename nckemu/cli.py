@@ -19,7 +19,7 @@ from nckemu.errors import NckConfigError, NckError
 
 COMMAND_MODULES = (
     "nckemu.emulator.commands",   # serve, machine show
-    "nckemu.clients.commands",    # get, put, pi, comp840c
+    "nckemu.clients.commands",    # get, put, pi, comp840c, vars, lec
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
     "nckemu.plcsim.commands",     # plc run, plc stubs
@@ -92,9 +92,11 @@ def _configure_logging(args: argparse.Namespace) -> None:
     else:
         handler = logging.StreamHandler()
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    handler.set_name("nckemu")
     root = logging.getLogger()
-    for old in list(root.handlers):
+    for old in [h for h in root.handlers if h.get_name() == "nckemu"]:  # an earlier main() in this process
         root.removeHandler(old)
+        old.close()
     root.addHandler(handler)
     root.setLevel(level)
 

@@ -74,6 +74,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     _connection_options(comp)
     comp.set_defaults(func=run_comp840c, slot=2)
 
+    table = subparsers.add_parser(
+        "vars", help="list the NCK variables nckemu knows: name, unit, limits, access", formatter_class=raw,
+        epilog="examples:\n  nckemu vars\n  nckemu vars TEMP_COMP --json\n")
+    table.add_argument("match", nargs="?", default="", help="only names or numbers containing this")
+    table.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
+    table.set_defaults(func=run_vars)
+
     lec = subparsers.add_parser(
         "lec", help="load a leadscrew compensation table program into a running emulator", formatter_class=raw,
         description="Sends nckemu's PI service _N_NCKEMU_LEC with the program's path: the emulator reads the "
@@ -251,6 +258,31 @@ def run_comp840c(args: argparse.Namespace) -> int:
 
     asyncio.run(go())
     print(json.dumps({"axis": args.axis, "ok": True}) if args.json else f"840C TC sent for axis {args.axis}")
+    return 0
+
+
+def run_vars(args: argparse.Namespace) -> int:
+    from nckemu.catalogue import load_table
+
+    key = args.match.upper()
+    rows = [spec for spec in load_table() if key in spec.name.upper() or key in spec.number.upper()]
+    if not rows:
+        raise NckConfigError(f"no NCK variable name or number contains {args.match!r}")
+    if args.json:
+        print(json.dumps([{"number": r.number, "name": r.name, "module": r.module, "column": r.column,
+                           "areas": sorted(NckArea(a).name for a in r.areas), "type": r.nck_type.name,
+                           "lines": r.lines, "unit": r.unit, "min": r.minimum, "max": r.maximum,
+                           "read_level": r.read_level, "write_level": r.write_level, "retained": r.retained,
+                           "description": r.description} for r in rows]))
+        return 0
+    for r in rows:
+        where = "[AXn]" if r.areas == {NckArea.A} else ""
+        array = f" x{r.lines}" if r.lines > 1 else ""
+        limits = f", {_limits_text(r)}" if r.minimum is not None or r.maximum is not None else \
+            (f", {r.unit}" if r.unit not in ("", "1") else "")
+        access = "read only" if r.read_only else f"write level {r.write_level}"
+        print(f"{r.number:8} {r.name}{where} {r.nck_type.name}{array}{limits}; {access}"
+              + (f" - {r.description}" if r.description else ""))
     return 0
 
 

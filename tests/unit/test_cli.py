@@ -202,6 +202,7 @@ BAD_INPUT = [
     (["comp840c", "--port", "{port}", "--axis", "4", "--flags", "Q"], "only U and A"),
     (["serve", "--state", "/nonexistent/s.json", "--port", "0"], "/nonexistent does not exist"),
     (["discover", "{tmp}/missing.csv"], "missing.csv: cannot read"),
+    (["vars", "NO_SUCH_THING"], "no NCK variable name or number contains"),
 ]
 
 
