@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import json
-import sys
 import tomllib
 from collections.abc import Iterable
 
@@ -15,11 +14,14 @@ from nckemu.protocol.addresses import NckArea, NckType
 from .table import READ_ONLY, VariableSpec, load_table, machine_table
 
 EXAMPLE = """\
+A pattern with * ? [ is a glob over names, numbers and BTSS paths (case-insensitive); anything else
+matches a part of them. --machine adds or overrides variables with a machine file's [[var]] rows.
+
 examples:
-  nckemu vars                        every variable of the built-in catalogue
-  nckemu vars 'act*'                 names, numbers or BTSS paths matching a pattern (case-insensitive)
-  nckemu vars /Channel/State --json  a part of a BTSS path, as JSON
-  nckemu vars --machine fixtures/machines/extra_vars.toml   with a machine file's [[var]] rows
+  nckemu vars
+  nckemu vars 'act*'
+  nckemu vars /Channel/State --json
+  nckemu vars --machine fixtures/machines/extra_vars.toml
 """
 
 
@@ -105,8 +107,7 @@ def run_vars(args: argparse.Namespace) -> int:
         print(json.dumps([describe(spec) for spec in chosen], indent=1))
         return 0
     if not chosen:
-        print(f"nckemu vars: no variable matches {args.pattern!r}", file=sys.stderr)
-        return 1
+        raise NckConfigError(f"no NCK variable name, number or BTSS path matches {args.pattern!r}")
     print(format_table(chosen))
     print(f"{len(chosen)} of {len(specs)} variables; r/w = access level to read / write (0 highest, 7 lowest, "
           f"- read only)")

@@ -231,11 +231,14 @@ R_PARAMETER_LINE_OFFSET = 1
 
 
 def display_name(spec: VariableSpec, address: NckAddress) -> str:
-    """``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[AX4,l2]``."""
+    """``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[1,AX4]`` (an array's
+    index first and 0-based, as written in part programs and accepted by the name parser)."""
     count = f",x{address.line_count}" if address.line_count > 1 else ""
     if spec.name == "R":
         return f"R{address.line - R_PARAMETER_LINE_OFFSET}[C{address.unit}{count}]"
     where = f"AX{address.unit}" if address.area == NckArea.A else f"{NckArea(address.area).name}{address.unit}"
-    line = f",l{address.line}" if spec.lines > 1 or address.line != 1 else ""
     number = "" if spec.number.startswith("NCKEMU_") or not spec.number[:2].isalpha() else f"{spec.number} "
+    if spec.lines > 1 and address.line >= 1:
+        return f"{number}{spec.name}[{address.line - 1},{where}{count}]"
+    line = f",l{address.line}" if address.line != 1 else ""
     return f"{number}{spec.name}[{where}{line}{count}]"

@@ -7,13 +7,15 @@ Every problem is reported as an ``NckConfigError`` naming the file and the field
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from nckemu.catalogue.table import VariableSpec, machine_table
 from nckemu.errors import NckConfigError
+
+from .plc.memory import AREA_BYTES
 
 
 @dataclass(frozen=True)
@@ -112,8 +114,31 @@ def _get(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: 
     return value
 
 
+_KNOWN_KEYS: dict[str, frozenset[str]] = {
+    "": frozenset({"name", "ipo_cycle_s", "pdu_size_max", "max_amq", "channels", "connection_access_level",
+                   "passwords", "settings", "axis", "sensor", "plc", "initial", "var"}),
+    # every setting the dataclass has (a new setting needs no second list)
+    "settings.": frozenset(setting.name for setting in fields(Settings)),
+    "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
+                       "tool_temp_comp_component"}),
+    "sensor": frozenset({"name", "temperature_C", "plc_input", "raw_offset", "raw_per_C", "profile"}),
+    "plc.": frozenset({"data_blocks"}),
+}
+
+
+def _check_keys(table: Any, kind: str, where: str, source: str) -> None:
+    """A mistyped key would silently fall back to its default: refuse it, naming the known ones."""
+    if not isinstance(table, dict):
+        raise NckConfigError("expected a table", path=source, field=where.rstrip(".") or "(top level)")
+    unknown = sorted(set(table) - _KNOWN_KEYS[kind])
+    if unknown:
+        raise NckConfigError(f"unknown key (known: {', '.join(sorted(_KNOWN_KEYS[kind]))})", path=source,
+                             field=f"{where}{unknown[0]}")
+
+
 def _axis(table: dict[str, Any], index: int, source: str) -> Axis:
     where = f"axis[{index}]."
+    _check_keys(table, "axis", where, source)
     number = _get(table, "number", int, where, source)
     if not 1 <= number <= 31:
         raise NckConfigError("a machine axis number is 1..31 (the NCK unit)", path=source, field=f"{where}number")
@@ -139,6 +164,7 @@ def _axis(table: dict[str, Any], index: int, source: str) -> Axis:
 
 def _sensor(table: dict[str, Any], index: int, source: str) -> Sensor:
     where = f"sensor[{index}]."
+    _check_keys(table, "sensor", where, source)
     profile_raw = table.get("profile", [])
     profile: list[tuple[float, float]] = []
     if not isinstance(profile_raw, list):
@@ -153,6 +179,9 @@ def _sensor(table: dict[str, Any], index: int, source: str) -> Sensor:
     if plc_input is not None and (not isinstance(plc_input, str) or not plc_input.upper().startswith("PIW")
                                   or not plc_input[3:].isdigit()):
         raise NckConfigError("expected 'PIW<byte address>'", path=source, field=f"{where}plc_input")
+    if plc_input is not None and int(plc_input[3:]) > AREA_BYTES - 2:
+        raise NckConfigError(f"{plc_input}: the input area has bytes 0..{AREA_BYTES - 1}, so PIW0..PIW{AREA_BYTES - 2}",
+                             path=source, field=f"{where}plc_input")
     return Sensor(name=_get(table, "name", str, where, source),
                   temperature_C=_get(table, "temperature_C", float, where, source, 20.0),
                   plc_input=plc_input.upper() if plc_input else None,
@@ -166,7 +195,9 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise NckConfigError(f"not valid TOML: {exc}", path=source) from None
+    _check_keys(data, "", "", source)
     settings_table = data.get("settings", {})
+    _check_keys(settings_table, "settings.", "settings.", source)
     settings = Settings(
         compensation_sign=_get(settings_table, "compensation_sign", int, "settings.", source, -1),
         tc_requires_referenced=_get(settings_table, "tc_requires_referenced", bool, "settings.", source, False),
@@ -195,6 +226,7 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         raise NckConfigError("two axes with one number", path=source, field="axis.number")
     sensors = tuple(_sensor(t, i, source) for i, t in enumerate(data.get("sensor", [])))
     plc = data.get("plc", {})
+    _check_keys(plc, "plc.", "plc.", source)
     blocks_raw = plc.get("data_blocks", {})
     data_blocks: dict[int, int] = {}
     for key, size in blocks_raw.items():
@@ -233,4 +265,6 @@ def load_machine(path: str | Path | None = None) -> Machine:
         text = path.read_text("utf-8")
     except OSError as exc:
         raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
+    except UnicodeDecodeError:
+        raise NckConfigError("not a text file (a machine is TOML text in UTF-8)", path=str(path)) from None
     return parse_machine(text, str(path))
