@@ -8,7 +8,8 @@ import json
 import math
 from typing import Any
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.cliutil import add_json_options, check_output, working
+from nckemu.errors import NckConfigError
 
 
 def _duration_s(text: str) -> float:
@@ -25,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     run = commands.add_parser(
         "run", help="run an STL program on simulated time", formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example: nckemu plc run fixtures/plc/tc_z.awl --machine fixtures/machines/bed_ramp.toml "
-               "--duration 2h")
+               "--duration 2h\n")
     run.add_argument("program", help="STL source with OB1 (FB3 \"PUT\" is provided by nckemu)")
     run.add_argument("--machine", help="machine TOML for the in-process emulator (sensor profiles drive the "
                                        "analog inputs)")
@@ -44,10 +45,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     run.add_argument("--out", metavar="SIM.csv",
                      help="with --inputs: write the recording plus sim_<axis>_um, the compensation the NCK "
                           "applied (err - sim is the error left)")
-    run.add_argument("--json", action="store_true")
+    run.add_argument("--json", action="store_true", help="print samples, jobs and errors as JSON on stdout")
     run.set_defaults(func=run_plc)
-    stubs = commands.add_parser("stubs", help="write the FB2/FB3/FB4 stub sources (for awlsim with -H nckemu)")
-    stubs.add_argument("directory", help="where to write fb2_get.awl, fb3_put.awl and fb4_pi_serv.awl")
+    stubs = commands.add_parser("stubs", help="write the FB2/FB3/FB4 stub sources (for awlsim with -H nckemu)",
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="example: nckemu plc stubs stubs/ --json\n")
+    stubs.add_argument("directory", help="where to write fb2_get.awl, fb3_put.awl and fb4_pi_serv.awl "
+                                         "(created if missing)")
+    stubs.add_argument("--json", action="store_true", help="print the written files as JSON on stdout")
     stubs.set_defaults(func=write_stubs)
     plc.set_defaults(func=lambda args: plc.print_help() or 2)
 
@@ -56,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example: nckemu loop fixtures/plc/bed_only_z.awl --machine fixtures/machines/loop_mill.toml "
                "--inputs fixtures/thermal/loop_bed_program_spindle_lag.csv --axis Z --cycle 60s --report loop.html "
-               "--json loop.json --write-stl fixed.awl")
+               "--json-out loop.json --write-stl fixed.awl\n")
     loop.add_argument("program", help="your STL source with OB1")
     loop.add_argument("--machine", required=True, help="machine TOML: sensors with plc_input, axes")
     loop.add_argument("--inputs", required=True, metavar="REC.csv", help="recording with temp_, pos_ and err_ columns")
@@ -64,7 +69,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     loop.add_argument("--cycle", default="1s", help="simulated PLC cycle (1s); the generated filters are exact for it")
     loop.add_argument("--folds", type=int, default=5, help="held-out blocks of time (5)")
     loop.add_argument("--report", metavar="loop.html", help="write one self-contained HTML report")
-    loop.add_argument("--json", dest="json_out", metavar="OUT.json", help="write the figures as JSON")
+    add_json_options(loop, out=True)
     loop.add_argument("--write-stl", metavar="NEW.awl", help="write the generated program (fitted on all data)")
     loop.set_defaults(func=run_loop_command)
     discover = subparsers.choices.get("discover")
@@ -95,10 +100,19 @@ def write_stubs(args: argparse.Namespace) -> int:
     from .bridge import STUB_SOURCES
 
     target = Path(args.directory)
-    target.mkdir(parents=True, exist_ok=True)
-    for source in STUB_SOURCES:
-        shutil.copyfile(source, target / source.name)
-        print(target / source.name)
+    if target.exists() and not target.is_dir():
+        raise NckConfigError("exists and is not a directory: give a directory for the stub sources",
+                             path=args.directory)
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        written = []
+        for source in STUB_SOURCES:
+            shutil.copyfile(source, target / source.name)
+            written.append(str(target / source.name))
+    except OSError as exc:
+        raise NckConfigError(f"cannot write the stub sources: {exc.strerror}",
+                             path=exc.filename or args.directory) from None
+    print(json.dumps({"directory": str(target), "files": written}) if args.json else "\n".join(written))
     return 0
 
 
@@ -123,8 +137,9 @@ def run_plc(args: argparse.Namespace) -> int:
         raise NckConfigError("--speed applies to the in-process emulator; --emulator runs in real time")
     if not args.emulator:
         _warn_position_dependent(args.program, args.machine, args.axis)
-    result = run_program(args.program, machine=args.machine, emulator=args.emulator, duration_s=duration_s,
-                         cycle_s=cycle_s, axis=args.axis, speed=speed)
+    with working("plc run", enabled=not args.json):
+        result = run_program(args.program, machine=args.machine, emulator=args.emulator, duration_s=duration_s,
+                             cycle_s=cycle_s, axis=args.axis, speed=speed)
     if args.json:
         samples = [{k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in vars(s).items()}
                    for s in result.samples]  # NaN (not measured) is not JSON
@@ -250,24 +265,25 @@ def run_loop_command(args: argparse.Namespace) -> int:
     from nckemu.thermal.recording import load_recording
 
     from .loop import run_loop, write_loop_report
-    from .replay import check_output_path
 
     cycle_s = _cycle(args.cycle)
     if args.folds < 2:
         raise NckConfigError("--folds must be at least 2")
-    for option, path in (("--report", args.report), ("--json", args.json_out), ("--write-stl", args.write_stl)):
-        if path:
-            check_output_path(path, option)
+    for option, path in (("--report", args.report), ("--json-out", args.json_out), ("--write-stl", args.write_stl)):
+        check_output(path, option)
     recording = load_recording(args.inputs)
     result = run_loop(args.program, args.machine, recording, args.axis, cycle_s=cycle_s, folds=args.folds)
     for warning in result.warnings:
         print(f"nckemu loop: warning: {warning}", file=sys.stderr)
     if args.write_stl:
         _write_text_atomically(args.write_stl, result.program.text)
-    if args.json_out:
+    if args.json_out and args.json_out != "-":
         _write_text_atomically(args.json_out, json.dumps(result.to_json(), indent=2) + "\n")
     if args.report:
         write_loop_report(args.report, result, f"nckemu loop: {Path(args.program).name} on {Path(args.inputs).name}")
+    if args.json or args.json_out == "-":
+        print(json.dumps(result.to_json()))
+        return 0
     print(f"axis {result.letter}: error RMS {result.rms_error_um:.3f} um; left after your program "
           f"{result.rms_before_um:.3f} um; after the generated program {result.heldout_rms_after_um:.3f} um held-out "
           f"({result.rms_after_um:.3f} um fitted on all)")
@@ -309,7 +325,7 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
         status = int(thermal_discover(args) or 0)
     discovery = args.discovery
     origin = f"nckemu discover on {Path(args.recording).name}"
-    if args.model:  # the improved model carries every term
+    if args.model or discovery.axis not in recording.simulated_um:  # the improved model carries every term
         generated = generate_program(discovery.improved_model, machine, axis, cycle_s, origin=origin)
     else:  # a program's sim_ column: its law read back, the found effects added
         plc_sensors, spindle_input = plc_inputs(machine, recording)
@@ -317,13 +333,19 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
                           spindle_input=spindle_input)
         generated = generate_program(model.model, machine, axis, cycle_s, extra_not_compensable=model.not_compensable,
                                      origin=origin)
-    sys.stdout.write(out.getvalue())
-    sys.stderr.write(err.getvalue())
     _write_text_atomically(args.write_stl, generated.text)
-    if args.json_out:
+    stl = {"path": args.write_stl, **generated.to_json()}
+    if args.json_out and args.json_out != "-":
         document = json.loads(Path(args.json_out).read_text(encoding="utf-8"))
-        document["stl"] = {"path": args.write_stl, **generated.to_json()}
-        _write_text_atomically(args.json_out, json.dumps(document, indent=2) + "\n")
+        _write_text_atomically(args.json_out, json.dumps({**document, "stl": stl}, indent=2) + "\n")
+    sys.stderr.write(err.getvalue())
+    if args.json or args.json_out == "-":  # discover's JSON on stdout, with the program added
+        # --json prints one compact line last; --json-out - alone prints the indented document.
+        text = out.getvalue().strip()
+        document = json.loads(text.splitlines()[-1] if args.json else text)
+        print(json.dumps({**document, "stl": stl}))
+        return status
+    sys.stdout.write(out.getvalue())
     print(f"  STL written to {args.write_stl}: {', '.join(g['effect'] for g in generated.generated)}")
     for item in generated.not_compensable:
         print(f"  {item['effect']}: {item['why']}")

@@ -48,7 +48,7 @@ def test_discover_on_loop_output_takes_sim_as_baseline_and_writes_stl(tmp_path: 
     sim_csv = tmp_path / "sim.csv"
     write_recording(sim_csv, with_simulation(recording, "Z", run.sim_um))
     out_json, stl = tmp_path / "out.json", tmp_path / "fixed.awl"
-    assert main(["discover", str(sim_csv), "--axis", "Z", "--json", str(out_json), "--machine", str(LOOP_MILL),
+    assert main(["discover", str(sim_csv), "--axis", "Z", "--json-out", str(out_json), "--machine", str(LOOP_MILL),
                  "--write-stl", str(stl), "--cycle", "60s"]) == 0
     document = json.loads(out_json.read_text())
     assert set(document["program"]) == {"What the program compensated", "The residual", "Where it falls short",
@@ -121,7 +121,7 @@ def test_loop_cli_writes_report_json_and_stl(tmp_path: Path, capsys: pytest.Capt
     write_recording(tmp_path / "rec.csv", make_loop_scenario(seed=1, duration_h=12.0).recording)
     report, out_json, stl = tmp_path / "loop.html", tmp_path / "loop.json", tmp_path / "fixed.awl"
     assert main(["loop", str(BED_ONLY), "--machine", str(LOOP_MILL), "--inputs", str(tmp_path / "rec.csv"),
-                 "--axis", "Z", "--cycle", "60s", "--folds", "3", "--report", str(report), "--json", str(out_json),
+                 "--axis", "Z", "--cycle", "60s", "--folds", "3", "--report", str(report), "--json-out", str(out_json),
                  "--write-stl", str(stl)]) == 0
     assert "What physics it leaves out" in capsys.readouterr().out
     document = json.loads(out_json.read_text())
