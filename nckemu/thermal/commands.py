@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 # numpy/scipy and the modules on them load when a command runs, not for every `nckemu` call
 # (importing scipy.signal takes over a second and `nckemu serve` does not need it).

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 from . import stats
 from .recording import Recording

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 
 @dataclass

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 from .recording import Recording
 

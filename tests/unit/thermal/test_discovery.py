@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from nckemu.cli import main
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 from nckemu.thermal.discover import discover
 from nckemu.thermal.recording import load_recording, write_recording
 from nckemu.thermal.scenarios import SCENARIOS, make_scenario
