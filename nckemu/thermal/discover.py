@@ -334,21 +334,23 @@ class Discoverer:
         for sensor in sensors:
             if f"thermal_lag:{sensor}" in present:
                 continue
-            signal = recording.sensor(sensor)
+            # The search runs on the >= 30 s grid (the readings are averaged over minutes already);
+            # the chosen term's feature is computed on every sample.
+            signal = self._decimated_signal(sensor)
             best: tuple[float, float] | None = None
             tried = 0
             for tau in self.settings.lag_grid_s:
                 if tau > duration_s / 3:
                     continue
                 tried += 1
-                feature = problem.column(first_order_lag(recording.t_s, signal, tau)) - self._t_ref(sensor)
+                feature = self._lag_feature(signal, tau) - self._t_ref(sensor)
                 score = self._in_sample(design, feature)
                 if best is None or score < best[0]:
                     best = (score, tau)
             if best is not None:
                 for tau in best[1] * np.geomspace(0.8, 1.25, 9):
                     tried += 1
-                    feature = problem.column(first_order_lag(recording.t_s, signal, float(tau))) - self._t_ref(sensor)
+                    feature = self._lag_feature(signal, float(tau)) - self._t_ref(sensor)
                     score = self._in_sample(design, feature)
                     if score < best[0]:
                         best = (score, float(tau))
@@ -388,6 +390,10 @@ class Discoverer:
         signal = self.recording.sensor(sensor)
         step = max(1, int(30.0 / max(float(np.median(np.diff(t))), 1e-9)))
         return t[::step], signal[::step]
+
+    def _lag_feature(self, decimated: tuple[np.ndarray, np.ndarray], tau_s: float) -> np.ndarray:
+        t_coarse, signal = decimated
+        return np.interp(self.problem.t_s, t_coarse, first_order_lag(t_coarse, signal, tau_s))
 
     def _asymmetric_feature(self, decimated: tuple[np.ndarray, np.ndarray], tau_heat: float,
                             tau_cool: float) -> np.ndarray:
