@@ -194,6 +194,18 @@ _EXTENDS = {("thermal_lag", "temperature"), ("heating_cooling_hysteresis", "temp
             ("heating_cooling_hysteresis", "thermal_lag")}
 
 
+def _isolated(flagged: np.ndarray, longest: int = 2) -> np.ndarray:
+    """The flagged samples in runs of at most ``longest`` consecutive readings: an outlier leaves its
+    neighbours; a stretch where the model is wrong is what discovery looks for, not bad data."""
+    edges = np.diff(np.concatenate(([0], flagged.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = np.zeros_like(flagged)
+    for start, end in zip(starts, ends, strict=True):
+        if end - start <= longest:
+            out[start:end] = True
+    return out
+
+
 def _time_constants(term: Term) -> int:
     return sum(key in term.parameters for key in ("tau_s", "tau_heat_s", "tau_cool_s"))
 
@@ -249,6 +261,7 @@ class Discoverer:
             axis = axes[0]
         self.settings = settings or Settings()
         self.data_quality: list[str] = []
+        self.raw_recording = recording
         recording = self._repair_glitches(recording)
         self.problem = _Problem(recording, axis, model)
         self.recording = recording
@@ -444,7 +457,7 @@ class Discoverer:
         sigma = stats.robust_sigma(residual)
         if not sigma > 0:
             return
-        outliers = np.abs(residual - np.median(residual)) > self.settings.outlier_sigmas * sigma
+        outliers = _isolated(np.abs(residual - np.median(residual)) > self.settings.outlier_sigmas * sigma)
         if outliers.any():
             keep = ~outliers
             self.data_quality.append(f"{int(outliers.sum())} outlier sample(s) beyond "
@@ -484,11 +497,24 @@ class Discoverer:
         # A model whose coefficients are the least-squares optimum on this very record was calibrated
         # on it: its RMS "as given" is an in-sample figure, not a held-out one. Compare like with like:
         # the baseline refitted per fold, under the same blocked cross-validation as the candidates.
-        calibrated_here = recalibrated is not None and \
-            baseline_rms <= recalibrated_rms * (1 + self.settings.calibrated_tolerance)
+        calibrated_here = recalibrated is not None and self._calibrated_on_record()
         self._given_heldout_um = math.inf if calibrated_here else baseline_rms
         return _Setup(base_design, given, folds, baseline_rms, recalibrated, recalibrated_rms, given_cv, recal_cv,
                       calibrated_here)
+
+    def _calibrated_on_record(self) -> bool:
+        """Were the given coefficients fitted by least squares on this record? Judged on the readings
+        as recorded (before glitch repair and averaging): RMS as given within ``calibrated_tolerance``
+        of the least-squares optimum's."""
+        problem, raw = self.problem, self.raw_recording
+        if problem.base_terms:
+            columns = np.column_stack([term.feature(raw, problem.axis)[problem.mask] for term in problem.base_terms])
+            given = problem.model.predict_um(raw)[problem.mask]
+        else:  # a sim_ column: nothing was averaged
+            columns = np.column_stack([problem.column(c) for c in problem.base_columns])
+            given = problem.column(problem.given_prediction)
+        optimum = stats.rms(self.y - columns @ stats.least_squares(columns, self.y))
+        return stats.rms(self.y - given) <= optimum * (1 + self.settings.calibrated_tolerance)
 
     def _base_design(self) -> np.ndarray:
         problem = self.problem
@@ -620,7 +646,8 @@ class Discoverer:
                       if not recalibrate.discovered else
                       f"gain x model explains held-out data better ({cv_gain:.3f} um) than recalibrating and "
                       f"adding physics ({cv_recal:.3f} um)")
-            with_gain.discovered[0]["evidence"]["equivalent"] = [alternative]
+            if not single:  # with one coefficient, recalibration is the same model as the gain
+                with_gain.discovered[0]["evidence"]["equivalent"] = [alternative]
             words = f"gain_error preferred: {reason}"
             with_gain.discovered[0]["evidence"]["preferred"] = words
             return with_gain, words
