@@ -181,8 +181,10 @@ def _bounded(term: Term) -> bool:
     """Parameters a machine can have."""
     p = term.parameters
     c = term.coefficient
-    if term.effect in ("thermal_lag",):
+    if term.effect == "thermal_lag":
         return 60.0 <= float(p["tau_s"]) <= 48 * 3600.0
+    if term.effect == "heating_cooling_hysteresis":
+        return all(60.0 <= float(p[key]) <= 48 * 3600.0 for key in ("tau_heat_s", "tau_cool_s"))
     if term.effect == "gain_error":
         return 0.2 <= c <= 5.0
     return math.isfinite(c)
@@ -385,8 +387,13 @@ class Discoverer:
                 if best_h is None or score < best_h[0]:
                     best_h = (score, tau_heat, tau_cool)
             if best_h is not None:
+                # Refine around the grid point (not around the last improvement: that compounded,
+                # and walked a cooling time constant to 21 h on a 36 h null record).
+                grid_heat, grid_cool = best_h[1], best_h[2]
                 for factor_heat, factor_cool in itertools.product(np.geomspace(0.7, 1.4, 5), repeat=2):
-                    tau_heat, tau_cool = best_h[1] * float(factor_heat), best_h[2] * float(factor_cool)
+                    tau_heat, tau_cool = grid_heat * float(factor_heat), grid_cool * float(factor_cool)
+                    if max(tau_heat, tau_cool) > duration_s / 3:
+                        continue
                     tried += 1
                     feature = self._asymmetric_feature(signal, tau_heat, tau_cool) - self._t_ref(sensor)
                     score = self._in_sample(design, feature)

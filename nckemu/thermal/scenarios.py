@@ -132,7 +132,8 @@ def make_scenario(name: str, seed: int = 1, duration_h: float = 36.0, dt_s: floa
 
 VARIANTS = ("position_dependent_expansion_calibrated", "quadratic_temperature_calibrated",
             "thermal_gradient_calibrated", "quadratic_temperature_small", "thermal_lag_small",
-            "thermal_gradient_glitch", "null_ar1_gaps_outliers", "null_calibrated_gaps")
+            "thermal_gradient_glitch", "null_ar1_gaps_outliers", "null_calibrated_gaps",
+            "null_slow_ar_gaps_outliers")
 ALL_SCENARIOS = SCENARIOS + VARIANTS
 # How much of an effect a "small" variant keeps: near the detection limit (docs/thermal.md).
 SMALL_SCALE = 0.5
@@ -202,6 +203,18 @@ def _with_sensor_glitches(recording: Recording, sensor: str, seed: int) -> Recor
                      recording.spindle_rpm, recording.positions_mm, recording.errors_um)
 
 
+def _with_slow_wander(recording: Recording, seed: int, sigma_um: float = 0.6, phi: float = 0.995) -> Recording:
+    """A slower gauge wander on top (AR(1), phi per sample): hours-long excursions that a lag with a
+    long enough time constant can chase."""
+    rng = np.random.default_rng(30_000 + seed)
+    innovations = rng.normal(0.0, sigma_um * np.sqrt(1 - phi ** 2), len(recording.t_s))
+    wander = np.zeros_like(recording.t_s)
+    for k in range(1, len(wander)):
+        wander[k] = phi * wander[k - 1] + innovations[k]
+    return Recording(recording.source + " with slow wander", recording.t_s, recording.temperatures_C,
+                     recording.spindle_rpm, recording.positions_mm, {AXIS: recording.errors_um[AXIS] + wander})
+
+
 def make_variant(name: str, seed: int = 1) -> Scenario:
     if name in SCENARIOS:
         return make_scenario(name, seed)
@@ -218,6 +231,9 @@ def make_variant(name: str, seed: int = 1) -> Scenario:
     elif name == "null_ar1_gaps_outliers":
         scenario = make_scenario("null_ar1", seed)
         scenario.recording = _with_gaps_and_outliers(scenario.recording, seed)
+    elif name == "null_slow_ar_gaps_outliers":
+        scenario = make_scenario("null_ar1", seed)
+        scenario.recording = _with_slow_wander(_with_gaps_and_outliers(scenario.recording, seed), seed)
     else:  # null_calibrated_gaps: nothing missing, the baseline calibrated on the record, gauge gaps
         scenario = make_scenario("null_ar1", seed)
         scenario.recording = _with_gaps_and_outliers(scenario.recording, seed, outlier_um=0.0)

@@ -77,6 +77,13 @@ def test_like_with_like_a_small_quadratic_on_a_calibrated_model() -> None:
     assert evidence["heldout_rms_before_um"] > result.baseline_rms_um  # the refit CV, not the in-sample figure
 
 
+def test_null_with_slow_wander_gaps_and_outliers_stays_silent() -> None:
+    """Seed 1 once reported heating_cooling_hysteresis(front) with tau_cool = 21 h on a 36 h record:
+    the refinement compounded its factors and walked past the grid's bound."""
+    scenario = make_variant("null_slow_ar_gaps_outliers", 1)
+    assert discover(scenario.recording, model=scenario.baseline).missing_physics == []
+
+
 def test_scaled_scenario_scales_only_the_effect() -> None:
     full, half = make_scenario("offset", 3), scaled_scenario("offset", 3, 0.5)
     difference = full.recording.errors_um["Z"] - half.recording.errors_um["Z"]
