@@ -32,6 +32,7 @@ tshark:
 
 lint: $(VENV)/.installed-test
 	$(VENV)/bin/ruff check nckemu awlsimhw_nckemu tests bench examples
+	$(VENV)/bin/lint-imports --no-cache
 
 test: $(VENV)/.installed-test tshark lint
 	$(PY) -m pytest

@@ -19,9 +19,9 @@ from typing import Any
 from awlsim.core.hardware_params import HwParamDesc_int, HwParamDesc_str
 
 from nckemu.clients import NckClient
+from nckemu.errors import NckError
 from nckemu.plcsim.bridge import NckBridge, NckBridgeHardware
 from nckemu.plcsim.remote import InputMirror
-from nckemu.protocol.errors import NckError
 
 
 class HardwareInterface(NckBridgeHardware):

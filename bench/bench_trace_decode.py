@@ -21,9 +21,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from nckemu.capture import write_capture  # noqa: E402
 from nckemu.protocol import cotp, s7  # noqa: E402
 from nckemu.protocol.addresses import NckAddress  # noqa: E402
-from nckemu.traces.capture import write_capture  # noqa: E402
 from nckemu.traces.decode import decode  # noqa: E402
 from nckemu.traces.reader import read_capture  # noqa: E402
 

@@ -21,7 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from nckemu.clients import NckClient  # noqa: E402
-from nckemu.protocol.errors import NckError  # noqa: E402
+from nckemu.errors import NckError  # noqa: E402
 
 
 def serve(port: int, state: Path) -> subprocess.Popen[str]:

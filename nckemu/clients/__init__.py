@@ -1,9 +1,10 @@
 """Clients that reproduce GET/PUT (FB2/FB3) and PI_SERV (FB4) byte for byte, on python-snap7's connection."""
 
+from nckemu.catalogue.names import Variable, parse_variable
+
 from .async_client import AsyncNckClient, ItemResult
 from .channel840c import Channel840C, Channel840CError
 from .fb import FbGet, FbOutputs, FbPiServ, FbPut
-from .names import Variable, parse_variable
 from .sync import NckClient
 
 __all__ = ["AsyncNckClient", "Channel840C", "Channel840CError", "FbGet", "FbOutputs", "FbPiServ", "FbPut",

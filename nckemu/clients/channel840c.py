@@ -9,8 +9,8 @@ from __future__ import annotations
 import asyncio
 import time
 
+from nckemu.errors import NckError, NckTimeoutError
 from nckemu.protocol import c840, db41
-from nckemu.protocol.errors import NckError, NckTimeoutError
 
 from .async_client import AsyncNckClient
 

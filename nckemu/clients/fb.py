@@ -16,10 +16,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from nckemu.protocol.errors import NckConnectionError, NckError, NckServiceError, NckTimeoutError
+from nckemu.catalogue.names import Variable, as_variable, with_overrides
+from nckemu.errors import NckConnectionError, NckError, NckServiceError, NckTimeoutError
 
 from .async_client import MAX_VARIABLES, ItemResult, to_real32
-from .names import Variable, as_variable, with_overrides
 from .sync import NckClient
 
 STATE_OK = 0x0000

@@ -5,11 +5,15 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError, NckError
+from nckemu.protocol.addresses import NckAddress
+from nckemu.protocol.values import decode_nck_values
 
 from .clock import Clock, MonotonicClock
 from .dispatch import Dispatcher
 from .machine import Machine, load_machine
+from .nck.access import HIGHEST_LEVEL, AccessContext
+from .nck.alarms import ALARM_RETAINED_STATE
 from .nck.model import NckModel
 from .plc import PlcModel
 from .state import RetainedStore
@@ -25,7 +29,7 @@ class Emulator:
         self.machine = machine if isinstance(machine, Machine) else load_machine(machine)
         self.clock = clock or MonotonicClock()
         self.nck = NckModel(self.machine, self.clock)
-        self.plc = PlcModel(self.machine, self.nck)
+        self.plc = PlcModel(self.machine, self.nck, clock=self.clock)
         self.store = RetainedStore(Path(state_path)) if state_path is not None else None
         # An alarm text while retained state cannot be written (disk full, read-only directory).
         self.persist_alarm: str | None = None
@@ -35,7 +39,9 @@ class Emulator:
                 self.nck.restore_retained(snapshot)
                 log.info("retained state loaded from %s", self.store.path)
         self.dispatcher = Dispatcher(self.nck, self.plc, persist=self.persist,
-                                     default_access_level=self.default_access_level)
+                                     default_access_level=self.default_access_level,
+                                     userdata_not_served_error=self.machine.settings.userdata_not_served_error,
+                                     unsupported_function_error=self.machine.settings.unsupported_function_error)
 
     @property
     def default_access_level(self) -> int:
@@ -51,16 +57,33 @@ class Emulator:
             if self.persist_alarm is None:
                 log.error("retained state cannot be written to %s: %s (serving on, alarm raised)",
                           self.store.path, exc)
-            if self.persist_alarm in self.nck.alarms:
-                self.nck.alarms.remove(self.persist_alarm)
+            if self.persist_alarm is not None:
+                self.nck.alarm_list.clear(self.persist_alarm)
             self.persist_alarm = f"retained state not saved: {exc}"
-            self.nck.alarms.append(self.persist_alarm)
+            self.nck.alarm_list.raise_alarm(self.persist_alarm, ALARM_RETAINED_STATE, (str(exc),))
         else:
             if self.persist_alarm is not None:
                 log.warning("retained state written again to %s; alarm cleared", self.store.path)
-                self.nck.alarms.remove(self.persist_alarm)
+                self.nck.alarm_list.clear(self.persist_alarm)
             self.persist_alarm = None
 
     def power_on(self) -> None:
         """Simulated power-on: power-on machine data take effect, 840C TC data are erased."""
         self.nck.power_on()
+
+    def seed_nck(self, values: dict[NckAddress, bytes]) -> int:
+        """Write recorded NCK values (as on the wire) with the highest access level, e.g. before a trace
+        replay; variables that cannot be set (state data and the like) are skipped. Returns how many
+        were written."""
+        ctx = AccessContext(level=HIGHEST_LEVEL, client="seed")
+        written = 0
+        for address, data in values.items():
+            try:
+                nck_type, length = self.nck.variable_type(address)
+                decoded = decode_nck_values(nck_type, data, area=address.area, line_count=address.line_count,
+                                            string_length=length)
+                self.nck.write(address, decoded, ctx)
+                written += 1
+            except NckError:
+                continue
+        return written

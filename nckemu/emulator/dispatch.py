@@ -9,9 +9,18 @@ with a header error).
 from __future__ import annotations
 
 import logging
-import struct
 from collections.abc import Callable
 
+from nckemu.errors import (
+    HeaderError,
+    NckAddressOutOfRange,
+    NckError,
+    NckItemError,
+    NckObjectDoesNotExist,
+    NckServiceError,
+    NckTypeInconsistent,
+    ReturnCode,
+)
 from nckemu.protocol import pi, s7, szl
 from nckemu.protocol.addresses import (
     NCK_SYNTAX_IDS,
@@ -19,33 +28,33 @@ from nckemu.protocol.addresses import (
     S7AnyAddress,
     S7Area,
     S7TransportSize,
-    UnsupportedAddress,
-)
-from nckemu.protocol.errors import (
-    NckAddressOutOfRange,
-    NckError,
-    NckItemError,
-    NckObjectDoesNotExist,
-    NckServiceError,
-    NckTypeInconsistent,
 )
 from nckemu.protocol.values import NCK_TRANSPORT_SIZE, decode_nck_values, encode_nck_values
 
+from .datastore import NckDatastore, PlcDatastore
 from .nck.access import AccessContext
 
 log = logging.getLogger(__name__)
 
-RC_SUCCESS = 0xFF
+# Plain ints on the hot path (an IntEnum member costs more to compare and to pack).
+RC_SUCCESS = int(ReturnCode.SUCCESS)
+RC_HARDWARE_ERROR = int(ReturnCode.HARDWARE_ERROR)
+RC_OBJECT_DOES_NOT_EXIST = int(ReturnCode.OBJECT_DOES_NOT_EXIST)
 # Read jobs by parameter bytes: clients poll the same items; the parsed request is immutable.
 MAX_CACHED_READ_REQUESTS = 1024
-RC_HARDWARE_ERROR = 0x01
 
-# Data-item transport sizes of answers to S7ANY reads (the length counts bits for 0x03/0x04/0x05).
+# Data-item transport sizes of answers to S7ANY reads (the length counts bits for 0x03/0x04/0x05),
+# as C snap7's PerformFunctionRead answers them: BIT 0x03; BYTE, WORD, DWORD 0x04; INT and DINT 0x05;
+# REAL 0x07; CHAR, TIMER, COUNTER 0x09 (notes/catalogue.md 5 (e); no capture of a real CPU found).
 DATA_TS_BIT = 0x03
 DATA_TS_BYTE_WORD_DWORD = 0x04
 DATA_TS_INTEGER = 0x05
 DATA_TS_REAL = 0x07
 DATA_TS_OCTET_STRING = 0x09
+# Userdata groups and subfunctions we do not serve: a userdata answer with this error in its parameter
+# and data 0A 00 00 00 (the form C snap7 gives unavailable SZLs and tshark decodes; what a real CPU
+# answers for an unserved group was not found: the machine's settings.userdata_not_served_error).
+USERDATA_NOT_SERVED = 0x8104
 
 _ELEMENT_BYTES: dict[int, int] = {
     S7TransportSize.BYTE: 1, S7TransportSize.CHAR: 1, S7TransportSize.WORD: 2,
@@ -53,16 +62,12 @@ _ELEMENT_BYTES: dict[int, int] = {
     S7TransportSize.REAL: 4, S7TransportSize.COUNTER: 2, S7TransportSize.TIMER: 2,
 }
 _ANSWER_TRANSPORT_SIZE: dict[int, int] = {
-    S7TransportSize.BYTE: DATA_TS_BYTE_WORD_DWORD, S7TransportSize.CHAR: DATA_TS_BYTE_WORD_DWORD,
+    S7TransportSize.BYTE: DATA_TS_BYTE_WORD_DWORD, S7TransportSize.CHAR: DATA_TS_OCTET_STRING,
     S7TransportSize.WORD: DATA_TS_BYTE_WORD_DWORD, S7TransportSize.DWORD: DATA_TS_BYTE_WORD_DWORD,
-    S7TransportSize.INT: DATA_TS_INTEGER, S7TransportSize.DINT: DATA_TS_BYTE_WORD_DWORD,
+    S7TransportSize.INT: DATA_TS_INTEGER, S7TransportSize.DINT: DATA_TS_INTEGER,
     S7TransportSize.REAL: DATA_TS_REAL, S7TransportSize.COUNTER: DATA_TS_OCTET_STRING,
     S7TransportSize.TIMER: DATA_TS_OCTET_STRING,
 }
-
-
-# An S7 ACK_DATA header (no error) and a read-var answer parameter (04, item count).
-_READ_ANSWER_HEAD = struct.Struct(">BBHHHHBBBB")
 
 
 def _error_item(return_code: int) -> s7.DataItem:
@@ -72,11 +77,16 @@ def _error_item(return_code: int) -> s7.DataItem:
 class Dispatcher:
     """Turns S7 jobs into calls on the NCK model and the PLC memory."""
 
-    def __init__(self, nck: object, plc: object, *,
+    def __init__(self, nck: NckDatastore, plc: PlcDatastore, *,
                  persist: Callable[[], None] | None = None,
-                 default_access_level: int = 7) -> None:
+                 default_access_level: int = 7,
+                 userdata_not_served_error: int = USERDATA_NOT_SERVED,
+                 unsupported_function_error: int = HeaderError.NOT_IMPLEMENTED) -> None:
         self.nck = nck
         self.plc = plc
+        self.userdata_not_served_error = userdata_not_served_error
+        # The session answers a job this dispatcher returns None for with an ACK carrying this error.
+        self.unsupported_function_error = unsupported_function_error
         self._persist = persist
         self.default_access_level = default_access_level
         self._read_requests: dict[bytes, s7.ReadVarRequest] = {}
@@ -115,8 +125,7 @@ class Dispatcher:
         objects on the way (clients poll; this is most of the traffic). Raises as ``job`` does."""
         request = self._read_request(parameter)
         data = s7.build_data_items(self.read_var(request, ctx).items)
-        return _READ_ANSWER_HEAD.pack(s7.PROTOCOL_ID, s7.Rosctr.ACK_DATA, 0, pdu_ref, 2, len(data), 0, 0,
-                                      s7.Function.READ_VAR, len(request.items)) + data
+        return s7.build_read_var_answer(pdu_ref, len(request.items), data)
 
     def read_var(self, request: s7.ReadVarRequest, ctx: AccessContext) -> s7.ReadVarResponse:
         return s7.ReadVarResponse(tuple(self._read_item(item, ctx) for item in request.items))
@@ -136,7 +145,7 @@ class Dispatcher:
     def pi_service(self, request: pi.PiServiceRequest, ctx: AccessContext) -> bytes:
         service = request.service
         if service.startswith("_N_"):
-            self.nck.pi_service(service, request.arguments, ctx)  # type: ignore[attr-defined]
+            self.nck.pi_service(service, request.arguments, ctx)
         elif service == "P_PROGRAM":
             self._plc_control("start")
         else:
@@ -144,20 +153,31 @@ class Dispatcher:
         return pi.build_pi_response(pi.PiServiceResponse())
 
     def _plc_control(self, action: str) -> None:
-        control = getattr(self.plc, "plc_control", None)
-        if control is not None:
-            control(action)
+        self.plc.plc_control(action)
 
     # ------------------------------------------------------------------ userdata
     def userdata(self, pdu: s7.S7Pdu, ctx: AccessContext) -> s7.S7Pdu | None:
-        request = szl.parse_szl_request(pdu.parameter, pdu.data)
-        try:
-            records = self.plc.szl(request.szl_id, request.szl_index)  # type: ignore[attr-defined]
-        except NckError as exc:
-            log.info("SZL 0x%04X/0x%04X refused: %s", request.szl_id, request.szl_index, exc)
-            parameter, data = szl.build_szl_error_response(request)
+        """Read SZL, list blocks, read clock; any other group or subfunction gets a userdata answer
+        with ``userdata_not_served_error`` in its parameter (a parameter that does not parse raises,
+        and the session answers 0x8500 as for any job)."""
+        request = szl.parse_userdata_request(pdu.parameter, pdu.data)
+        service = (request.group, request.subfunction)
+        if service == (szl.GROUP_CPU_FUNCTIONS, szl.SUBFUNCTION_READ_SZL):
+            szl_request = szl.szl_request_of(request)
+            try:
+                records = self.plc.szl(szl_request.szl_id, szl_request.szl_index)
+            except NckError as exc:
+                log.info("SZL 0x%04X/0x%04X refused: %s", szl_request.szl_id, szl_request.szl_index, exc)
+                parameter, data = szl.build_userdata_error_response(request, exc.header_error)
+            else:
+                parameter, data = szl.build_szl_response(szl_request, records)
+        elif service == (szl.GROUP_BLOCK_FUNCTIONS, szl.SUBFUNCTION_LIST_BLOCKS):
+            parameter, data = szl.build_userdata_response(request, szl.build_block_counts(self.plc.block_counts()))
+        elif service == (szl.GROUP_TIME_FUNCTIONS, szl.SUBFUNCTION_READ_CLOCK):
+            parameter, data = szl.build_userdata_response(request, szl.build_clock(self.plc.now()))
         else:
-            parameter, data = szl.build_szl_response(request, records)
+            log.info("userdata group %d subfunction %d not served", request.group, request.subfunction)
+            parameter, data = szl.build_userdata_error_response(request, self.userdata_not_served_error)
         return s7.S7Pdu(s7.Rosctr.USERDATA, pdu.pdu_ref, parameter, data)
 
     # ------------------------------------------------------------------ items
@@ -167,9 +187,8 @@ class Dispatcher:
                 return self._read_nck(address, ctx)
             if isinstance(address, S7AnyAddress):
                 return self._read_s7any(address)
-            if isinstance(address, UnsupportedAddress):
-                return _error_item(NckObjectDoesNotExist.return_code)  # type: ignore[arg-type]
-            return _error_item(NckObjectDoesNotExist.return_code)  # type: ignore[arg-type]
+            # UnsupportedAddress (syntax IDs we do not serve) and anything else
+            return _error_item(RC_OBJECT_DOES_NOT_EXIST)
         except NckItemError as exc:
             return _error_item(exc.return_code or RC_HARDWARE_ERROR)
         except Exception:
@@ -183,7 +202,7 @@ class Dispatcher:
             if isinstance(address, S7AnyAddress):
                 self._write_s7any(address, value)
                 return RC_SUCCESS, False
-            return NckObjectDoesNotExist.return_code, False  # type: ignore[return-value]
+            return RC_OBJECT_DOES_NOT_EXIST, False
         except NckItemError as exc:
             return exc.return_code or RC_HARDWARE_ERROR, False
         except Exception:
@@ -193,17 +212,17 @@ class Dispatcher:
     def _read_nck(self, address: NckAddress, ctx: AccessContext) -> s7.DataItem:
         if address.syntax_id not in NCK_SYNTAX_IDS:
             raise NckObjectDoesNotExist(f"syntax ID 0x{address.syntax_id:02X}")
-        nck_type, string_length, values = self.nck.read_typed(address, ctx)  # type: ignore[attr-defined]
+        nck_type, string_length, values = self.nck.read_typed(address, ctx)
         data = encode_nck_values(nck_type, values, area=address.area, string_length=string_length)
         return s7.DataItem(RC_SUCCESS, NCK_TRANSPORT_SIZE, data)
 
     def _write_nck(self, address: NckAddress, value: s7.DataItem, ctx: AccessContext) -> bool:
         if address.syntax_id not in NCK_SYNTAX_IDS:
             raise NckObjectDoesNotExist(f"syntax ID 0x{address.syntax_id:02X}")
-        nck_type, string_length = self.nck.variable_type(address)  # type: ignore[attr-defined]
+        nck_type, string_length = self.nck.variable_type(address)
         values = decode_nck_values(nck_type, value.data, area=address.area,
                                    line_count=address.line_count, string_length=string_length)
-        return bool(self.nck.write(address, values, ctx))  # type: ignore[attr-defined]
+        return bool(self.nck.write(address, values, ctx))
 
     @staticmethod
     def _s7any_size(address: S7AnyAddress) -> int:
@@ -219,11 +238,9 @@ class Dispatcher:
     def _read_s7any(self, address: S7AnyAddress) -> s7.DataItem:
         size = self._s7any_size(address)
         if address.transport_size == S7TransportSize.BIT:
-            bit = self.plc.read_bit(address.area, address.db_number,  # type: ignore[attr-defined]
-                                    address.byte_address, address.bit_address)
+            bit = self.plc.read_bit(address.area, address.db_number, address.byte_address, address.bit_address)
             return s7.DataItem(RC_SUCCESS, DATA_TS_BIT, b"\x01" if bit else b"\x00")
-        data = self.plc.read(address.area, address.db_number,  # type: ignore[attr-defined]
-                             address.byte_address, size)
+        data = self.plc.read(address.area, address.db_number, address.byte_address, size)
         return s7.DataItem(RC_SUCCESS, _ANSWER_TRANSPORT_SIZE[address.transport_size], data)
 
     def _write_s7any(self, address: S7AnyAddress, value: s7.DataItem) -> None:
@@ -231,11 +248,10 @@ class Dispatcher:
         if len(value.data) != size:
             raise NckTypeInconsistent(f"{len(value.data)} bytes written to an item of {size}")
         if address.transport_size == S7TransportSize.BIT:
-            self.plc.write_bit(address.area, address.db_number,  # type: ignore[attr-defined]
-                               address.byte_address, address.bit_address, bool(value.data[0] & 1))
+            self.plc.write_bit(address.area, address.db_number, address.byte_address, address.bit_address,
+                               bool(value.data[0] & 1))
             return
-        self.plc.write(address.area, address.db_number,  # type: ignore[attr-defined]
-                       address.byte_address, value.data)
+        self.plc.write(address.area, address.db_number, address.byte_address, value.data)
 
 
 __all__ = ["Dispatcher", "S7Area"]

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
 
-from nckemu.traces.capture import CaptureWriter
+from nckemu.capture import CaptureWriter
 
 from .core import Emulator
 from .session import ServerSession, SessionLimits

@@ -11,7 +11,15 @@ Policy for bad input, in order of how much of the frame we could understand:
   does not parse: the connection is closed (the controller cannot even tell whom to answer);
 * an S7 job whose header parses but whose parameters do not: ACK_DATA with header error 0x85/0x00
   ("wrong frames"), echoing the PDU reference and function, the connection stays open;
-* an S7 function we do not serve: ACK_DATA with 0x81/0x04 (what a real 840D sl answered, GH107);
+* an S7 function we do not serve (upload, download, ...): ACK (ROSCTR 2) with the header error and
+  no parameter, the form C snap7 and python-snap7 answer and tshark decodes for every function
+  (ROSCTR 3 with the function byte alone is "malformed" for 0x1D start upload: notes/catalogue.md
+  5 (c)); the error is the machine's settings.unsupported_function_error, by default 0x81/0x04, what
+  a real 840D sl answered (GH107);
+* a userdata group we do not serve: a userdata answer with the error in its parameter (dispatch.py);
+* an empty COTP DT (with or without EOT, e.g. the 7-byte DT some collectors send after every job in
+  the same TCP write) is ignored, as C snap7 does: no answer, the connection stays open;
+* an answer longer than the negotiated TPDU size goes out in several DTs (COTP segmentation);
 * a job before setup communication: 0x84/0x01 ("invalid service sequence");
 * more jobs outstanding than the granted AMQ: the extras get 0x83/0x02 (no resources).
 """
@@ -25,21 +33,20 @@ from dataclasses import dataclass, field
 
 from nckemu.emulator.dispatch import Dispatcher
 from nckemu.emulator.nck.access import AccessContext
-from nckemu.protocol import cotp, s7, tpkt
-from nckemu.protocol.errors import NckError, NckProtocolError
+from nckemu.errors import HeaderError, NckError
+from nckemu.protocol import cotp, s7, szl, tpkt, userdata
+from nckemu.protocol.errors import NckProtocolError
 
 log = logging.getLogger(__name__)
 
-# Header errors the session itself answers with (class, code); one place to correct them.
-ERROR_WRONG_FRAMES = (0x85, 0x00)
-ERROR_NOT_IMPLEMENTED = (0x81, 0x04)
-ERROR_INVALID_SEQUENCE = (0x84, 0x01)
-ERROR_NO_RESOURCES = (0x83, 0x02)
-ERROR_PDU_TOO_LARGE = (0x85, 0x00)
-
 SETUP_PARAMETER_BYTES = 8
-_ROSCTR_JOB = int(s7.Rosctr.JOB)
-_READ_VAR = int(s7.Function.READ_VAR)
+MIN_PDU_SIZE = 240
+# Job functions answered in ACK_DATA with the function byte in the parameter; any other function is
+# answered with an ACK (ROSCTR 2) that carries only the header error.
+_ACK_DATA_FUNCTIONS = frozenset({s7.Function.READ_VAR, s7.Function.WRITE_VAR, s7.Function.PI_SERVICE,
+                                 s7.Function.PLC_STOP, s7.Function.SETUP_COMMUNICATION})
+# Where the S7 PDU starts in a frame with one whole PDU in one DT: TPKT (4) + COTP DT (3).
+_PDU_OFFSET = 7
 
 
 class SessionState(enum.Enum):
@@ -47,6 +54,42 @@ class SessionState(enum.Enum):
     CONNECTED = "connected"
     READY = "ready"
     CLOSED = "closed"
+
+
+class Event(enum.Enum):
+    """What the peer did, as far as the session's state is concerned."""
+
+    CONNECT_REQUEST = "COTP CR"
+    DATA = "COTP DT"
+    SETUP = "S7 setup communication"
+    JOB = "S7 job or userdata"
+    DISCONNECT_REQUEST = "COTP DR"
+
+
+# Rule 1 (after h11's _state.py): every change of ``ServerSession.state`` is decided by this table,
+# through ``_advance``. A pair maps to the next state, or to the header error the job is answered
+# with while the state stays; a pair that is absent closes the connection. (CLOSED takes nothing.)
+_TRANSITIONS: dict[tuple[SessionState, Event], SessionState | HeaderError] = {
+    (SessionState.WAIT_CONNECT, Event.CONNECT_REQUEST): SessionState.CONNECTED,
+    (SessionState.CONNECTED, Event.DATA): SessionState.CONNECTED,
+    (SessionState.CONNECTED, Event.SETUP): SessionState.READY,
+    (SessionState.CONNECTED, Event.JOB): HeaderError.INVALID_SEQUENCE,
+    (SessionState.READY, Event.DATA): SessionState.READY,
+    # A second setup communication renegotiates the PDU size, as real CPUs and snap7 allow.
+    (SessionState.READY, Event.SETUP): SessionState.READY,
+    (SessionState.READY, Event.JOB): SessionState.READY,
+}
+
+_CLOSE_REASONS: dict[tuple[SessionState, Event], str] = {
+    (SessionState.WAIT_CONNECT, Event.DATA): "COTP data before connect",
+    (SessionState.CONNECTED, Event.CONNECT_REQUEST): "second COTP connect request on one connection",
+    (SessionState.READY, Event.CONNECT_REQUEST): "second COTP connect request on one connection",
+}
+
+
+def next_state(state: SessionState, event: Event) -> SessionState | HeaderError:
+    """The table's answer for ``event`` in ``state`` (CLOSED where the table has none)."""
+    return _TRANSITIONS.get((state, event), SessionState.CLOSED)
 
 
 @dataclass(frozen=True)
@@ -104,6 +147,10 @@ class ServerSession:
         self._fragment_bytes = 0
         self._src_ref = 0x0001
         self._on_close = on_close
+        # The parts still to send of one userdata answer longer than the PDU: sequence number and the
+        # (parameter, data) pairs; one long answer at a time, as a client reads them one by one.
+        self._userdata_parts: tuple[int, list[tuple[bytes, bytes]]] | None = None
+        self._userdata_sequence = 0
 
     @property
     def has_partial_frame(self) -> bool:
@@ -115,6 +162,8 @@ class ServerSession:
         return self.state is SessionState.CLOSED
 
     def close(self, reason: str) -> None:
+        """End the connection from any state: the table's closing pairs, and faults it does not name
+        (bytes that are not TPKT/COTP/S7, limits, floods)."""
         if self.state is SessionState.CLOSED:
             return
         self.state = SessionState.CLOSED
@@ -122,6 +171,18 @@ class ServerSession:
         log.info("connection %s closed: %s", self.info.peer, reason)
         if self._on_close is not None:
             self._on_close(reason)
+
+    def _advance(self, event: Event, reason: str = "") -> HeaderError | None:
+        """Move as ``_TRANSITIONS`` says; the header error to answer with where it names one."""
+        outcome = next_state(self.state, event)
+        if isinstance(outcome, HeaderError):
+            return outcome
+        if outcome is SessionState.CLOSED:
+            self.close(reason or _CLOSE_REASONS.get((self.state, event),
+                                                    f"{event.value} in state {self.state.value}"))
+        else:
+            self.state = outcome
+        return None
 
     # ------------------------------------------------------------------ input
     def receive(self, data: bytes) -> list[bytes]:
@@ -146,18 +207,19 @@ class ServerSession:
             if jobs_in_flight >= self.info.amq * self.limits.flood_factor:
                 self.close(f"flooding: more than {jobs_in_flight} jobs at once, AMQ is {self.info.amq}")
                 break
-            if frame[4:7] == cotp.DT_HEADER_EOT and self.state is SessionState.READY and not self._fragments:
+            if frame[4:7] == cotp.DT_HEADER_EOT and len(frame) > _PDU_OFFSET and self.state is SessionState.READY \
+                    and not self._fragments:
                 # The common case, a whole S7 PDU in one DT: skip building a DataTpdu for it.
                 jobs_in_flight += 1
                 over_amq = jobs_in_flight > self.info.amq
                 if not over_amq:
                     read_answer = self._fast_read(frame)
                     if read_answer is not None:
-                        out.append(read_answer)
+                        out.extend(self._data_frames(read_answer))
                         continue
-                answer = self._handle_pdu(frame[7:], over_amq=over_amq)
+                answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=over_amq)
                 if answer is not None:
-                    out.append(cotp.build_data_frame(answer))
+                    out.extend(self._data_frames(answer))
                 continue
             try:
                 payload = tpkt.parse_tpkt(frame)
@@ -172,22 +234,31 @@ class ServerSession:
                 jobs_in_flight += 1
                 answer = self._handle_pdu(pdu_bytes, over_amq=jobs_in_flight > self.info.amq)
                 if answer is not None:
-                    out.append(cotp.build_data_frame(answer))
+                    out.extend(self._data_frames(answer))
             elif isinstance(tpdu, cotp.ConnectRequest):
                 out.extend(self._handle_connect(tpdu))
             elif isinstance(tpdu, cotp.DisconnectRequest):
                 out.append(cotp.build_frame(cotp.DisconnectConfirm(tpdu.src_ref, tpdu.dst_ref)))
-                self.close("client sent DR")
+                self._advance(Event.DISCONNECT_REQUEST, "client sent DR")
             else:
                 self.close(f"unexpected COTP {type(tpdu).__name__}")
         return out
 
+    def _data_frames(self, pdu: bytes) -> list[bytes]:
+        """The frames carrying one answer PDU: one DT, or several where it exceeds the TPDU size."""
+        if len(pdu) + len(cotp.DT_HEADER_EOT) <= self.info.tpdu_size:
+            return [cotp.build_data_frame(pdu)]
+        return cotp.build_data_frames(pdu, self.info.tpdu_size)
+
     def _reassemble(self, tpdu: cotp.DataTpdu) -> bytes | None:
-        if self.state is SessionState.WAIT_CONNECT:
-            self.close("COTP data before connect")
+        self._advance(Event.DATA)
+        if self.closed:
             return None
-        if not tpdu.payload and not tpdu.eot:
-            return None  # "fast acknowledge" some peers send; nothing to answer
+        if not tpdu.payload and (not tpdu.eot or not self._fragments):
+            # An empty DT: the "fast acknowledge" some peers send, or the 7-byte DT LSC (828D
+            # collector) sends after every job (notes/catalogue.md 2.1); with EOT and no PDU begun it
+            # ends nothing. C snap7 ignores both; nothing to answer, the connection stays open.
+            return None
         self._fragment_bytes += len(tpdu.payload)
         if self._fragment_bytes > self.limits.max_reassembly_bytes:
             self.close("fragmented PDU larger than the reassembly limit")
@@ -201,8 +272,8 @@ class ServerSession:
         return pdu
 
     def _handle_connect(self, request: cotp.ConnectRequest) -> list[bytes]:
-        if self.state is not SessionState.WAIT_CONNECT:
-            self.close("second COTP connect request on one connection")
+        self._advance(Event.CONNECT_REQUEST)
+        if self.closed:
             return []
         self.info.calling_tsap = request.calling_tsap
         self.info.called_tsap = request.called_tsap
@@ -215,25 +286,23 @@ class ServerSession:
             calling_tsap=request.calling_tsap, called_tsap=request.called_tsap,
             tpdu_size=self.info.tpdu_size,
         )
-        self.state = SessionState.CONNECTED
         return [cotp.build_frame(confirm)]
 
     # ------------------------------------------------------------------ S7
     def _fast_read(self, frame: bytes) -> bytes | None:
-        """The answer frame to a well-formed read-var job within the limits, straight from the header;
+        """The answer PDU to a well-formed read-var job within the limits, straight from the header;
         None leaves the job to ``_handle_pdu``, which also gives every error its answer."""
-        if len(frame) < 19 or frame[7] != s7.PROTOCOL_ID or frame[8] != _ROSCTR_JOB or frame[17] != _READ_VAR \
-                or frame[15] or frame[16] or (frame[13] << 8 | frame[14]) != len(frame) - 17 \
-                or len(frame) - 7 > self.info.pdu_size:
+        job = s7.peek_read_var_job(frame, _PDU_OFFSET)
+        if job is None or len(frame) - _PDU_OFFSET > self.info.pdu_size:
             return None
         try:
-            answer = self.dispatcher.read_answer(frame[11] << 8 | frame[12], frame[17:], self.access)
+            answer = self.dispatcher.read_answer(job[0], job[1], self.access)
         except Exception:  # noqa: BLE001 - the general path answers (or logs) the same job properly
             return None
         if len(answer) > self.info.pdu_size:
             return None
         self.info.jobs += 1
-        return cotp.build_data_frame(answer)
+        return answer
 
     def _handle_pdu(self, raw: bytes, *, over_amq: bool) -> bytes | None:
         try:
@@ -246,16 +315,21 @@ class ServerSession:
             return None
         self.info.jobs += 1
         if not pdu.parameter:
-            return self._error_answer(pdu, ERROR_WRONG_FRAMES)
+            return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         function = pdu.parameter[0]
         if pdu.rosctr == s7.Rosctr.JOB and function == s7.Function.SETUP_COMMUNICATION:
             return self._handle_setup(pdu)
-        if self.state is not SessionState.READY:
-            return self._error_answer(pdu, ERROR_INVALID_SEQUENCE)
+        refused = self._advance(Event.JOB)
+        if refused is not None:
+            return self._error_answer(pdu, refused)
         if over_amq:
-            return self._error_answer(pdu, ERROR_NO_RESOURCES)
+            return self._error_answer(pdu, HeaderError.NO_RESOURCES)
         if len(raw) > self.info.pdu_size:
-            return self._error_answer(pdu, ERROR_PDU_TOO_LARGE)
+            return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
+        if pdu.rosctr == s7.Rosctr.USERDATA and self._userdata_parts is not None:
+            next_part = self._next_userdata_part(pdu)
+            if next_part is not None:
+                return next_part
         try:
             if pdu.rosctr == s7.Rosctr.USERDATA:
                 answer = self.dispatcher.userdata(pdu, self.access)
@@ -264,42 +338,75 @@ class ServerSession:
         except NckError as exc:
             self.info.errors += 1
             log.info("job 0x%02X from %s refused: %s", function & 0xFF, self.info.peer, exc)
-            return self._error_answer(pdu, (exc.error_class, exc.error_code))
+            return self._error_answer(pdu, exc.header_error)
         except Exception:  # a bug in a job must never reach the socket loop
             self.info.errors += 1
             log.exception("job 0x%02X from %s failed inside the emulator", function & 0xFF, self.info.peer)
-            return self._error_answer(pdu, ERROR_NOT_IMPLEMENTED)
+            return self._error_answer(pdu, HeaderError.NOT_IMPLEMENTED)
         if answer is None:
-            return self._error_answer(pdu, ERROR_NOT_IMPLEMENTED)
+            return self._error_answer(pdu, self.dispatcher.unsupported_function_error)
         encoded = s7.build_pdu(answer)
         if len(encoded) > self.info.pdu_size:
-            return self._error_answer(pdu, ERROR_PDU_TOO_LARGE)
+            if answer.rosctr == s7.Rosctr.USERDATA:
+                return self._userdata_in_parts(answer)
+            return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         return encoded
+
+    def _userdata_in_parts(self, answer: s7.S7Pdu) -> bytes:
+        """The first part of a userdata answer longer than the PDU (a long SZL at PDU 240); the client
+        asks for the others with next-part requests naming the sequence number."""
+        head = userdata.parse_userdata_parameter(answer.parameter)
+        self._userdata_sequence = self._userdata_sequence % 255 + 1
+        parts = szl.split_userdata_answer(head.group, head.subfunction, answer.data,
+                                          self.info.pdu_size - szl.PART_OVERHEAD, self._userdata_sequence)
+        self._userdata_parts = (self._userdata_sequence, parts[1:])
+        return s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, answer.pdu_ref, *parts[0]))
+
+    def _next_userdata_part(self, pdu: s7.S7Pdu) -> bytes | None:
+        """The next part, where ``pdu`` asks for it; None leaves the PDU to the dispatcher."""
+        assert self._userdata_parts is not None
+        try:
+            head = userdata.parse_userdata_parameter(pdu.parameter)
+        except NckProtocolError:
+            return None
+        sequence, parts = self._userdata_parts
+        if not szl.is_next_part_request(head) or head.sequence != sequence or not parts:
+            return None
+        parameter, data = parts.pop(0)
+        if not parts:
+            self._userdata_parts = None
+        return s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, pdu.pdu_ref, parameter, data))
 
     def _handle_setup(self, pdu: s7.S7Pdu) -> bytes:
         try:
             request = s7.parse_setup_communication(pdu.parameter)
         except NckProtocolError:
-            return self._error_answer(pdu, ERROR_WRONG_FRAMES)
+            return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         # The granted AMQ is the server's own (as real CPUs and python-snap7's server answer a
         # fixed value); python-snap7 3.3 asks for 1 and then pipelines up to 8 jobs anyway.
-        pdu_size = max(min(request.pdu_length, self.limits.pdu_size_max), 240) \
-            if request.pdu_length >= 240 else request.pdu_length
+        # A PDU size below 240 (even 0) is raised to 240, as C snap7's PerformFunctionNegotiate does
+        # (MinPduSize; notes/catalogue.md 5 (f)): granted verbatim, every job would be refused.
+        pdu_size = max(min(request.pdu_length, self.limits.pdu_size_max), MIN_PDU_SIZE)
         self.info.pdu_size = pdu_size
         self.info.amq = self.limits.max_amq
-        self.state = SessionState.READY
+        self._advance(Event.SETUP)
         granted = s7.SetupCommunication(self.limits.max_amq, self.limits.max_amq, pdu_size)
         return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref,
                                      s7.build_setup_communication(granted)))
 
-    def _error_answer(self, pdu: s7.S7Pdu, error: tuple[int, int]) -> bytes:
+    def _error_answer(self, pdu: s7.S7Pdu, error: int) -> bytes:
+        """ACK_DATA with header error ``error`` (class << 8 | code), echoing the job's function."""
         self.info.errors += 1
+        error_class, error_code = error >> 8, error & 0xFF
         function = pdu.parameter[:1]
         if pdu.rosctr == s7.Rosctr.USERDATA:
             return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref, function,
-                                         error_class=error[0], error_code=error[1]))
+                                         error_class=error_class, error_code=error_code))
+        if function and function[0] not in _ACK_DATA_FUNCTIONS:
+            return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK, pdu.pdu_ref, error_class=error_class,
+                                         error_code=error_code))
         parameter = function
         if function and function[0] in (s7.Function.READ_VAR, s7.Function.WRITE_VAR):
             parameter = function + b"\x00"
         return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref, parameter,
-                                     error_class=error[0], error_code=error[1]))
+                                     error_class=error_class, error_code=error_code))

@@ -11,7 +11,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.errors import NckConfigError
 
 
 class RetainedStore:

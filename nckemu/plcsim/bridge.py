@@ -29,6 +29,7 @@ from awlsim.awlcompiler import AwlParser
 from awlsim.common.sources import AwlSource
 from awlsim.core.hardware import AbstractHardwareInterface
 
+from nckemu.catalogue.names import Variable
 from nckemu.clients.async_client import MAX_VARIABLES, ItemResult
 from nckemu.clients.fb import (
     STATE_CONNECTION_LOST,
@@ -37,10 +38,9 @@ from nckemu.clients.fb import (
     STATE_PARAMETER_ERROR,
     item_state,
 )
-from nckemu.clients.names import Variable
+from nckemu.errors import NckConfigError, NckError, NckServiceError
 from nckemu.protocol import pi
 from nckemu.protocol.addresses import NckAddress, NckType
-from nckemu.protocol.errors import NckConfigError, NckError, NckServiceError
 
 log = logging.getLogger(__name__)
 

@@ -6,7 +6,8 @@ import argparse
 import json
 import math
 
-from nckemu.protocol.errors import NckConfigError
+from nckemu.cliutil import working
+from nckemu.errors import NckConfigError
 
 
 def _duration_s(text: str) -> float:
@@ -23,7 +24,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     run = commands.add_parser(
         "run", help="run an STL program on simulated time", formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example: nckemu plc run fixtures/plc/tc_z.awl --machine fixtures/machines/bed_ramp.toml "
-               "--duration 2h")
+               "--duration 2h\n")
     run.add_argument("program", help="STL source with OB1 (FB3 \"PUT\" is provided by nckemu)")
     run.add_argument("--machine", help="machine TOML for the in-process emulator (sensor profiles drive the "
                                        "analog inputs)")
@@ -35,10 +36,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     run.add_argument("--duration", default="2h", help="simulated time, e.g. 2h, 30min, 600s (2h)")
     run.add_argument("--cycle", default="1s", help="simulated PLC cycle time (1s)")
     run.add_argument("--axis", type=int, default=4, help="machine axis whose compensation is reported (4)")
-    run.add_argument("--json", action="store_true")
+    run.add_argument("--json", action="store_true", help="print samples, jobs and errors as JSON on stdout")
     run.set_defaults(func=run_plc)
-    stubs = commands.add_parser("stubs", help="write the FB2/FB3/FB4 stub sources (for awlsim with -H nckemu)")
-    stubs.add_argument("directory", help="where to write fb2_get.awl, fb3_put.awl and fb4_pi_serv.awl")
+    stubs = commands.add_parser("stubs", help="write the FB2/FB3/FB4 stub sources (for awlsim with -H nckemu)",
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="example: nckemu plc stubs stubs/ --json\n")
+    stubs.add_argument("directory", help="where to write fb2_get.awl, fb3_put.awl and fb4_pi_serv.awl "
+                                         "(created if missing)")
+    stubs.add_argument("--json", action="store_true", help="print the written files as JSON on stdout")
     stubs.set_defaults(func=write_stubs)
     plc.set_defaults(func=lambda args: plc.print_help() or 2)
 
@@ -62,10 +67,19 @@ def write_stubs(args: argparse.Namespace) -> int:
     from .bridge import STUB_SOURCES
 
     target = Path(args.directory)
-    target.mkdir(parents=True, exist_ok=True)
-    for source in STUB_SOURCES:
-        shutil.copyfile(source, target / source.name)
-        print(target / source.name)
+    if target.exists() and not target.is_dir():
+        raise NckConfigError("exists and is not a directory: give a directory for the stub sources",
+                             path=args.directory)
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        written = []
+        for source in STUB_SOURCES:
+            shutil.copyfile(source, target / source.name)
+            written.append(str(target / source.name))
+    except OSError as exc:
+        raise NckConfigError(f"cannot write the stub sources: {exc.strerror}",
+                             path=exc.filename or args.directory) from None
+    print(json.dumps({"directory": str(target), "files": written}) if args.json else "\n".join(written))
     return 0
 
 
@@ -81,8 +95,9 @@ def run_plc(args: argparse.Namespace) -> int:
     speed = _speed(args.speed)
     if args.emulator and speed not in (None, 1.0):
         raise NckConfigError("--speed applies to the in-process emulator; --emulator runs in real time")
-    result = run_program(args.program, machine=args.machine, emulator=args.emulator, duration_s=duration_s,
-                         cycle_s=cycle_s, axis=args.axis, speed=speed)
+    with working("plc run", enabled=not args.json):
+        result = run_program(args.program, machine=args.machine, emulator=args.emulator, duration_s=duration_s,
+                             cycle_s=cycle_s, axis=args.axis, speed=speed)
     if args.json:
         samples = [{k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in vars(s).items()}
                    for s in result.samples]  # NaN (not measured) is not JSON

@@ -21,8 +21,8 @@ from nckemu.clients import NckClient
 from nckemu.emulator.clock import SimulatedClock
 from nckemu.emulator.core import Emulator
 from nckemu.emulator.runner import EmulatorThread
+from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area
-from nckemu.protocol.errors import NckConfigError, NckError
 
 from .bridge import BridgeLog, PlcRunner
 from .remote import InputMirror

@@ -4,16 +4,10 @@ from __future__ import annotations
 
 from enum import IntEnum
 
+from nckemu.errors import HeaderError, ReturnCode
 
-class ReturnCode(IntEnum):
-    RESERVED = 0x00
-    HARDWARE_ERROR = 0x01
-    ACCESS_DENIED = 0x03
-    INVALID_ADDRESS = 0x05
-    DATA_TYPE_NOT_SUPPORTED = 0x06
-    DATA_TYPE_INCONSISTENT = 0x07
-    OBJECT_DOES_NOT_EXIST = 0x0A
-    SUCCESS = 0xFF
+__all__ = ["HeaderError", "ReturnCode", "ErrorClass", "AREA_LETTERS", "NCK_MODULE_NAMES", "RETURN_CODE_TEXTS", "HEADER_ERROR_TEXTS",
+           "describe_return_code", "describe_header_error", "describe_module"]
 
 
 RETURN_CODE_TEXTS: dict[int, str] = {

@@ -105,6 +105,10 @@ _DATA_HEADER = struct.Struct(">BBH")
 
 # Data transport sizes whose length field counts bits.
 BIT_LENGTH_TRANSPORT_SIZES = frozenset({0x03, 0x04, 0x05})
+# Return codes of data items followed by data: success in answers, 0x00 in write jobs. An error item
+# has no data even where its length says otherwise: a real S7-300 answers a read of missing objects
+# with ``0A 00 00 04`` and nothing after it, and Wireshark reads data only after 0xFF and 0x00.
+DATA_RETURN_CODES = frozenset({0x00, 0xFF})
 
 
 @dataclass(frozen=True, slots=True)
@@ -292,7 +296,9 @@ def _parse_data_items(data: bytes, count: int) -> tuple[DataItem, ...]:
             raise NckTruncatedError(f"data item {index + 1} of {count} cut short")
         return_code, transport_size, length = _DATA_HEADER.unpack_from(data, offset)
         offset += 4
-        if transport_size in BIT_LENGTH_TRANSPORT_SIZES:
+        if return_code not in DATA_RETURN_CODES:
+            size = 0  # an error item: no data follows, whatever its length says
+        elif transport_size in BIT_LENGTH_TRANSPORT_SIZES:
             size = length if transport_size == 0x03 else (length + 7) // 8
         else:
             size = length
@@ -340,6 +346,43 @@ def parse_read_var_response(parameter: bytes, data: bytes) -> ReadVarResponse:
     if len(parameter) != 2 or parameter[0] != Function.READ_VAR:
         raise NckProtocolError("read var answer parameter must be 04 <count>")
     return ReadVarResponse(_parse_data_items(data, parameter[1]))
+
+
+# Whole PDUs on the hot path (server answers to polled reads, trace decoding): the header is checked
+# byte by byte in place instead of building an S7Pdu; both are tested against the general path.
+_READ_ANSWER_HEAD = struct.Struct(">BBHHHHBBBB")  # ACK_DATA header, no error, then 04 <count>
+# Plain ints: comparing a byte with an IntEnum member costs several times more.
+_JOB = int(Rosctr.JOB)
+_READ_VAR = int(Function.READ_VAR)
+_ACK_DATA = int(Rosctr.ACK_DATA)
+
+
+def peek_read_var_job(buffer: bytes, offset: int = 0) -> tuple[int, bytes] | None:
+    """(PDU reference, parameter) of a read-var job PDU at ``buffer[offset:]`` that has no data part
+    and whose lengths add up; None for anything else (the general path then parses it)."""
+    if len(buffer) - offset < 12 or buffer[offset] != PROTOCOL_ID or buffer[offset + 1] != _JOB \
+            or buffer[offset + 10] != _READ_VAR or buffer[offset + 8] or buffer[offset + 9] \
+            or (buffer[offset + 6] << 8 | buffer[offset + 7]) != len(buffer) - offset - 10:
+        return None
+    return buffer[offset + 4] << 8 | buffer[offset + 5], buffer[offset + 10:]
+
+
+def peek_read_var_answer(pdu: bytes) -> int | None:
+    """The item count of an error-free read-var answer PDU whose lengths add up, else None; its data
+    items start at ``READ_ANSWER_DATA_OFFSET``."""
+    if len(pdu) < READ_ANSWER_DATA_OFFSET or pdu[10] or pdu[11] or (pdu[6] << 8 | pdu[7]) != 2 \
+            or len(pdu) != READ_ANSWER_DATA_OFFSET + (pdu[8] << 8 | pdu[9]) or pdu[12] != _READ_VAR:
+        return None
+    return pdu[13]
+
+
+READ_ANSWER_DATA_OFFSET = _READ_ANSWER_HEAD.size
+
+
+def build_read_var_answer(pdu_ref: int, item_count: int, data: bytes) -> bytes:
+    """The ACK_DATA PDU answering a read-var job, around already built data items."""
+    return _READ_ANSWER_HEAD.pack(PROTOCOL_ID, _ACK_DATA, 0, pdu_ref, 2, len(data), 0, 0,
+                                  _READ_VAR, item_count) + data
 
 
 # ---------------------------------------------------------------- write var

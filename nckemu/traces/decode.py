@@ -7,16 +7,26 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from nckemu.emulator.nck.table import display_name, table_index
-from nckemu.protocol import pi, s7, szl
+from nckemu.catalogue.table import display_name, spec_at
+from nckemu.errors import NckError, ReturnCode
+from nckemu.protocol import blocks, pi, s7, szl, userdata
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
-from nckemu.protocol.errors import NckError
 from nckemu.protocol.values import decode_nck_values, nck_value_format, nck_value_reader
 
 from .reader import Capture, TracePdu, collector_paused
 
-FUNCTION_NAMES = {0x04: "read", 0x05: "write", 0x28: "PI", 0x29: "PLC stop", 0xF0: "setup", 0x00: "CPU services"}
+FUNCTION_NAMES = {0x04: "read", 0x05: "write", 0x28: "PI", 0x29: "PLC stop", 0xF0: "setup", 0x00: "CPU services",
+                  0x1A: "request download", 0x1B: "download block", 0x1C: "download ended", 0x1D: "start upload",
+                  0x1E: "upload", 0x1F: "end upload"}
+# The functions as tshark names them (Wireshark's s7comm dissector, ``param_functionnames``).
+SERVICE_NAMES = {0x04: "Read Var", 0x05: "Write Var", 0x28: "PI-Service", 0x29: "PLC Stop", 0xF0: "Setup communication",
+                 0x00: "CPU services", 0x1A: "Request download", 0x1B: "Download block", 0x1C: "Download ended",
+                 0x1D: "Start upload", 0x1E: "Upload", 0x1F: "End upload"}
+_SERVICE_BY_FUNCTION = {FUNCTION_NAMES[code]: name for code, name in SERVICE_NAMES.items()}
+PUSH = "push"
+S7COMM_PLUS = "S7comm-plus"
+_S7COMM_PLUS_ID = 0x72
 S7_AREA_NAMES = {0x84: "DB", 0x81: "I", 0x82: "Q", 0x83: "M", 0x80: "P", 0x1C: "C", 0x1D: "T"}
 
 
@@ -40,7 +50,9 @@ class Item:
 
 @dataclass(slots=True)
 class Exchange:
-    """A client job and the controller's answer (None when the answer is missing)."""
+    """A job and its answer (None when the answer is missing), a push (``function`` "push": userdata a
+    CPU sends on its own, never answered), or a connection's S7comm-plus frames (not decoded). Jobs
+    are what ROSCTR says they are, from either side: in a block download the PLC sends the jobs."""
 
     connection: int
     job: TracePdu
@@ -51,10 +63,17 @@ class Exchange:
     detail: str = ""
     header_error: str = ""
     read_job: _ReadJob | None = field(default=None, repr=False, compare=False)  # a cached read job's decoders
+    service: str = ""  # the function as tshark names it, where ``function`` does not say it
+
+    @property
+    def service_name(self) -> str:
+        """The function, userdata group and subfunction as tshark names them."""
+        return self.service or _SERVICE_BY_FUNCTION.get(self.function, self.function)
 
     def to_json(self) -> dict[str, Any]:
         return {"frame": self.job.frame, "answer_frame": self.answer.frame if self.answer else None,
                 "time_s": self.job.time_s, "connection": self.connection, "function": self.function,
+                "service": self.service_name, "sender": "client" if self.job.from_client else "server",
                 "pdu_ref": self.pdu_ref, "detail": self.detail, "header_error": self.header_error or None,
                 "items": [i.to_json() for i in self.items]}
 
@@ -86,7 +105,7 @@ def name_of(address: object) -> tuple[str, NckType | None, int | None, str]:
 
 def _name_of(address: object) -> tuple[str, NckType | None, int | None, str]:
     if isinstance(address, NckAddress):
-        spec = table_index().get((address.module, address.column))
+        spec = spec_at(address)
         if spec is None:
             where = f"{NckArea(address.area).name}{address.unit}"
             return (f"NCK {where} col {address.column} line {address.line} ({describe_module(address.module)})",
@@ -115,7 +134,7 @@ def _value(address: object, data: bytes, nck_type: NckType | None, length: int |
 _S7_PROTOCOL_ID = 0x32
 _ROSCTR_JOB = int(s7.Rosctr.JOB)
 _ROSCTR_ACK_DATA = int(s7.Rosctr.ACK_DATA)
-_READ_VAR = int(s7.Function.READ_VAR)
+_SUCCESS = int(ReturnCode.SUCCESS)
 
 
 _ValueReader = Callable[[bytes], Any]
@@ -193,14 +212,15 @@ def _read_job(parameter: bytes) -> _ReadJob:
 
 def _fast_read_job(pdu: TracePdu, data: bytes) -> Exchange | None:
     """A read-var job with no data part, straight from the header (the hot path of field traces)."""
-    parameter_length = data[6] << 8 | data[7]
-    if data[8] or data[9] or len(data) != 10 + parameter_length or data[10] != _READ_VAR:
+    peeked = s7.peek_read_var_job(data)
+    if peeked is None:
         return None
+    pdu_ref, parameter = peeked
     try:
-        job = _read_job(data[10:])
+        job = _read_job(parameter)
     except NckError:
         return None  # the general path reports the job it cannot decode
-    return Exchange(pdu.connection, pdu, None, "read", data[4] << 8 | data[5],
+    return Exchange(pdu.connection, pdu, None, "read", pdu_ref,
                     list(map(Item, job.addresses, job.names)), "", "", job)
 
 
@@ -209,7 +229,7 @@ def _fill_items(items: list[Item], readers: tuple[_ValueReader | None, ...],
     for item, reader, (return_code, raw) in zip(items, readers, results, strict=True):
         item.return_code = return_code
         item.raw = raw.hex()
-        if return_code == 0xFF and reader is not None:
+        if return_code == _SUCCESS and reader is not None:
             try:
                 item.value = reader(raw)
             except NckError:
@@ -224,19 +244,16 @@ def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
         if parts[0::2] == job.answer_fixed:  # all good, as the first time: only the values are new
             if job.answer_typed:
                 for item, value, (start, end) in zip(exchange.items, parts[1::2], job.value_spans, strict=True):
-                    item.return_code = 0xFF
+                    item.return_code = _SUCCESS
                     item.value = value
                     item.raw = data[start:end].hex()
                 return True
-            _fill_items(exchange.items, job.readers, [(0xFF, raw) for raw in parts[1::2]])
+            _fill_items(exchange.items, job.readers, [(_SUCCESS, raw) for raw in parts[1::2]])
             return True
-    parameter_length = data[6] << 8 | data[7]
-    data_length = data[8] << 8 | data[9]
     item_count = len(exchange.items)
-    if data[10] or data[11] or parameter_length != 2 or len(data) != 12 + 2 + data_length \
-            or data[12] != _READ_VAR or data[13] != item_count:
+    if s7.peek_read_var_answer(data) != item_count:
         return False
-    offset = 14
+    offset = s7.READ_ANSWER_DATA_OFFSET
     end = len(data)
     results = []
     spans = []
@@ -245,7 +262,9 @@ def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
             return False
         return_code, transport_size = data[offset], data[offset + 1]
         length = data[offset + 2] << 8 | data[offset + 3]
-        if transport_size in s7.BIT_LENGTH_TRANSPORT_SIZES and transport_size != 0x03:
+        if return_code != 0xFF and return_code:
+            length = 0  # an error item: no data follows, whatever its length says
+        elif transport_size in s7.BIT_LENGTH_TRANSPORT_SIZES and transport_size != 0x03:
             length = (length + 7) // 8  # the length is in bits (a BIT item's is its byte count)
         value_end = offset + 4 + length
         if value_end > end:
@@ -256,7 +275,7 @@ def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
     if offset != end:
         return False
     _fill_items(exchange.items, job.readers, results)
-    if job.answer_layout is None and all(code == 0xFF for code, _raw in results):
+    if job.answer_layout is None and all(code == _SUCCESS for code, _raw in results):
         job.learn_answer(data, spans)
     return True
 
@@ -270,6 +289,7 @@ def decode(capture: Capture) -> list[Exchange]:
 def _decode(capture: Capture) -> list[Exchange]:
     open_jobs: dict[tuple[int, int], Exchange] = {}
     exchanges: list[Exchange] = []
+    s7comm_plus: dict[int, list[Any]] = {}  # connection -> [its exchange, frame count]
     for pdu in capture.pdus:
         if pdu.kind != "s7":
             continue
@@ -290,36 +310,76 @@ def _decode(capture: Capture) -> list[Exchange]:
                     del open_jobs[key]
                     waiting.answer = pdu
                     continue
+        if data[:1] == b"\x72":
+            plus = s7comm_plus.get(pdu.connection)
+            if plus is None:
+                plus = s7comm_plus[pdu.connection] = [Exchange(pdu.connection, pdu, None, S7COMM_PLUS, 0), 0]
+                exchanges.append(plus[0])
+            plus[1] += 1
+            continue
         try:
             parsed = s7.parse_pdu(pdu.data)
         except NckError as exc:
             capture.problems.append(f"frame {pdu.frame}: not an S7 PDU ({exc})")
             continue
-        if pdu.from_client and parsed.rosctr in (s7.Rosctr.JOB, s7.Rosctr.USERDATA):
-            exchange = _describe_job(pdu, parsed, capture)
-            open_jobs[(pdu.connection, parsed.pdu_ref)] = exchange
-            exchanges.append(exchange)
-        elif not pdu.from_client:
-            exchange = open_jobs.pop((pdu.connection, parsed.pdu_ref), None)
-            if exchange is None:
-                capture.problems.append(f"frame {pdu.frame}: answer without a job (PDU ref {parsed.pdu_ref})")
+        # Jobs from the client are filed under the connection number, jobs from the server under its
+        # negative: both sides number their own jobs.
+        side = pdu.connection if pdu.from_client else -pdu.connection
+        if parsed.rosctr == s7.Rosctr.USERDATA:
+            exchange, answered = _describe_userdata(pdu, parsed, capture)
+            if exchange is not None:
+                open_jobs[(side, parsed.pdu_ref)] = exchange
+                exchanges.append(exchange)
                 continue
-            exchange.answer = pdu
-            _describe_answer(exchange, parsed, capture)
+            if answered is None:
+                continue
+        elif parsed.rosctr == s7.Rosctr.JOB:
+            exchange = _describe_job(pdu, parsed, capture)
+            open_jobs[(side, parsed.pdu_ref)] = exchange
+            exchanges.append(exchange)
+            continue
+        waiting = open_jobs.pop((-side, parsed.pdu_ref), None)
+        if waiting is None:
+            capture.problems.append(f"frame {pdu.frame}: answer without a job (PDU ref {parsed.pdu_ref})")
+            continue
+        waiting.answer = pdu
+        _describe_answer(waiting, parsed, capture)
+    for plus, count in s7comm_plus.values():
+        plus.detail = f"protocol 0x72, not decoded ({count} frame{'s' if count != 1 else ''})"
     return exchanges
 
 
-def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange:
-    if parsed.rosctr == s7.Rosctr.USERDATA:
-        exchange = Exchange(pdu.connection, pdu, None, "userdata", parsed.pdu_ref)
+def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture
+                       ) -> tuple[Exchange | None, userdata.UserdataParameter | None]:
+    """A userdata request or push as a new exchange, or (None, its parameter) for a response."""
+    try:
+        header = userdata.parse_userdata_parameter(parsed.parameter)
+    except NckError as exc:
+        capture.problems.append(f"frame {pdu.frame}: userdata not decoded ({exc})")
+        return Exchange(pdu.connection, pdu, None, "userdata", parsed.pdu_ref, service="Userdata"), None
+    if header.type == userdata.TYPE_RESPONSE:
+        return None, header
+    service = userdata.describe(header.group, header.subfunction)
+    exchange = Exchange(pdu.connection, pdu, None, PUSH if header.type == userdata.TYPE_PUSH else "userdata",
+                        parsed.pdu_ref, service=service)
+    if header.group == userdata.GROUP_CPU and header.subfunction == szl.SUBFUNCTION_READ_SZL \
+            and header.method == userdata.METHOD_REQUEST:
         try:
             request = szl.parse_szl_request(parsed.parameter, parsed.data)
             exchange.detail = f"read SZL 0x{request.szl_id:04X} index 0x{request.szl_index:04X}"
         except NckError:
-            exchange.detail = "userdata"
-        return exchange
+            pass
+    elif header.type == userdata.TYPE_REQUEST and header.long:
+        # The next part of a long answer (SZL lists over several PDUs): the answer's sequence number
+        # in the 8-byte parameter form, data 0A 00 00 00 (python-snap7 reading SZL 0x001C).
+        exchange.detail = f"next part of sequence {header.sequence}"
+    return exchange, None
+
+
+def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange:
     function = parsed.parameter[0] if parsed.parameter else -1
-    exchange = Exchange(pdu.connection, pdu, None, FUNCTION_NAMES.get(function, f"0x{function:02X}"), parsed.pdu_ref)
+    exchange = Exchange(pdu.connection, pdu, None, FUNCTION_NAMES.get(function, f"0x{function:02X}"), parsed.pdu_ref,
+                        service=SERVICE_NAMES.get(function, f"Unknown function: 0x{function & 0xFF:02x}"))
     try:
         if function == s7.Function.READ_VAR:
             for address in s7.parse_read_var_request(parsed.parameter).items:
@@ -331,9 +391,9 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
                 exchange.items.append(Item(address, name, None,
                                            _value(address, data_item.data, nck_type, length), data_item.data.hex()))
         elif function == s7.Function.PI_SERVICE:
-            request = pi.parse_pi_request(parsed.parameter)
-            arguments = ", ".join(f'"{a}"' for a in request.arguments)
-            exchange.detail = f"{request.service}({arguments})"
+            exchange.detail = _describe_pi(pi.parse_pi_request(parsed.parameter))
+        elif function in blocks.FUNCTIONS:
+            exchange.detail = blocks.describe_block_control(blocks.parse_block_control(parsed.parameter))
         elif function == s7.Function.SETUP_COMMUNICATION:
             setup = s7.parse_setup_communication(parsed.parameter)
             exchange.detail = f"PDU {setup.pdu_length}, AMQ {setup.max_amq_calling}/{setup.max_amq_called}"
@@ -352,7 +412,7 @@ def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> 
             for item, data_item in zip(exchange.items, response.items, strict=False):
                 item.return_code = data_item.return_code
                 item.raw = data_item.data.hex()
-                if data_item.return_code == 0xFF:
+                if data_item.return_code == _SUCCESS:
                     _name, nck_type, length, _unit = name_of(item.target)
                     item.value = _value(item.target, data_item.data, nck_type, length)
         elif exchange.function == "write":
@@ -362,9 +422,44 @@ def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> 
         elif exchange.function == "setup":
             setup = s7.parse_setup_communication(parsed.parameter)
             exchange.detail += f" -> PDU {setup.pdu_length}, AMQ {setup.max_amq_calling}/{setup.max_amq_called}"
+        elif parsed.rosctr == s7.Rosctr.USERDATA:
+            if exchange.function == PUSH:
+                exchange.function = "userdata"  # answered: a request sent as type 0 (pyS7 sends SZL reads so)
+            header = userdata.parse_userdata_parameter(parsed.parameter)
+            if header.error_code:
+                exchange.header_error = describe_header_error(header.error_code >> 8, header.error_code & 0xFF)
+            elif header.last_data_unit:
+                exchange.detail += f"{' ' if exchange.detail else ''}-> more follows (sequence {header.sequence})"
+        elif parsed.parameter and parsed.parameter[0] in blocks.FUNCTIONS:
+            _describe_block_answer(exchange, blocks.parse_block_control(parsed.parameter), parsed.data)
     except NckError as exc:
         capture.problems.append(f"frame {exchange.answer.frame if exchange.answer else '?'}: answer not "
                                 f"decoded ({exc})")
+
+
+def _describe_pi(request: pi.PiServiceRequest) -> str:
+    """``_N_SELECT("201", "/_N_MPF_DIR/_N_TEST_MPF")``; the PLC services' block list or argument as
+    Wireshark decodes them: ``_INSE(0A00001P = DB 1 passive)``, ``P_PROGRAM("P_PROGRAM")``."""
+    block = request.parameter_block
+    if block is None:
+        return f"{request.service}({', '.join(f'{chr(34)}{a}{chr(34)}' for a in request.arguments)})"
+    if request.service in ("_INSE", "_DELE"):
+        names = []
+        for name in blocks.parse_block_list(block):
+            where = blocks.FILE_SYSTEM_NAMES.get(name.file_system, f"file system {name.file_system}")
+            names.append(f"{name} = {name.readable} {where}")
+        return f"{request.service}({', '.join(names)})"
+    if not block:
+        return f"{request.service}()"
+    return f'{request.service}("{block.decode("ascii", "replace")}")'
+
+
+def _describe_block_answer(exchange: Exchange, control: blocks.BlockControl, data: bytes) -> None:
+    if control.function == blocks.START_UPLOAD and control.file_name is not None:
+        exchange.detail += f" -> upload id {control.session}, block length {control.file_name.lstrip('0') or '0'}"
+    elif control.function in (blocks.DOWNLOAD_BLOCK, blocks.UPLOAD) and len(data) >= 4:
+        more = " (more follows)" if control.status and control.status & 0x01 else ""
+        exchange.detail += f" -> {len(data) - 4} bytes{more}"
 
 
 def _address_from_json(address: dict[str, Any]) -> object:
@@ -382,9 +477,15 @@ def format_exchange(exchange: Exchange, start_s: float) -> list[str]:
     t = exchange.job.time_s - start_s
     head = f"{t:10.3f}s  c{exchange.connection}  #{exchange.job.frame:<6} {exchange.function:8}"
     lines = []
+    if exchange.service and exchange.function in ("userdata", PUSH):
+        head += f" {exchange.service}"
+        if exchange.detail:
+            head += ":"
     if exchange.detail:
         head += f" {exchange.detail}"
-    if exchange.answer is None:
+    if not exchange.job.from_client and exchange.function != PUSH:
+        head += "  (job from the PLC)" if exchange.function != S7COMM_PLUS else ""
+    if exchange.answer is None and exchange.function not in (PUSH, S7COMM_PLUS):
         head += "  [no answer]"
     elif exchange.header_error:
         head += f"  -> {exchange.header_error}"
@@ -400,7 +501,7 @@ def format_exchange(exchange: Exchange, start_s: float) -> list[str]:
                 text += f"  -> {RETURN_CODE_TEXTS.get(item.return_code, hex(item.return_code))}"
         else:
             text = f"    {item.name}"
-            if item.return_code == 0xFF:
+            if item.return_code == _SUCCESS:
                 text += f" = {shown}{suffix}"
             elif item.return_code is not None:
                 text += f"  -> {RETURN_CODE_TEXTS.get(item.return_code, hex(item.return_code))}"

@@ -20,8 +20,9 @@ from typing import BinaryIO
 
 import dpkt
 
+from nckemu.errors import NckConfigError
 from nckemu.protocol import cotp, tpkt
-from nckemu.protocol.errors import NckConfigError, NckProtocolError
+from nckemu.protocol.errors import NckProtocolError
 
 S7_PORT = 102
 _MAX_PENDING_BYTES = 4 * 1024 * 1024

@@ -9,12 +9,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from nckemu.errors import NckConnectionError, NckError, NckTimeoutError
 from nckemu.protocol import cotp, s7, tpkt
 from nckemu.protocol.addresses import NckAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS
-from nckemu.protocol.errors import NckError
 
-from .decode import Exchange, _value, decode, name_of
+from .decode import PUSH, S7COMM_PLUS, Exchange, _value, decode, name_of
 from .reader import Capture
 
 
@@ -27,6 +27,10 @@ class ReplayReport:
     missing_answers: int = 0
     jobs: int = 0
     differences: list[dict[str, Any]] = field(default_factory=list)
+    # What a replay cannot send to an emulator, counted: pushes (the CPU sends them on its own), block
+    # transfers (downloads and uploads: a programming device's traffic, with jobs from the PLC) and
+    # S7comm-plus frames.
+    skipped: dict[str, int] = field(default_factory=lambda: {"pushes": 0, "block transfers": 0, "S7comm-plus frames": 0})
 
     @property
     def all_match(self) -> bool:
@@ -37,14 +41,20 @@ class ReplayReport:
         return {"jobs": self.jobs, "matching_items": self.matching_items, "differing_values": self.differing_values,
                 "differing_return_codes": self.differing_return_codes, "differing_errors": self.differing_errors,
                 "missing_answers": self.missing_answers, "all_match": self.all_match,
-                "differences": self.differences}
+                "skipped": self.skipped, "differences": self.differences}
 
 
 class _Link:
     """One replayed connection: raw frames over a socket."""
 
     def __init__(self, host: str, port: int, timeout_s: float) -> None:
-        self.sock = socket.create_connection((host, port), timeout=timeout_s)
+        try:
+            self.sock = socket.create_connection((host, port), timeout=timeout_s)
+        except TimeoutError:
+            raise NckTimeoutError(f"no connection to {host}:{port} within {timeout_s} s") from None
+        except OSError as exc:
+            raise NckConnectionError(f"cannot connect to {host}:{port}: {exc.strerror or exc} "
+                                     f"(is an emulator listening there? nckemu serve --port {port})") from None
         self.buffer = b""
 
     def send_frame(self, frame: bytes) -> None:
@@ -94,7 +104,7 @@ def _difference(report: ReplayReport, exchange: Exchange, kind: str, name: str, 
 def _compare(report: ReplayReport, exchange: Exchange, recorded: s7.S7Pdu, emulated: s7.S7Pdu) -> None:
     if (recorded.error_class, recorded.error_code) != (emulated.error_class, emulated.error_code):
         report.differing_errors += 1
-        _difference(report, exchange, "header error", exchange.detail or exchange.function,
+        _difference(report, exchange, "header error", exchange.detail or exchange.service_name,
                     f"0x{recorded.error_class:02X}{recorded.error_code:02X}",
                     f"0x{emulated.error_class:02X}{emulated.error_code:02X}")
         return
@@ -133,6 +143,10 @@ def _compare(report: ReplayReport, exchange: Exchange, recorded: s7.S7Pdu, emula
         report.matching_items += 1  # setup (negotiated values may differ), PI, userdata: status matched
 
 
+_BLOCK_TRANSFERS = frozenset({"request download", "download block", "download ended", "start upload", "upload",
+                              "end upload"})
+
+
 def seed_values(exchanges: list[Exchange]) -> dict[NckAddress, bytes]:
     """The state at the start of the trace: the first read answer of each address read before any write."""
     seen: set[NckAddress] = set()
@@ -151,8 +165,19 @@ def seed_values(exchanges: list[Exchange]) -> dict[NckAddress, bytes]:
 def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, timeout_s: float = 5.0,
            progress: Callable[[int, int], None] | None = None) -> ReplayReport:
     exchanges = decode(capture)
-    by_job = {id(e.job): e for e in exchanges}
     report = ReplayReport()
+    by_job: dict[int, Exchange] = {}
+    not_sent: set[int] = set()  # client PDUs not to send: answers to the PLC's jobs, block transfers
+    for exchange in exchanges:
+        if exchange.function == PUSH:
+            report.skipped["pushes"] += 1
+        elif exchange.function in _BLOCK_TRANSFERS:
+            report.skipped["block transfers"] += 1
+            not_sent.add(id(exchange.job))
+        elif exchange.function != S7COMM_PLUS and exchange.job.from_client:
+            by_job[id(exchange.job)] = exchange
+        if exchange.answer is not None and exchange.answer.from_client:
+            not_sent.add(id(exchange.answer))
     links: dict[int, _Link] = {}
     client_pdus = [p for p in capture.pdus if p.from_client]
     started_wall = time.monotonic()
@@ -173,6 +198,11 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
                 continue
             if pdu.kind != "s7":
                 continue
+            if pdu.data[:1] == b"\x72":
+                report.skipped["S7comm-plus frames"] += 1
+                continue
+            if id(pdu) in not_sent:
+                continue
             if link is None:  # the capture began after the connect: make one like python-snap7 does
                 link = links[pdu.connection] = _Link(host, port, timeout_s)
                 link.send_frame(cotp.build_frame(cotp.ConnectRequest(src_ref=1, calling_tsap=b"\x01\x00",
@@ -186,7 +216,7 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
             answer = link.receive_pdu()
             if answer is None:
                 report.missing_answers += 1
-                _difference(report, exchange, "missing answer", exchange.detail or exchange.function, "answer", None)
+                _difference(report, exchange, "missing answer", exchange.detail or exchange.service_name, "answer", None)
                 link.close()
                 links.pop(pdu.connection)
             elif exchange.answer is not None:  # a job whose answer was not captured is not compared
@@ -204,16 +234,18 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
 
 
 def progress_printer(enabled: bool) -> Callable[[int, int], None] | None:
+    """A progress bar on a terminal (tqdm on stderr), None when not enabled or not a terminal."""
     if not enabled or not sys.stderr.isatty():
         return None
+    from nckemu.cliutil import progress_bar
+
+    bar = progress_bar(None, description="replay", unit="job")
 
     def show(done: int, total: int) -> None:
-        if done == total or done % 50 == 0:
-            width = 30
-            filled = int(width * done / max(total, 1))
-            sys.stderr.write(f"\rreplay [{'#' * filled}{'.' * (width - filled)}] {done}/{total}")
-            if done == total:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+        if done == total:
+            bar.close()
 
     return show

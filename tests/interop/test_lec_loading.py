@@ -9,7 +9,7 @@ import pytest
 from nckemu.cli import main
 from nckemu.clients import NckClient
 from nckemu.emulator.runner import EmulatorThread
-from nckemu.protocol.errors import NckServiceError
+from nckemu.errors import NckServiceError
 
 TABLE = Path(__file__).resolve().parents[2] / "fixtures" / "lec" / "z_axis.mpf"
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from nckemu.clients import NckClient
-from nckemu.protocol.errors import NckError
+from nckemu.errors import NckError
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
+from nckemu.capture import write_capture
 from nckemu.protocol import cotp, pi, s7, szl
 from nckemu.protocol.addresses import NckAddress, S7AnyAddress
-from nckemu.traces.capture import write_capture
 
 from .tshark_tools import requires_tshark, tshark_fields
 

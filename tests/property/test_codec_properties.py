@@ -10,9 +10,10 @@ import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
+from nckemu.errors import NckItemError
 from nckemu.protocol import c840, cotp, db41, pi, s7, szl, tpkt
 from nckemu.protocol.addresses import NckAddress, NckType, S7AnyAddress, UnsupportedAddress
-from nckemu.protocol.errors import NckItemError, NckProtocolError
+from nckemu.protocol.errors import NckProtocolError
 from nckemu.protocol.values import decode_nck_values, encode_nck_values
 
 u8 = st.integers(0, 0xFF)
@@ -238,3 +239,41 @@ def test_truncated_valid_requests_raise_only_typed_errors(items: list[object], d
     assume(cut < len(encoded))
     with pytest.raises(NckProtocolError):
         s7.parse_read_var_request(encoded[:cut])
+
+
+# ---------------------------------------------------------------- whole-PDU peeks of the hot path
+_any_pdu = st.builds(
+    lambda rosctr, ref, parameter, data, error: s7.build_pdu(
+        s7.S7Pdu(rosctr, ref, parameter, data, error >> 8, error & 0xFF)),
+    st.sampled_from([s7.Rosctr.JOB, s7.Rosctr.ACK_DATA, s7.Rosctr.USERDATA]), st.integers(0, 0xFFFF),
+    st.one_of(st.binary(max_size=20), st.builds(lambda n, rest: bytes([s7.Function.READ_VAR, n]) + rest,
+                                                st.integers(0, 255), st.binary(max_size=20))),
+    st.binary(max_size=12), st.sampled_from([0, 0x8500]))
+
+
+@given(_any_pdu, st.binary(max_size=3))
+def test_peek_read_var_job_agrees_with_parse_pdu(pdu: bytes, prefix: bytes) -> None:
+    peeked = s7.peek_read_var_job(prefix + pdu, len(prefix))
+    parsed = s7.parse_pdu(pdu)
+    expected = parsed.rosctr == s7.Rosctr.JOB and not parsed.data and len(parsed.parameter) >= 2 \
+        and parsed.parameter[0] == s7.Function.READ_VAR
+    assert (peeked is not None) == expected
+    if peeked is not None:
+        assert peeked == (parsed.pdu_ref, parsed.parameter)
+
+
+@given(_any_pdu)
+def test_peek_read_var_answer_agrees_with_parse_pdu(pdu: bytes) -> None:
+    parsed = s7.parse_pdu(pdu)
+    expected = parsed.rosctr == s7.Rosctr.ACK_DATA and not parsed.error_class and not parsed.error_code \
+        and len(parsed.parameter) == 2 and parsed.parameter[0] == s7.Function.READ_VAR
+    count = s7.peek_read_var_answer(pdu)
+    assert (count is not None) == expected
+    if count is not None:
+        assert count == parsed.parameter[1] and pdu[s7.READ_ANSWER_DATA_OFFSET:] == parsed.data
+
+
+@given(st.integers(0, 0xFFFF), st.integers(0, 255), st.binary(max_size=40))
+def test_build_read_var_answer_is_the_general_build(pdu_ref: int, count: int, data: bytes) -> None:
+    general = s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu_ref, bytes([s7.Function.READ_VAR, count]), data))
+    assert s7.build_read_var_answer(pdu_ref, count, data) == general

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+HIGHEST_LEVEL = 0
 LOWEST_LEVEL = 7
 
 

@@ -15,8 +15,7 @@ from nckemu.emulator.machine import load_machine, parse_machine
 from nckemu.emulator.nck.access import AccessContext
 from nckemu.emulator.nck.model import NckModel
 from nckemu.emulator.state import RetainedStore
-from nckemu.protocol.addresses import NckAddress
-from nckemu.protocol.errors import (
+from nckemu.errors import (
     NckAccessDenied,
     NckAddressOutOfRange,
     NckConfigError,
@@ -24,6 +23,7 @@ from nckemu.protocol.errors import (
     NckObjectDoesNotExist,
     NckServiceError,
 )
+from nckemu.protocol.addresses import NckAddress
 
 ROOT = AccessContext(level=0)
 USER = AccessContext(level=7)
@@ -236,7 +236,7 @@ def test_retained_round_trip_and_store(tmp_path: Path, nck: NckModel, clock: Sim
     again.restore_retained(store.load() or {})
     assert again.read(sd(43900), USER) == [0.125]
     assert again.read(md(32750), USER) == [3]
-    assert again._tc_type(Z) == 3  # restored machine data are active, as after power-on
+    assert again.store.active_value("TEMP_COMP_TYPE", Z) == 3  # restored machine data are active, as after power-on
     (tmp_path / "state.json").write_text('{"format": "nckemu-retained", "version": 1, "values": ')
     with pytest.raises(NckConfigError, match="state.json"):
         store.load()

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from nckemu.clients import NckClient
 from nckemu.clients.fb import STATE_NEGATIVE_ACK, item_state
 from nckemu.emulator.runner import EmulatorThread
+from nckemu.errors import NckConfigError
 from nckemu.plcsim.bridge import (
     STUB_SOURCES,
     nck_to_plc_bytes,
@@ -25,7 +26,6 @@ from nckemu.plcsim.bridge import (
 )
 from nckemu.plcsim.run import run_program
 from nckemu.protocol.addresses import NckType
-from nckemu.protocol.errors import NckConfigError
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures"
 SEQUENCE = FIXTURES / "plc" / "put_get_pi.awl"

@@ -8,11 +8,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from nckemu.clients.names import as_variable
+from nckemu.catalogue.names import as_variable
+from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import NckAddress, NckType
 from nckemu.protocol.awl import NcVarDb, NcVarEntry, parse_ncvar_db, render_ncvar_db
 from nckemu.protocol.codes import describe_header_error, describe_return_code
-from nckemu.protocol.errors import NckConfigError
 
 FIXTURE = Path(__file__).resolve().parents[3] / "fixtures" / "awl" / "db140_tc_addresses.awl"
 

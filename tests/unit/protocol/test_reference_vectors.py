@@ -6,9 +6,10 @@ import struct
 
 import pytest
 
+from nckemu.errors import NckTypeInconsistent
 from nckemu.protocol import cotp, pi, s7, tpkt
 from nckemu.protocol.addresses import NckAddress, NckType, S7AnyAddress
-from nckemu.protocol.errors import NckProtocolError, NckTypeInconsistent
+from nckemu.protocol.errors import NckProtocolError
 from nckemu.protocol.values import decode_nck_values, encode_nck_values
 
 CR = bytes.fromhex("0300001611E00000000100C0010AC1020100C2020103")

@@ -19,12 +19,12 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from nckemu.capture import CaptureWriter
 from nckemu.cli import main
+from nckemu.errors import NckConfigError
 from nckemu.protocol import cotp, s7
 from nckemu.protocol.addresses import NckAddress, NckArea, S7AnyAddress
-from nckemu.protocol.errors import NckConfigError
 from nckemu.traces import decode as decoder
-from nckemu.traces.capture import CaptureWriter
 from nckemu.traces.reader import (
     Capture,
     TracePdu,

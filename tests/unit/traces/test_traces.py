@@ -13,10 +13,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from nckemu.capture import CaptureWriter
 from nckemu.cli import main
 from nckemu.clients import NckClient
 from nckemu.emulator.runner import EmulatorThread
-from nckemu.traces.capture import CaptureWriter
 from nckemu.traces.reader import read_capture
 from tests.interop.tshark_tools import requires_tshark, tshark_fields
 
