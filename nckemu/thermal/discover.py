@@ -24,10 +24,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from nckemu.errors import NckConfigError
 
-from . import stats
+from . import quality, stats
 from .recording import Recording
 from .terms import EFFECTS, Term, ThermalModel, asymmetric_lag, first_order_lag
 
@@ -42,6 +43,17 @@ class Settings:
     max_effects: int = 4
     outlier_sigmas: float = 8.0
     min_gain_departure: float = 0.03
+    # A gain error claims that a gauge or a scale reads gain x the truth: only physical values.
+    gain_range: tuple[float, float] = (0.5, 2.0)
+    # The model as given fits the record within this share of the least-squares optimum's RMS: it
+    # was calibrated on the record, and its RMS as given is in-sample.
+    calibrated_tolerance: float = 0.002
+    glitch_sigmas: float = 8.0          # sensor bursts beyond this many robust sigma are glitches
+    glitch_min_K: float = 0.3           # ... and beyond this many kelvin
+    # Temperature readings are averaged over this centred window before features are built: a
+    # structure does not follow a sensor's white noise, and a difference of two sensors (a gradient)
+    # carries the noise of both against a small signal (errors in variables).
+    sensor_smoothing_s: float = 300.0
     lag_grid_s: tuple[float, ...] = tuple(float(v) for v in np.geomspace(300.0, 6 * 3600.0, 18))
     hysteresis_grid_s: tuple[float, ...] = tuple(float(v) for v in np.geomspace(600.0, 4 * 3600.0, 8))
 
@@ -83,6 +95,8 @@ class Discovery:
     data_quality: list[str] = field(default_factory=list)
     samples: int = 0
     series: dict[str, np.ndarray] = field(default_factory=dict)
+    preferred: str = ""
+    calibrated_on_record: bool = False
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -92,8 +106,36 @@ class Discovery:
             "heldout_rms_before_um": round(self.heldout_rms_before_um, 4),
             "heldout_rms_after_um": round(self.heldout_rms_after_um, 4),
             "mismatch": self.mismatch, "missing_physics": self.missing_physics,
-            "data_quality": self.data_quality,
+            "data_quality": self.data_quality, "preferred": self.preferred,
+            "calibrated_on_record": self.calibrated_on_record,
         }
+
+
+@dataclass
+class _Setup:
+    """What every search path shares: the baseline's columns, the folds and the baseline's figures."""
+    base_design: np.ndarray
+    given: np.ndarray
+    folds: list[np.ndarray]
+    baseline_rms: float
+    recalibrated: stats.Fit | None
+    recalibrated_rms: float
+    given_cv: stats.CrossValidation
+    recal_cv: stats.CrossValidation
+    calibrated_here: bool
+    gain: tuple[float, float, stats.CrossValidation] = (math.nan, math.nan, stats.CrossValidation(math.nan, ()))
+
+
+@dataclass
+class _Path:
+    """One line of explanation: the recalibrated model plus effects, or gain x model plus effects."""
+    gain_mode: bool
+    design: np.ndarray
+    base_cv: stats.CrossValidation
+    discovered: list[dict[str, Any]] = field(default_factory=list)
+    added: list[Term] = field(default_factory=list)
+    present: set[str] = field(default_factory=set)
+    final: stats.Fit | None = None
 
 
 def _finite(value: float) -> float | None:
@@ -139,8 +181,10 @@ def _bounded(term: Term) -> bool:
     """Parameters a machine can have."""
     p = term.parameters
     c = term.coefficient
-    if term.effect in ("thermal_lag",):
+    if term.effect == "thermal_lag":
         return 60.0 <= float(p["tau_s"]) <= 48 * 3600.0
+    if term.effect == "heating_cooling_hysteresis":
+        return all(60.0 <= float(p[key]) <= 48 * 3600.0 for key in ("tau_heat_s", "tau_cool_s"))
     if term.effect == "gain_error":
         return 0.2 <= c <= 5.0
     return math.isfinite(c)
@@ -150,6 +194,22 @@ def _bounded(term: Term) -> bool:
 # heating and cooling at the same rate).
 _EXTENDS = {("thermal_lag", "temperature"), ("heating_cooling_hysteresis", "temperature"),
             ("heating_cooling_hysteresis", "thermal_lag")}
+
+
+def _isolated(flagged: np.ndarray, longest: int = 2) -> np.ndarray:
+    """The flagged samples in runs of at most ``longest`` consecutive readings: an outlier leaves its
+    neighbours; a stretch where the model is wrong is what discovery looks for, not bad data."""
+    edges = np.diff(np.concatenate(([0], flagged.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = np.zeros_like(flagged)
+    for start, end in zip(starts, ends, strict=True):
+        if end - start <= longest:
+            out[start:end] = True
+    return out
+
+
+def _time_constants(term: Term) -> int:
+    return sum(key in term.parameters for key in ("tau_s", "tau_heat_s", "tau_cool_s"))
 
 
 def _extends(complex_term: Term, simple_term: Term) -> bool:
@@ -202,9 +262,38 @@ class Discoverer:
                 raise NckConfigError(f"several axes ({', '.join(axes)}): name one with --axis", path=recording.source)
             axis = axes[0]
         self.settings = settings or Settings()
+        self.data_quality: list[str] = []
+        self.raw_recording = recording
+        recording = self._repair_glitches(recording)
         self.problem = _Problem(recording, axis, model)
         self.recording = recording
-        self.data_quality: list[str] = []
+
+    def _smooth_sensor(self, t_s: np.ndarray, values: np.ndarray) -> np.ndarray:
+        if len(t_s) < 3 or self.settings.sensor_smoothing_s <= 0:
+            return values
+        width = int(round(self.settings.sensor_smoothing_s / max(float(np.median(np.diff(t_s))), 1e-9)))
+        if width < 3:
+            return values
+        return uniform_filter1d(values, size=width | 1, mode="nearest")
+
+    def _repair_glitches(self, recording: Recording) -> Recording:
+        """Short bursts of a temperature reading that no structure follows are bridged before any
+        feature sees them (fed through a gradient or a lag they become spikes of the improved model
+        that the gauge never showed), and reported under ``data_quality``."""
+        repaired = dict(recording.temperatures_C)
+        for name, values in recording.temperatures_C.items():
+            glitches = quality.find_glitches(recording.t_s, values, sigmas=self.settings.glitch_sigmas,
+                                             min_jump_K=self.settings.glitch_min_K)
+            if glitches is None:
+                continue
+            repaired[name] = quality.bridge(recording.t_s, values, glitches.samples)
+            self.data_quality.append(
+                f"{name}: {glitches.bursts} glitch burst(s), {int(glitches.samples.sum())} sample(s), up to "
+                f"{glitches.peak_K:.2f} K off the sensor's running median (first at t = {glitches.first_t_s:.0f} s "
+                f"= {glitches.first_t_s / 3600:.2f} h): bridged by interpolation before fitting")
+        repaired = {name: self._smooth_sensor(recording.t_s, values) for name, values in repaired.items()}
+        return Recording(recording.source, recording.t_s, repaired, recording.spindle_rpm, recording.positions_mm,
+                         recording.errors_um, recording.simulated_um)
 
     # ------------------------------------------------------------------ candidates
     def _sensors(self) -> list[str]:
@@ -260,21 +349,23 @@ class Discoverer:
         for sensor in sensors:
             if f"thermal_lag:{sensor}" in present:
                 continue
-            signal = recording.sensor(sensor)
+            # The search runs on the >= 30 s grid (the readings are averaged over minutes already);
+            # the chosen term's feature is computed on every sample.
+            signal = self._decimated_signal(sensor)
             best: tuple[float, float] | None = None
             tried = 0
             for tau in self.settings.lag_grid_s:
                 if tau > duration_s / 3:
                     continue
                 tried += 1
-                feature = problem.column(first_order_lag(recording.t_s, signal, tau)) - self._t_ref(sensor)
+                feature = self._lag_feature(signal, tau) - self._t_ref(sensor)
                 score = self._in_sample(design, feature)
                 if best is None or score < best[0]:
                     best = (score, tau)
             if best is not None:
                 for tau in best[1] * np.geomspace(0.8, 1.25, 9):
                     tried += 1
-                    feature = problem.column(first_order_lag(recording.t_s, signal, float(tau))) - self._t_ref(sensor)
+                    feature = self._lag_feature(signal, float(tau)) - self._t_ref(sensor)
                     score = self._in_sample(design, feature)
                     if score < best[0]:
                         best = (score, float(tau))
@@ -296,8 +387,13 @@ class Discoverer:
                 if best_h is None or score < best_h[0]:
                     best_h = (score, tau_heat, tau_cool)
             if best_h is not None:
+                # Refine around the grid point (not around the last improvement: that compounded,
+                # and walked a cooling time constant to 21 h on a 36 h null record).
+                grid_heat, grid_cool = best_h[1], best_h[2]
                 for factor_heat, factor_cool in itertools.product(np.geomspace(0.7, 1.4, 5), repeat=2):
-                    tau_heat, tau_cool = best_h[1] * float(factor_heat), best_h[2] * float(factor_cool)
+                    tau_heat, tau_cool = grid_heat * float(factor_heat), grid_cool * float(factor_cool)
+                    if max(tau_heat, tau_cool) > duration_s / 3:
+                        continue
                     tried += 1
                     feature = self._asymmetric_feature(signal, tau_heat, tau_cool) - self._t_ref(sensor)
                     score = self._in_sample(design, feature)
@@ -314,6 +410,10 @@ class Discoverer:
         signal = self.recording.sensor(sensor)
         step = max(1, int(30.0 / max(float(np.median(np.diff(t))), 1e-9)))
         return t[::step], signal[::step]
+
+    def _lag_feature(self, decimated: tuple[np.ndarray, np.ndarray], tau_s: float) -> np.ndarray:
+        t_coarse, signal = decimated
+        return np.interp(self.problem.t_s, t_coarse, first_order_lag(t_coarse, signal, tau_s))
 
     def _asymmetric_feature(self, decimated: tuple[np.ndarray, np.ndarray], tau_heat: float,
                             tau_cool: float) -> np.ndarray:
@@ -364,7 +464,7 @@ class Discoverer:
         sigma = stats.robust_sigma(residual)
         if not sigma > 0:
             return
-        outliers = np.abs(residual - np.median(residual)) > self.settings.outlier_sigmas * sigma
+        outliers = _isolated(np.abs(residual - np.median(residual)) > self.settings.outlier_sigmas * sigma)
         if outliers.any():
             keep = ~outliers
             self.data_quality.append(f"{int(outliers.sum())} outlier sample(s) beyond "
@@ -381,122 +481,227 @@ class Discoverer:
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Discovery:
-        problem, s = self.problem, self.settings
-        base_design = np.column_stack([problem.column(c) for c in problem.base_columns]) \
-            if problem.base_columns else np.empty((len(problem.y), 0))
+        setup = self._setup()
+        recalibrate = self._search(setup, gain_mode=False)
+        chosen, preferred = recalibrate, self._recalibration_words(setup, recalibrate, None)
+        if self._gain_eligible(setup):
+            with_gain = self._search(setup, gain_mode=True)
+            chosen, preferred = self._prefer(setup, recalibrate, with_gain)
+        return self._finish(setup, chosen, preferred)
+
+    def _setup(self) -> _Setup:
+        problem = self.problem
+        base_design = self._base_design()
         self._screen_outliers(base_design)
-        base_design = np.column_stack([problem.column(c) for c in problem.base_columns]) \
-            if problem.base_columns else np.empty((len(problem.y), 0))
+        base_design = self._base_design()
         given = problem.column(problem.given_prediction)
-        folds = stats.blocked_folds(len(self.y), s.folds)
+        folds = stats.blocked_folds(len(self.y), self.settings.folds)
         baseline_rms = stats.rms(self.y - given)
-        self._given_heldout_um = baseline_rms
         recalibrated = stats.fit(base_design, self.y) if base_design.shape[1] else None
         recalibrated_rms = recalibrated.rms_um if recalibrated else baseline_rms
-        discovered: list[dict[str, Any]] = []
-        added_terms: list[Term] = []
-        present: set[str] = set()
+        given_cv = stats.CrossValidation(baseline_rms, tuple(stats.rms(self.y[f] - given[f]) for f in folds))
+        recal_cv = stats.cross_validate(base_design, self.y, folds) if base_design.shape[1] else given_cv
+        # A model whose coefficients are the least-squares optimum on this very record was calibrated
+        # on it: its RMS "as given" is an in-sample figure, not a held-out one. Compare like with like:
+        # the baseline refitted per fold, under the same blocked cross-validation as the candidates.
+        calibrated_here = recalibrated is not None and self._calibrated_on_record()
+        self._given_heldout_um = math.inf if calibrated_here else baseline_rms
+        return _Setup(base_design, given, folds, baseline_rms, recalibrated, recalibrated_rms, given_cv, recal_cv,
+                      calibrated_here)
 
-        # A common factor on the whole model as given.
+    def _calibrated_on_record(self) -> bool:
+        """Were the given coefficients fitted by least squares on this record? Judged on the readings
+        as recorded (before glitch repair and averaging): RMS as given within ``calibrated_tolerance``
+        of the least-squares optimum's."""
+        problem, raw = self.problem, self.raw_recording
+        if problem.base_terms:
+            columns = np.column_stack([term.feature(raw, problem.axis)[problem.mask] for term in problem.base_terms])
+            given = problem.model.predict_um(raw)[problem.mask]
+        else:  # a sim_ column: nothing was averaged
+            columns = np.column_stack([problem.column(c) for c in problem.base_columns])
+            given = problem.column(problem.given_prediction)
+        optimum = stats.rms(self.y - columns @ stats.least_squares(columns, self.y))
+        return stats.rms(self.y - given) <= optimum * (1 + self.settings.calibrated_tolerance)
+
+    def _base_design(self) -> np.ndarray:
+        problem = self.problem
+        if not problem.base_columns:
+            return np.empty((len(problem.y), 0))
+        return np.column_stack([problem.column(c) for c in problem.base_columns])
+
+    def _gain_eligible(self, setup: _Setup) -> bool:
+        """One common factor on the model as given: physical (``gain_range``), departing from 1 by
+        more than ``min_gain_departure`` and 3 standard errors, explaining (>= 90 % of) what
+        recalibration explains, and improving held-out RMS in most blocks."""
+        s, y, given = self.settings, self.y, setup.given
         gain_design = given[:, None]
-        gain_fit = stats.fit(gain_design, self.y)
-        gain = float(gain_fit.coefficients[0])
-        gain_cv = stats.cross_validate(gain_design, self.y, folds)
-        recal_cv = stats.cross_validate(base_design, self.y, folds) if base_design.shape[1] else gain_cv
-        explains_recalibration = (baseline_rms - gain_fit.rms_um) >= 0.9 * (baseline_rms - recalibrated_rms) \
-            or base_design.shape[1] <= 1
-        gain_se = float(gain_fit.standard_errors[0])
-        gain_wins = sum(g < b for g, b in zip(gain_cv.fold_rms_um,
-                                              [stats.rms(self.y[f] - given[f]) for f in folds], strict=True))
-        if (abs(gain - 1) >= max(s.min_gain_departure, 3 * gain_se) and explains_recalibration
-                and gain_cv.rms_um <= (1 - s.min_improvement) * baseline_rms
-                and gain_wins >= math.ceil(s.min_fold_share * len(folds)) and 0.2 <= gain <= 5):
-            design = gain_design
-            base_cv = gain_cv
-            present.add("gain_error")
-            discovered.append({"effect": "gain_error", "parameters": {"gain": round(gain, 5)},
-                               "evidence": {"heldout_rms_um": round(gain_cv.rms_um, 4),
-                                            "baseline_rms_um": round(baseline_rms, 4),
-                                            "gain_se": round(gain_se, 5),
-                                            "why": "one common factor on the whole model explains the mismatch"}})
-            gain_mode = True
+        gain_fit = stats.fit(gain_design, y)
+        gain, gain_se = float(gain_fit.coefficients[0]), float(gain_fit.standard_errors[0])
+        gain_cv = stats.cross_validate(gain_design, y, setup.folds)
+        explains = (setup.baseline_rms - gain_fit.rms_um) >= 0.9 * (setup.baseline_rms - setup.recalibrated_rms) \
+            or setup.base_design.shape[1] <= 1
+        wins = sum(g < b for g, b in zip(gain_cv.fold_rms_um, setup.given_cv.fold_rms_um, strict=True))
+        setup.gain = (gain, gain_se, gain_cv)
+        return (self._gain_physical(gain, gain_se) and explains
+                and gain_cv.rms_um <= (1 - s.min_improvement) * setup.baseline_rms
+                and wins >= math.ceil(s.min_fold_share * len(setup.folds)))
+
+    def _gain_physical(self, gain: float, gain_se: float) -> bool:
+        s = self.settings
+        return s.gain_range[0] <= gain <= s.gain_range[1] and abs(gain - 1) >= max(s.min_gain_departure, 3 * gain_se)
+
+    def _search(self, setup: _Setup, gain_mode: bool) -> _Path:
+        """Add effects one round at a time to the recalibrated model (or to gain x the model as given)."""
+        s = self.settings
+        if gain_mode:
+            gain, gain_se, gain_cv = setup.gain
+            path = _Path(True, setup.given[:, None], gain_cv)
+            path.present.add("gain_error")
+            path.discovered.append({"effect": "gain_error", "parameters": {"gain": round(gain, 5)},
+                                    "evidence": {"heldout_rms_before_um": round(setup.baseline_rms, 4),
+                                                 "heldout_rms_after_um": round(gain_cv.rms_um, 4),
+                                                 "baseline_rms_um": round(setup.baseline_rms, 4),
+                                                 "gain_se": round(gain_se, 5), "equivalent": [],
+                                                 "why": "one common factor on the whole model explains the mismatch"}})
         else:
-            design = base_design
-            base_cv = recal_cv if base_design.shape[1] else stats.CrossValidation(
-                baseline_rms, tuple(stats.rms(self.y[f] - given[f]) for f in folds))
-            gain_mode = False
-            if base_design.shape[1] == 0:
-                design = np.empty((len(self.y), 0))
-
+            path = _Path(False, setup.base_design, setup.recal_cv)
         for _round in range(s.max_effects):
-            candidates = self.candidates(design if design.shape[1] else given[:, None], present)
-            if not candidates:
+            if not self._round(setup, path):
                 break
-            work_design = design if design.shape[1] else np.empty((len(self.y), 0))
-            # Bonferroni over every hypothesis of the round, each time constant tried included.
-            tests = sum(c.grid_points for c in candidates)
-            t_critical = self._t_critical(s.alpha, tests, len(self.y) - work_design.shape[1] - 1)
-            evaluations = [self._evaluate(work_design, c, folds, base_cv) for c in candidates]
-            passing = [e for e in evaluations if self._passes(e, base_cv, t_critical)]
-            if not passing:
-                break
-            best = min(passing, key=lambda e: e.cv.rms_um)
-            equivalent = [e for e in passing if e.cv.rms_um <= best.cv.rms_um * (1 + s.equivalence)]
-            chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.cv.rms_um))
-            chosen = self._parsimonious(chosen, passing)
-            term = chosen.candidate.term.with_coefficient(chosen.coefficient)
-            window = _locate(self.problem.t_s, chosen.coefficient * (chosen.candidate.feature
-                                                                     - np.median(chosen.candidate.feature)))
-            record = {
-                "effect": term.effect,
-                "parameters": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
-                "evidence": {
-                    "heldout_rms_before_um": round(base_cv.rms_um, 4), "heldout_rms_after_um": round(chosen.cv.rms_um, 4),
-                    "t_value_ar1_corrected": _finite(chosen.t_value), "t_critical": round(t_critical, 3),
-                    "folds_improved": f"{chosen.fold_wins}/{len(folds)}",
-                    "window": {"t_start_s": window[0][0], "t_end_s": window[0][1]} if window else None,
-                    "equivalent": [e.candidate.label for e in equivalent if e is not chosen],
-                    "why": EFFECTS[term.effect].description,
-                },
-            }
-            if chosen is not best:
-                record["evidence"]["resolved_to_simpler"] = best.candidate.label
-            discovered.append(record)
-            added_terms.append(term)
-            present.add(term.effect if term.effect in ("offset", "time_drift", "centrifugal_growth")
-                        else f"{term.effect}:{term.parameters.get('sensor') or '-'.join(term.parameters.get('sensors', []))}")
-            design = np.column_stack([work_design, chosen.candidate.feature])
-            base_cv = chosen.cv
+        path.final = stats.fit(path.design, self.y) if path.design.shape[1] else None
+        return path
 
-        final = stats.fit(design, self.y) if design.shape[1] else None
-        gain_reported = gain_mode
-        if gain_mode and final is not None and len(discovered) > 1:
-            joint_gain, joint_se = float(final.coefficients[0]), float(final.standard_errors[0])
-            if abs(joint_gain - 1) < max(s.min_gain_departure, 3 * joint_se):
-                # The effects found after it explain the mismatch: the common factor was their shadow.
-                discovered.pop(0)
-                gain_reported = False
-                for record in discovered:
-                    record["evidence"]["note"] = "a common gain on the model was considered and withdrawn"
-        heldout_after_um = base_cv.rms_um if discovered else baseline_rms  # nothing found: the model stands
+    def _round(self, setup: _Setup, path: _Path) -> bool:
+        s, folds = self.settings, setup.folds
+        design = path.design
+        candidates = self.candidates(design if design.shape[1] else setup.given[:, None], path.present)
+        if not candidates:
+            return False
+        # Bonferroni over every hypothesis of the round, each time constant tried included.
+        tests = sum(c.grid_points for c in candidates)
+        t_critical = self._t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1)
+        evaluations = [self._evaluate(design, c, folds, path.base_cv) for c in candidates]
+        passing = [e for e in evaluations if self._passes(e, path.base_cv, t_critical)]
+        if not passing:
+            return False
+        best = min(passing, key=lambda e: e.cv.rms_um)
+        # A time constant is picked on the whole record, so the held-out RMS of an effect that has
+        # one is optimistic: widen the equivalence margin by one share per searched time constant.
+        margin = s.equivalence * (1 + _time_constants(best.candidate.term))
+        equivalent = [e for e in passing if e.cv.rms_um <= best.cv.rms_um * (1 + margin)]
+        chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.cv.rms_um))
+        chosen = self._parsimonious(chosen, passing)
+        term = chosen.candidate.term.with_coefficient(chosen.coefficient)
+        window = _locate(self.problem.t_s, chosen.coefficient * (chosen.candidate.feature
+                                                                 - np.median(chosen.candidate.feature)))
+        evidence: dict[str, Any] = {
+            "heldout_rms_before_um": round(path.base_cv.rms_um, 4), "heldout_rms_after_um": round(chosen.cv.rms_um, 4),
+            "t_value_ar1_corrected": _finite(chosen.t_value), "t_critical": round(t_critical, 3),
+            "folds_improved": f"{chosen.fold_wins}/{len(folds)}",
+            "window": {"t_start_s": window[0][0], "t_end_s": window[0][1]} if window else None,
+            "equivalent": [{"effect": e.candidate.label, "heldout_rms_um": round(e.cv.rms_um, 4)}
+                           for e in equivalent if e is not chosen],
+            "why": EFFECTS[term.effect].description,
+        }
+        if chosen is not best:
+            evidence["resolved_to_simpler"] = best.candidate.label
+        evidence["preferred"] = self._preference_words(chosen, best, equivalent, margin)
+        path.discovered.append({"effect": term.effect, "parameters": {
+            k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()}, "evidence": evidence})
+        path.added.append(term)
+        path.present.add(term.effect if term.effect in ("offset", "time_drift", "centrifugal_growth")
+                         else f"{term.effect}:{term.parameters.get('sensor') or '-'.join(term.parameters.get('sensors', []))}")
+        path.design = np.column_stack([design, chosen.candidate.feature])
+        path.base_cv = chosen.cv
+        return True
+
+    @staticmethod
+    def _preference_words(chosen: Evaluation, best: Evaluation, equivalent: list[Evaluation], margin: float) -> str:
+        label = chosen.candidate.label
+        if chosen is not best and chosen not in equivalent:
+            return (f"{label} preferred to {best.candidate.label}: the time constant of the latter improves "
+                    f"held-out RMS by less than the bar an effect must clear")
+        others = [e.candidate.label for e in equivalent if e is not chosen]
+        if not others:
+            return f"{label}: passed every guard, and no other explanation came within {margin:.0%} of its held-out RMS"
+        if chosen is best:
+            return f"{label}: best held-out RMS and simplest; {', '.join(others)} explain the data almost as well"
+        return (f"{label} preferred as the simplest of equivalent explanations (held-out RMS within {margin:.0%} "
+                f"of the best, {best.cv.rms_um:.3f} um): "
+                f"{', '.join(others)}")
+
+    def _prefer(self, setup: _Setup, recalibrate: _Path, with_gain: _Path) -> tuple[_Path, str]:
+        """A gain error is a claim about a gauge or a scale. It is named only if it stays physical
+        once the other effects are in, and explains the mismatch better than recalibrating the model
+        and naming the physics does (or as well, when recalibration finds no physics, or when the
+        model has a single coefficient, whose refit *is* a gain)."""
+        s = self.settings
+        final = with_gain.final
+        joint_gain, joint_se = (float(final.coefficients[0]), float(final.standard_errors[0])) \
+            if final is not None else (math.nan, math.nan)
+        cv_gain, cv_recal = with_gain.base_cv.rms_um, recalibrate.base_cv.rms_um
+        alternative = {"effect": "recalibration" + "".join(f" + {d['effect']}" for d in recalibrate.discovered),
+                       "heldout_rms_um": round(cv_recal, 4)}
+        if not self._gain_physical(joint_gain, joint_se):
+            why = (f"a common gain was considered and withdrawn: with the other effects in, it is {joint_gain:.3g} "
+                   f"(physical range {s.gain_range[0]:g}..{s.gain_range[1]:g}, and it must depart from 1)")
+            return recalibrate, self._recalibration_words(setup, recalibrate, why)
+        single = setup.base_design.shape[1] <= 1
+        if single or not recalibrate.discovered or cv_gain < (1 - s.equivalence) * cv_recal:
+            reason = ("the model has one coefficient: its refit is the gain" if single else
+                      "recalibrating the model's coefficients finds no physics the gain does not explain"
+                      if not recalibrate.discovered else
+                      f"gain x model explains held-out data better ({cv_gain:.3f} um) than recalibrating and "
+                      f"adding physics ({cv_recal:.3f} um)")
+            if not single:  # with one coefficient, recalibration is the same model as the gain
+                with_gain.discovered[0]["evidence"]["equivalent"] = [alternative]
+            words = f"gain_error preferred: {reason}"
+            with_gain.discovered[0]["evidence"]["preferred"] = words
+            return with_gain, words
+        why = (f"a common gain of {joint_gain:.3g} was considered: held-out {cv_gain:.3f} um against "
+               f"{cv_recal:.3f} um for recalibration + physics, not better by {s.equivalence:.0%}")
+        for record in recalibrate.discovered:
+            record["evidence"]["note"] = "a common gain on the model was considered and set aside"
+        if recalibrate.discovered:
+            recalibrate.discovered[0]["evidence"]["equivalent"].append(
+                {"effect": "gain_error", "gain": round(joint_gain, 5), "heldout_rms_um": round(cv_gain, 4)})
+        return recalibrate, self._recalibration_words(setup, recalibrate, why)
+
+    def _recalibration_words(self, setup: _Setup, path: _Path, gain_note: str | None) -> str:
+        if path.discovered:
+            words = (f"the model recalibrated (its own coefficients refitted) plus "
+                     f"{', '.join(d['effect'] for d in path.discovered)}: each passed the held-out, "
+                     f"fold and t-test guards against the recalibrated model")
+        else:
+            words = "nothing passed the guards: the model stands (recalibration is not physics)"
+        if setup.calibrated_here:
+            words += ("; the model as given was calibrated on this record, so candidates were compared with "
+                      "it refitted per fold under the same blocked cross-validation")
+        return words + (f"; {gain_note}" if gain_note else "")
+
+    def _finish(self, setup: _Setup, path: _Path, preferred: str) -> Discovery:
+        problem, given, final = self.problem, setup.given, path.final
+        discovered = path.discovered
+        heldout_after_um = path.base_cv.rms_um if discovered else setup.baseline_rms  # nothing found: it stands
         # Coefficients of the final joint fit go into the improved model and the report.
-        improved_terms = self._improved_terms(final, gain_mode, gain_reported, added_terms, discovered)
+        improved_terms = self._improved_terms(final, path.gain_mode, path.added, discovered)
         improved = ThermalModel(problem.axis, improved_terms, "<improved>")
         improved_full = final.residual if final is not None else self.y - given
         before_residual = self.y - given
-        residual_recal = recalibrated.residual if recalibrated is not None and not gain_mode else before_residual
+        residual_recal = setup.recalibrated.residual \
+            if setup.recalibrated is not None and not path.gain_mode else before_residual
         return Discovery(
-            axis=problem.axis, baseline_rms_um=baseline_rms, recalibrated_rms_um=recalibrated_rms,
+            axis=problem.axis, baseline_rms_um=setup.baseline_rms, recalibrated_rms_um=setup.recalibrated_rms,
             heldout_rms_before_um=stats.rms(before_residual), heldout_rms_after_um=heldout_after_um,
             mismatch=self._mismatch(residual_recal if not discovered else before_residual),
             missing_physics=discovered, improved_model=improved, data_quality=self.data_quality,
-            samples=len(self.y),
+            samples=len(self.y), preferred=preferred, calibrated_on_record=setup.calibrated_here,
             series={"t_s": self.problem.t_s, "measured_um": self.y, "baseline_um": given,
                     "improved_um": self.y - improved_full, "residual_before_um": before_residual,
                     "residual_after_um": improved_full},
         )
 
-    def _improved_terms(self, final: stats.Fit | None, gain_mode: bool, gain_reported: bool, added: list[Term],
+    def _improved_terms(self, final: stats.Fit | None, gain_mode: bool, added: list[Term],
                         discovered: list[dict[str, Any]]) -> list[Term]:
         """The model as given with refitted coefficients, plus the discovered terms.
 
@@ -507,16 +712,14 @@ class Discoverer:
         coefficients = list(final.coefficients)
         if gain_mode:
             gain = float(coefficients.pop(0))
-            if gain_reported:
-                terms = [Term("gain_error", {"gain": round(gain, 6)})] + list(problem.base_terms)
-                discovered[0]["parameters"]["gain"] = round(gain, 5)
-            else:  # withdrawn: fold the small factor into the coefficients (recalibration)
-                terms = [t.with_coefficient(t.coefficient * problem.model.gain * gain) for t in problem.base_terms]
+            terms = [Term("gain_error", {"gain": round(gain * problem.model.gain, 6)})] + list(problem.base_terms)
+            discovered[0]["parameters"]["gain"] = round(gain, 5)
+            records = discovered[1:]
         else:
             terms = [term.with_coefficient(c) for term, c in zip(problem.base_terms, coefficients, strict=False)]
             coefficients = coefficients[len(problem.base_columns):]  # a sim_ column is a column, not a term
-        for term, coefficient, record in zip(added, coefficients, discovered[1 if gain_reported else 0:],
-                                             strict=False):
+            records = discovered
+        for term, coefficient, record in zip(added, coefficients, records, strict=False):
             updated = term.with_coefficient(float(coefficient))
             terms.append(updated)
             record["parameters"][updated.spec.coefficient] = round(float(coefficient), 6)

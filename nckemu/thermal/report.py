@@ -8,6 +8,7 @@ import html
 import io
 import json
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -36,6 +37,34 @@ def findings_html(findings: list[tuple[str, str]]) -> str:
     return f"<h2>The program against the recording</h2><dl>{items}</dl>"
 
 
+def _um(value: object) -> str:
+    return f"{value:.3f} um" if isinstance(value, int | float) else "n/a"
+
+
+def _row(finding: dict[str, Any]) -> str:
+    """One discovered effect: why, held-out RMS before and after, the equivalent explanations and
+    which one was preferred."""
+    evidence = finding["evidence"]
+    parts = [html.escape(str(evidence.get("why", ""))),
+             f"held-out {_um(evidence.get('heldout_rms_before_um'))} &rarr; {_um(evidence.get('heldout_rms_after_um'))}"]
+    if "t_value_ar1_corrected" in evidence:
+        parts.append(f"t = {evidence['t_value_ar1_corrected']} (critical {evidence.get('t_critical')}), "
+                     f"folds improved {evidence.get('folds_improved')}")
+    if "gain_se" in evidence:
+        parts.append(f"gain standard error {evidence['gain_se']}")
+    equivalent = evidence.get("equivalent") or []
+    if equivalent:
+        listed = ", ".join(html.escape(f"{e['effect']} ({_um(e.get('heldout_rms_um'))})") if isinstance(e, dict)
+                           else html.escape(str(e)) for e in equivalent)
+        parts.append(f"equivalent explanations considered: {listed}")
+    for key in ("preferred", "note"):
+        if evidence.get(key):
+            parts.append(html.escape(str(evidence[key])))
+    return (f"<tr><td>{html.escape(finding['effect'])}</td>"
+            f"<td><code>{html.escape(json.dumps(finding['parameters']))}</code></td>"
+            f"<td>{'<br>'.join(parts)}</td></tr>")
+
+
 def write_report(path: str | Path, discovery: Discovery, title: str,
                  findings: list[tuple[str, str]] | None = None) -> None:
     series = discovery.series
@@ -58,13 +87,11 @@ def write_report(path: str | Path, discovery: Discovery, title: str,
     axes.set_ylabel("residual [um]")
     axes.legend()
     residuals = _png(figure)
-    rows = "".join(
-        f"<tr><td>{html.escape(m['effect'])}</td><td><code>{html.escape(json.dumps(m['parameters']))}</code></td>"
-        f"<td>{html.escape(str(m['evidence'].get('why', '')))}; held-out "
-        f"{m['evidence'].get('heldout_rms_before_um', '')} &rarr; {m['evidence'].get('heldout_rms_after_um', '')} um"
-        f"</td></tr>" for m in discovery.missing_physics) or "<tr><td colspan=3>nothing missing</td></tr>"
+    rows = "".join(_row(m) for m in discovery.missing_physics) or "<tr><td colspan=3>nothing missing</td></tr>"
     windows = "".join(f"<li>{w['t_start_s'] / 3600:.2f} h to {w['t_end_s'] / 3600:.2f} h: {html.escape(w['why'])}</li>"
                       for w in discovery.mismatch) or "<li>no structured residual</li>"
+    quality = ("<h2>Data quality</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in discovery.data_quality)
+               + "</ul>") if discovery.data_quality else ""
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{html.escape(title)}</title>
 <style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}td{{padding:4px 8px;vertical-align:top}}
 table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}</style></head><body>
@@ -74,6 +101,8 @@ table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}</style></hea
 {discovery.heldout_rms_before_um:.3f} &rarr; {discovery.heldout_rms_after_um:.3f} um.</p>
 {findings_html(findings) if findings else ""}
 <h2>Missing physics</h2><table><tr><th>effect</th><th>parameters</th><th>evidence</th></tr>{rows}</table>
+<p><b>Preferred explanation.</b> {html.escape(discovery.preferred or "-")}</p>
+{quality}
 <h2>Where the model disagrees</h2><ul>{windows}</ul>
 <img alt="recording, baseline and improved model" src="data:image/png;base64,{overview}">
 <img alt="residual before and after" src="data:image/png;base64,{residuals}">

@@ -168,3 +168,119 @@ def make_loop_scenario(name: str = "bed_program_spindle_lag", seed: int = 1, dur
                                                            "coeff_um_per_K": LOOP_BED_COEFF_UM_PER_K})])
     return Scenario(name, loop_recording, program_law, "thermal_lag",
                     {"tau_s": LOOP_SPINDLE_TAU_S, "coeff_um_per_K": LOOP_SPINDLE_COEFF_UM_PER_K})
+
+
+# ---------------------------------------------------------------------------------------------------
+# Variants: the failures seen on cases written outside the project, reproduced in spirit.
+# Built on top of make_scenario (same seed, same sensors and noise draws), so they need no change to it.
+
+VARIANTS = ("position_dependent_expansion_calibrated", "quadratic_temperature_calibrated",
+            "thermal_gradient_calibrated", "quadratic_temperature_small", "thermal_lag_small",
+            "thermal_gradient_glitch", "null_ar1_gaps_outliers", "null_calibrated_gaps",
+            "null_slow_ar_gaps_outliers")
+ALL_SCENARIOS = SCENARIOS + VARIANTS
+# How much of an effect a "small" variant keeps: near the detection limit (docs/thermal.md).
+SMALL_SCALE = 0.5
+# Parameters that size an effect (scaled with it); the others (time constants) shape it.
+_SIZE_PARAMETERS = {"value_um", "coeff_um_per_K", "slope_um_per_m_per_K", "coeff_um_per_krpm2",
+                    "coeff_um_per_K2", "um_per_h"}
+
+
+def calibrated_baseline(model: ThermalModel, recording: Recording) -> ThermalModel:
+    """The model with its coefficients fitted by least squares on ``recording`` itself (every gauge
+    reading, the effect's window included): what a builder who calibrates on the test record gives."""
+    error = recording.errors_um[model.axis]
+    measured = ~np.isnan(error)
+    terms = model.additive_terms()
+    design = np.column_stack([term.feature(recording, model.axis)[measured] for term in terms])
+    coefficients, *_ = np.linalg.lstsq(design, error[measured], rcond=None)
+    return ThermalModel(model.axis, [t.with_coefficient(float(c)) for t, c in zip(terms, coefficients, strict=True)],
+                        "<calibrated on the record>")
+
+
+def scaled_scenario(name: str, seed: int, scale: float) -> Scenario:
+    """``name``'s scenario with its concealed effect multiplied by ``scale`` (noise unchanged).
+
+    Every scenario of one seed draws the same sensors and noise, so the effect's contribution is the
+    difference to the ``offset`` scenario, whose truth is the baseline plus 4 um."""
+    if name not in SCENARIOS or name.startswith("null"):
+        raise ValueError(f"no effect to scale in {name!r}")
+    scenario = make_scenario(name, seed)
+    reference = make_scenario("offset", seed).recording.errors_um[AXIS] - 4.0
+    measured = scenario.recording.errors_um[AXIS]
+    errors = {AXIS: reference + scale * (measured - reference)}
+    parameters = dict(scenario.truth_parameters)
+    for key in parameters:
+        if key in _SIZE_PARAMETERS:
+            parameters[key] *= scale
+    if name == "gain_error":
+        parameters["gain"] = 1.0 + scale * (parameters["gain"] - 1.0)
+    recording = Recording(f"<scenario {name} x{scale:g} seed {seed}>", scenario.recording.t_s,
+                          scenario.recording.temperatures_C, scenario.recording.spindle_rpm,
+                          scenario.recording.positions_mm, errors)
+    return Scenario(f"{name} x{scale:g}", recording, scenario.baseline, scenario.truth_effect, parameters,
+                    scenario.window_s)
+
+
+def _with_gaps_and_outliers(recording: Recording, seed: int, outlier_um: float = 25.0) -> Recording:
+    rng = np.random.default_rng(10_000 + seed)
+    t = recording.t_s
+    measured = recording.errors_um[AXIS].copy()
+    for _ in range(3):  # three gauge gaps of 1-3 h
+        start = rng.uniform(0.0, t[-1] - 3 * 3600.0)
+        measured[(t >= start) & (t < start + rng.uniform(1.0, 3.0) * 3600.0)] = np.nan
+    gauge = np.flatnonzero(~np.isnan(measured))
+    picks = rng.choice(gauge, size=max(2, len(gauge) // 150), replace=False)
+    measured[picks] += rng.choice([-1.0, 1.0], len(picks)) * outlier_um * rng.uniform(0.6, 1.4, len(picks))
+    return Recording(recording.source + " with gaps and outliers", t, recording.temperatures_C,
+                     recording.spindle_rpm, recording.positions_mm, {AXIS: measured})
+
+
+def _with_sensor_glitches(recording: Recording, sensor: str, seed: int) -> Recording:
+    """Bursts of 1-4 samples, 1.5-3 K off, in one sensor's reading (the gauge does not see them)."""
+    rng = np.random.default_rng(20_000 + seed)
+    values = recording.temperatures_C[f"temp_{sensor}_C"].copy()
+    for start in rng.choice(len(values) - 5, size=5, replace=False):
+        values[start:start + int(rng.integers(1, 5))] += rng.uniform(1.5, 3.0) * rng.choice([-1.0, 1.0])
+    temperatures = {**recording.temperatures_C, f"temp_{sensor}_C": values}
+    return Recording(recording.source + f" with {sensor} glitches", recording.t_s, temperatures,
+                     recording.spindle_rpm, recording.positions_mm, recording.errors_um)
+
+
+def _with_slow_wander(recording: Recording, seed: int, sigma_um: float = 0.6, phi: float = 0.995) -> Recording:
+    """A slower gauge wander on top (AR(1), phi per sample): hours-long excursions that a lag with a
+    long enough time constant can chase."""
+    rng = np.random.default_rng(30_000 + seed)
+    innovations = rng.normal(0.0, sigma_um * np.sqrt(1 - phi ** 2), len(recording.t_s))
+    wander = np.zeros_like(recording.t_s)
+    for k in range(1, len(wander)):
+        wander[k] = phi * wander[k - 1] + innovations[k]
+    return Recording(recording.source + " with slow wander", recording.t_s, recording.temperatures_C,
+                     recording.spindle_rpm, recording.positions_mm, {AXIS: recording.errors_um[AXIS] + wander})
+
+
+def make_variant(name: str, seed: int = 1) -> Scenario:
+    if name in SCENARIOS:
+        return make_scenario(name, seed)
+    if name not in VARIANTS:
+        raise ValueError(f"unknown scenario {name!r}; known: {', '.join(ALL_SCENARIOS)}")
+    if name.endswith("_calibrated"):
+        scenario = make_scenario(name[:-len("_calibrated")], seed)
+        scenario.baseline = calibrated_baseline(scenario.baseline, scenario.recording)
+    elif name.endswith("_small"):
+        scenario = scaled_scenario(name[:-len("_small")], seed, SMALL_SCALE)
+    elif name == "thermal_gradient_glitch":
+        scenario = make_scenario("thermal_gradient", seed)
+        scenario.recording = _with_sensor_glitches(scenario.recording, "front", seed)
+    elif name == "null_ar1_gaps_outliers":
+        scenario = make_scenario("null_ar1", seed)
+        scenario.recording = _with_gaps_and_outliers(scenario.recording, seed)
+    elif name == "null_slow_ar_gaps_outliers":
+        scenario = make_scenario("null_ar1", seed)
+        scenario.recording = _with_slow_wander(_with_gaps_and_outliers(scenario.recording, seed), seed)
+    else:  # null_calibrated_gaps: nothing missing, the baseline calibrated on the record, gauge gaps
+        scenario = make_scenario("null_ar1", seed)
+        scenario.recording = _with_gaps_and_outliers(scenario.recording, seed, outlier_um=0.0)
+        scenario.baseline = calibrated_baseline(scenario.baseline, scenario.recording)
+    scenario.name = name
+    return scenario

@@ -59,7 +59,7 @@ def first_order_lag(t_s: np.ndarray, signal: np.ndarray, tau_s: float) -> np.nda
     if len(signal) == 0:
         return signal.copy()
     dt = np.diff(t_s)
-    if len(dt) and np.allclose(dt, dt[0]):
+    if len(dt) and float(dt.max() - dt.min()) <= 1e-9 * abs(float(dt[0])):  # uniform sampling
         alpha = 1.0 - math.exp(-dt[0] / tau_s)
         state = lfilter([alpha], [1.0, alpha - 1.0], signal - signal[0])
         return state + signal[0]
