@@ -43,3 +43,39 @@ def test_fast_read_answers_as_the_general_path(items: list[object], pdu_ref: int
     assert fast == [cotp.build_data_frame(general_answer)]
     assert fast_session.info.jobs == general_session.info.jobs
     assert not fast_session.closed
+
+
+# S7ANY items near what exists: DBs and their ends, the sensor word at input byte 420 and its
+# neighbours, areas served or not, every transport size, counts that do and do not fit.
+PLANNED = st.builds(
+    S7AnyAddress,
+    transport_size=st.sampled_from([0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x08, 0x1C, 0x1D, 0x00, 0x13]),
+    count=st.one_of(st.integers(0, 8), st.integers(0, 0xFFFF)),
+    db_number=st.sampled_from([0, 41, 100, 130, 131, 999]),
+    area=st.sampled_from([0x80, 0x81, 0x82, 0x83, 0x84, 0x85, 0x86, 0x1C]),
+    byte_address=st.one_of(st.sampled_from([0, 1, 62, 63, 64, 254, 255, 256, 419, 420, 421, 2046, 2047, 2048]),
+                           st.integers(0, 0x1FFFF)),
+    bit_address=st.integers(0, 7),
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(items=st.lists(PLANNED, min_size=1, max_size=6), pdu_ref=st.integers(0, 0xFFFF),
+       fill=st.binary(min_size=1, max_size=1), temperature_C=st.floats(-200.0, 200.0))
+def test_planned_s7any_reads_answer_as_the_general_path(items: list[S7AnyAddress], pdu_ref: int, fill: bytes,
+                                                        temperature_C: float) -> None:
+    """``Dispatcher.read_answer`` answers byte-sized S7ANY reads from a plan made once per parameter;
+    the values must be those of the moment (after writes and sensor changes), the bytes those of
+    ``Dispatcher.job``."""
+    emulator = Emulator(clock=SimulatedClock(100.0))
+    dispatcher, ctx = emulator.dispatcher, emulator.dispatcher.new_access_context("test")
+    parameter = s7.build_read_var_request(s7.ReadVarRequest(tuple(items)))
+    job = s7.S7Pdu(s7.Rosctr.JOB, pdu_ref, parameter)
+    for round_ in range(2):  # the first answer makes the plan, the second uses it
+        general = dispatcher.job(job, ctx)
+        assert general is not None
+        assert dispatcher.read_answer(pdu_ref, parameter, ctx) == s7.build_pdu(general)
+        for block in emulator.plc.data_blocks.values():
+            block[:] = fill * len(block)
+        emulator.plc.areas[0x81][:] = fill * len(emulator.plc.areas[0x81])
+        emulator.nck.set_sensor_temperature("bed", temperature_C + round_)
