@@ -79,3 +79,25 @@ def test_planned_s7any_reads_answer_as_the_general_path(items: list[S7AnyAddress
             block[:] = fill * len(block)
         emulator.plc.areas[0x81][:] = fill * len(emulator.plc.areas[0x81])
         emulator.nck.set_sensor_temperature("bed", temperature_C + round_)
+
+
+@settings(max_examples=200, deadline=None)
+@given(items=st.lists(st.one_of(KNOWN, PLANNED), min_size=1, max_size=8), pdu_ref=st.integers(0, 0xFFFF),
+       split=st.integers(1, 200), copies=st.integers(1, 3))
+def test_read_jobs_answer_alike_whole_split_or_pipelined(items: list[object], pdu_ref: int, split: int,
+                                                        copies: int) -> None:
+    """A read job alone in a segment takes the session's shortest path; split across segments or
+    pipelined with others it goes through the framing loop: the answers are the same bytes."""
+    job = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, pdu_ref, s7.build_read_var_request(s7.ReadVarRequest(tuple(items)))))
+    frame = cotp.build_data_frame(job)
+    general_answer = _ready(480)._handle_pdu(job, over_amq=False)
+    assert general_answer is not None
+    expected = cotp.build_data_frame(general_answer)
+    whole, pieces = _ready(480), _ready(480)
+    jobs_before = whole.info.jobs
+    assert whole.receive(frame) == [expected]
+    stream = frame * copies
+    cut = min(split, len(stream) - 1)
+    answers = pieces.receive(stream[:cut]) + pieces.receive(stream[cut:])
+    assert answers == [expected] * copies
+    assert whole.info.jobs == jobs_before + 1 and pieces.info.jobs == jobs_before + copies

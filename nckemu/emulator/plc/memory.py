@@ -91,10 +91,10 @@ class PlcModel:
             blocks = self.data_blocks
 
             def read_block() -> bytes:
-                data = blocks[db_number][start_byte:end]
-                if len(data) != size_bytes:
+                block = blocks[db_number]
+                if end > len(block):  # also where nothing is read, as ``_check``
                     raise NckAddressOutOfRange(f"DB{db_number}: bytes beyond its end")
-                return data  # a bytearray slice: a copy, as bytes-like as ``read``'s bytes
+                return block[start_byte:end]  # a bytearray slice: a copy, as bytes-like as ``read``'s bytes
 
             return read_block
         sensor = self._sensor_inputs.get(start_byte)
