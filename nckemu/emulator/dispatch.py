@@ -171,9 +171,14 @@ class Dispatcher:
         request = self._read_request(parameter)
         item_count = len(request.items)
 
+        read_item, build_data_items, build_answer = self._read_item, s7.build_data_items, s7.build_read_var_answer
+        items = request.items
+
         def general(pdu_ref: int, ctx: AccessContext) -> bytes:
-            data = s7.build_data_items(self.read_var(request, ctx).items)
-            return s7.build_read_var_answer(pdu_ref, item_count, data)
+            # ``read_var`` and ``build_read_var_response`` without the response objects.
+            if item_count == 1:
+                return build_answer(pdu_ref, 1, build_data_items((read_item(items[0], ctx),)))
+            return build_answer(pdu_ref, item_count, build_data_items(tuple(read_item(item, ctx) for item in items)))
 
         if len(self._read_plans) >= MAX_CACHED_READ_REQUESTS:
             return general
@@ -189,6 +194,7 @@ class Dispatcher:
         S7ANY reads whose answers fit in a data item."""
         parts: list[PlanPart] = []
         last = len(items) - 1
+        total = 0
         for index, address in enumerate(items):
             if not isinstance(address, S7AnyAddress) or address.transport_size == S7TransportSize.BIT:
                 return None
@@ -205,6 +211,9 @@ class Dispatcher:
             header = s7.DATA_ITEM_HEADER.build({"return_code": RC_SUCCESS, "transport_size": answer_size,
                                                 "length": length})
             fill = b"\x00" if index < last and size % 2 else b""
+            total += len(header) + size + len(fill)
+            if total > 0xFFFF:
+                return None  # no S7 PDU carries it: the general path fails it as ``job`` does
             parts.append((header, self._plc_reader(address.area, address.db_number, address.byte_address, size),
                            size, fill))
         return parts
