@@ -12,31 +12,60 @@ import logging
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from nckemu import __version__
-from nckemu.errors import NckError
+from nckemu.errors import NckConfigError, NckError
 
 COMMAND_MODULES = (
-    "nckemu.emulator.commands",   # serve
-    "nckemu.clients.commands",    # get, put, pi, comp840c
+    "nckemu.emulator.commands",   # serve, machine show
+    "nckemu.catalogue.commands",  # vars
+    "nckemu.clients.commands",    # get, put, pi, comp840c, lec
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
-    "nckemu.plcsim.commands",     # plc run
+    "nckemu.plcsim.commands",     # plc run, plc stubs
 )
 
 log = logging.getLogger(__name__)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one line for a usage error and exit code 1 (bad input, as every command's)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(1, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
+def _add_logging_options(parser: argparse.ArgumentParser, *, top: bool) -> None:
+    # On every command too, so that `nckemu serve -v` works as `nckemu -v serve`; SUPPRESS keeps a
+    # subcommand from resetting what the top level set.
+    default: object = 0 if top else argparse.SUPPRESS
+    parser.add_argument("-v", "--verbose", action="count", default=default,
+                        help="more log output (-v info, -vv debug); serve logs at info already")
+    parser.add_argument("--log-file", metavar="FILE", default=None if top else argparse.SUPPRESS,
+                        help="append the log to FILE instead of stderr")
+
+
+def _walk(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+    found = []
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in dict.fromkeys(action.choices.values()):
+                found += [sub, *_walk(sub)]
+    return found
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="nckemu",
         description="A SINUMERIK NCK/PLC stand-in on the wire, and the tools around it.",
-        epilog="Example: nckemu serve --port 1102   then   nckemu get --port 1102 SD43900[AX4]",
+        epilog="Example: nckemu serve --port 1102   then   nckemu get --port 1102 SD43900[AX4]\n"
+               "Client commands reach NCKEMU_HOST:NCKEMU_PORT (default 127.0.0.1:102) unless --host/--port say.\n"
+               "--json prints machine-readable output on stdout; --json-out FILE (- for stdout) writes it to a file.\n",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"nckemu {__version__}")
-    parser.add_argument("-v", "--verbose", action="count", default=0,
-                        help="more log output (-v info, -vv debug)")
+    _add_logging_options(parser, top=True)
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
         try:
@@ -46,28 +75,61 @@ def build_parser() -> argparse.ArgumentParser:
                 raise
             continue
         module.register(subparsers)
+    for sub in _walk(parser):
+        _add_logging_options(sub, top=False)
     return parser
+
+
+def _configure_logging(args: argparse.Namespace) -> None:
+    # The server says who connects and which jobs it refuses without -v; the other commands warn only.
+    base = logging.INFO if args.command == "serve" else logging.WARNING
+    level = max(logging.DEBUG, base - 10 * min(args.verbose, 2))
+    handler: logging.Handler
+    if args.log_file:
+        try:
+            handler = logging.FileHandler(args.log_file, encoding="utf-8")
+        except OSError as exc:
+            raise NckConfigError(f"--log-file: cannot write: {exc.strerror}", path=args.log_file) from None
+    else:
+        handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    handler.set_name("nckemu")
+    root = logging.getLogger()
+    for old in [h for h in root.handlers if h.get_name() == "nckemu"]:  # an earlier main() in this process
+        root.removeHandler(old)
+        old.close()
+    root.addHandler(handler)
+    root.setLevel(level)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
-    level = logging.WARNING - 10 * min(args.verbose, 2)
-    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version (0) and usage errors (1): a code, not an exit, for callers
+        return exc.code if isinstance(exc.code, int) else 1
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()
         return 2
+    command = " ".join(part for part in (args.command, getattr(args, "plc_command", None),
+                                         getattr(args, "trace_command", None),
+                                         getattr(args, "machine_command", None)) if part)
     try:
+        _configure_logging(args)
         return int(func(args) or 0)
     except NckError as exc:
-        print(f"nckemu {args.command}: {exc}", file=sys.stderr)
+        print(f"nckemu {command}: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:  # `nckemu ... | head`: the reader has gone; nothing is lost by stopping
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except (OSError, UnicodeDecodeError) as exc:  # last resort: each known case is caught where it happens
+        where = f" ({exc.filename})" if isinstance(exc, OSError) and exc.filename else ""
+        print(f"nckemu {command}: {exc.__class__.__name__}{where}: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -17,12 +17,15 @@ from .table import (
     display_name,
     find_by_name,
     load_table,
+    machine_table,
+    spec_at,
     table_index,
 )
 
 __all__ = [
     "KNOWN_MODULES", "NC_SERVICE_ARGUMENTS", "PI_LOAD_LEADSCREW", "PI_POWER_ON", "READ_ONLY",
     "R_PARAMETER_LINE_OFFSET", "LeadscrewTable", "Variable", "VariableSpec", "as_variable", "build_table",
-    "display_name", "find_by_name", "load_table", "parse_leadscrew_program", "parse_variable", "table_index",
+    "display_name", "find_by_name", "load_table", "machine_table", "parse_leadscrew_program", "parse_variable", "spec_at",
+    "table_index",
     "variable_for_address", "with_overrides",
 ]

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType
 
-from .table import R_PARAMETER_LINE_OFFSET, display_name, find_by_name, table_index
+from .table import R_PARAMETER_LINE_OFFSET, display_name, find_by_name, spec_at
 
 _NAME = re.compile(r"^\$?(?:(?:S|M)[ACN]_)?(?P<name>[A-Z_][A-Z0-9_]*?)(?:\[(?P<index>[^\]]*)\])?$", re.IGNORECASE)
 _R_SHORT = re.compile(r"^R(?P<number>\d+)$", re.IGNORECASE)
@@ -38,7 +38,7 @@ class Variable:
 
 def variable_for_address(address: NckAddress) -> Variable:
     """The type of a raw address from the variable table (REAL8 if the table does not know it)."""
-    spec = table_index().get((address.module, address.column))
+    spec = spec_at(address)
     if spec is None:
         return Variable(address, NckType.REAL8, None, str(address))
     return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)

@@ -11,6 +11,9 @@ PI_POWER_ON = "_N_NCKRES"
 # nckemu extension (no Siemens service): load a leadscrew table program from a file on the emulator's
 # host, as `serve --lec` does at start. Arguments: the address identification and the file's path.
 PI_LOAD_LEADSCREW = "_N_NCKEMU_LEC"
+# "Reconfigures machine data" (Wireshark's PI table: arguments addressident, class): what an HMI's
+# "activate MD" sends; machine data with effectiveness "new_conf" (MD32000, MD32760) take effect.
+PI_NEW_CONFIG = "_N_CONFIG"
 
 # service -> number of arguments (the first is always the address identification, e.g. "201")
 NC_SERVICE_ARGUMENTS: dict[str, int] = {
@@ -20,5 +23,6 @@ NC_SERVICE_ARGUMENTS: dict[str, int] = {
     "_N_F_DELE": 2,
     "_N_SETUDT": 1,
     PI_POWER_ON: 1,
+    PI_NEW_CONFIG: 2,
     PI_LOAD_LEADSCREW: 2,
 }

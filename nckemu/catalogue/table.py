@@ -25,7 +25,7 @@ BUILTIN_SOURCE = "nckemu/catalogue/variables.toml"
 # Every key a row may carry; anything else is a typo that would otherwise be ignored.
 ROW_KEYS = frozenset({
     "name", "number", "module", "column", "areas", "type", "lines", "length", "unit", "min", "max",
-    "default", "read_level", "write_level", "retained", "effective", "source", "description",
+    "default", "read_level", "write_level", "retained", "effective", "source", "description", "path",
 })
 REQUIRED_KEYS = ("name", "number", "module", "column", "areas", "type")
 
@@ -51,6 +51,8 @@ class VariableSpec:
     # A named value source of the emulator ("axes.actual_position"); None: the value is stored.
     source: str | None = None
     description: str = ""
+    # The BTSS / NC-Var-Selector path ("/Channel/State/actParts"); "" when no source names it.
+    path: str = ""
 
     @property
     def read_only(self) -> bool:
@@ -100,6 +102,10 @@ def _spec(row: Mapping[str, object]) -> VariableSpec:
         effective = str(row.get("effective", "immediate"))
         if effective not in EFFECTIVENESS:
             raise KeyError("effective", f"{effective!r} is not one of {', '.join(EFFECTIVENESS)}")
+        default = row.get("default", "" if nck_type == NckType.STRING else 0)
+        lines = _integer(row, "lines", 1, 0xFFFF, 1)
+        if isinstance(default, list) and len(default) != lines:
+            raise KeyError("default", f"a list default needs one value per line ({lines}), not {len(default)}")
         source = row.get("source")
         if source is not None and (not isinstance(source, str) or not source):
             raise KeyError("source", "must name a value source such as \"axes.actual_position\"")
@@ -107,13 +113,13 @@ def _spec(row: Mapping[str, object]) -> VariableSpec:
             name=str(row["name"]), number=str(row["number"]),
             module=_integer(row, "module", 0, 0xFF), column=_integer(row, "column", 0, 0xFFFF),
             areas=frozenset(NckArea[str(a)].value for a in areas), nck_type=nck_type,
-            lines=_integer(row, "lines", 1, 0xFFFF, 1), string_length=length,
+            lines=lines, string_length=length,
             unit=str(row.get("unit", "")), minimum=_number(row, "min"), maximum=_number(row, "max"),
-            default=row.get("default", "" if nck_type == NckType.STRING else 0),
+            default=tuple(default) if isinstance(default, list) else default,
             read_level=_integer(row, "read_level", 0, LOWEST_ACCESS_LEVEL, LOWEST_ACCESS_LEVEL),
             write_level=_integer(row, "write_level", READ_ONLY, LOWEST_ACCESS_LEVEL, READ_ONLY),
             retained=bool(row.get("retained", False)), effective=effective,
-            source=source, description=str(row.get("description", "")),
+            source=source, description=str(row.get("description", "")), path=str(row.get("path", "")),
         )
     except ValueError as exc:
         field = str(exc).split(" ", 1)[0]
@@ -125,13 +131,19 @@ def row_lines(text: str, header: str = "[[var]]") -> list[int]:
     return [number for number, line in enumerate(text.splitlines(), 1) if line.strip() == header]
 
 
+def _keys(spec: VariableSpec) -> list[tuple[int, int, int]]:
+    return [(spec.module, spec.column, area) for area in sorted(spec.areas)]
+
+
 def build_table(rows: Iterable[Mapping[str, object]], source: str, lines: list[int] | None = None,
                 base: Iterable[VariableSpec] = ()) -> tuple[VariableSpec, ...]:
     """Checked specs from TOML rows; ``base`` rows may be overridden by name (a machine file mirroring
-    its controller), a new row that takes another's (module, column) or name is a clash."""
+    its controller), a new row that takes another's (module, column, area) or name is a clash. One
+    module and column may hold different variables in different areas (S column 3: the mode group's
+    opMode in area B, the channel's feed override in area C)."""
     specs: dict[str, VariableSpec] = {spec.name.upper(): spec for spec in base}
     base_names = set(specs)
-    addresses = {(spec.module, spec.column): spec.name for spec in specs.values()}
+    addresses = {key: spec.name for spec in specs.values() for key in _keys(spec)}
     seen: set[str] = set()
     for index, row in enumerate(rows):
         line = lines[index] if lines and index < len(lines) else None
@@ -146,16 +158,19 @@ def build_table(rows: Iterable[Mapping[str, object]], source: str, lines: list[i
             raise NckConfigError(f"{spec.name} is declared twice", path=source, line=line, field="name")
         seen.add(key)
         old = specs.get(key)
-        holder = addresses.get((spec.module, spec.column))
-        if holder is not None and holder.upper() != key:
-            raise NckConfigError(f"{spec.name}: module 0x{spec.module:02X} column {spec.column} is "
-                                 f"already {holder}", path=source, line=line, field="column")
         if old is not None and key not in base_names:
             raise NckConfigError(f"{spec.name} is declared twice", path=source, line=line, field="name")
         if old is not None:
-            addresses.pop((old.module, old.column), None)
+            for old_key in _keys(old):
+                addresses.pop(old_key, None)
+        for address in _keys(spec):
+            holder = addresses.get(address)
+            if holder is not None and holder.upper() != key:
+                raise NckConfigError(f"{spec.name}: module 0x{spec.module:02X} column {spec.column} area "
+                                     f"{NckArea(address[2]).name} is already {holder}", path=source, line=line,
+                                     field="column")
         specs[key] = spec
-        addresses[(spec.module, spec.column)] = spec.name
+        addresses.update((address, spec.name) for address in _keys(spec))
     return tuple(specs.values())
 
 
@@ -170,13 +185,28 @@ def load_table() -> tuple[VariableSpec, ...]:
     return build_table(rows, BUILTIN_SOURCE, row_lines(text))
 
 
-def index_by_address(specs: Iterable[VariableSpec]) -> dict[tuple[int, int], VariableSpec]:
-    return {(spec.module, spec.column): spec for spec in specs}
+def machine_table(rows: object, source: str, text: str = "") -> tuple[VariableSpec, ...]:
+    """The catalogue of a machine file: the built-in rows, with the file's ``[[var]]`` rows added or
+    overriding built-in rows by name (same format as ``variables.toml``). ``text`` is the file's
+    text, so an error names the row's line."""
+    if not isinstance(rows, list) or not all(isinstance(row, dict) for row in rows):
+        raise NckConfigError("expected [[var]] tables", path=source, field="var")
+    return build_table(rows, source, row_lines(text), base=load_table())
+
+
+def index_by_address(specs: Iterable[VariableSpec]) -> dict[tuple[int, int, int], VariableSpec]:
+    """(module, column, area) -> spec."""
+    return {key: spec for spec in specs for key in _keys(spec)}
+
+
+def spec_at(address: NckAddress) -> VariableSpec | None:
+    """The built-in catalogue's variable at an address (module, column and area), or None."""
+    return table_index().get((address.module, address.column, address.area))
 
 
 @cache
-def table_index() -> dict[tuple[int, int], VariableSpec]:
-    """(module, column) -> spec of the built-in catalogue."""
+def table_index() -> dict[tuple[int, int, int], VariableSpec]:
+    """(module, column, area) -> spec of the built-in catalogue."""
     return index_by_address(load_table())
 
 
@@ -201,11 +231,14 @@ R_PARAMETER_LINE_OFFSET = 1
 
 
 def display_name(spec: VariableSpec, address: NckAddress) -> str:
-    """``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[AX4,l2]``."""
+    """``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[1,AX4]`` (an array's
+    index first and 0-based, as written in part programs and accepted by the name parser)."""
     count = f",x{address.line_count}" if address.line_count > 1 else ""
     if spec.name == "R":
         return f"R{address.line - R_PARAMETER_LINE_OFFSET}[C{address.unit}{count}]"
     where = f"AX{address.unit}" if address.area == NckArea.A else f"{NckArea(address.area).name}{address.unit}"
-    line = f",l{address.line}" if spec.lines > 1 or address.line != 1 else ""
     number = "" if spec.number.startswith("NCKEMU_") or not spec.number[:2].isalpha() else f"{spec.number} "
+    if spec.lines > 1 and address.line >= 1:
+        return f"{number}{spec.name}[{address.line - 1},{where}{count}]"
+    line = f",l{address.line}" if address.line != 1 else ""
     return f"{number}{spec.name}[{where}{line}{count}]"

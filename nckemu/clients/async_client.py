@@ -11,12 +11,14 @@ from __future__ import annotations
 import asyncio
 import itertools
 import logging
+import re
 import struct
 from collections.abc import Awaitable, Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from snap7.async_client import AsyncClient
+from snap7.error import S7ProtocolError
 from snap7.type import Area
 
 from nckemu.catalogue.names import Variable, as_variable
@@ -25,6 +27,7 @@ from nckemu.errors import (
     NckConnectionError,
     NckError,
     NckItemError,
+    NckServiceError,
     NckTimeoutError,
     ReturnCode,
     item_error_for,
@@ -32,7 +35,7 @@ from nckemu.errors import (
 )
 from nckemu.protocol import pi, s7
 from nckemu.protocol.addresses import NckType
-from nckemu.protocol.codes import describe_return_code
+from nckemu.protocol.codes import HEADER_ERROR_TEXTS, describe_return_code
 from nckemu.protocol.errors import NckProtocolError
 from nckemu.protocol.values import NCK_TRANSPORT_SIZE, decode_nck_values, encode_nck_values
 
@@ -41,6 +44,9 @@ T = TypeVar("T")
 
 MAX_VARIABLES = 8  # NumVar of FB2/FB3
 RC_SUCCESS = ReturnCode.SUCCESS
+PASSWORD_REFUSED = (0xD602, 0x0119)  # "incorrect password entered" (PI, block services)
+# python-snap7's text for a refused item, e.g. "Write operation failed: Object does not exist (0x0a)"
+_SNAP7_ITEM_ERROR = re.compile(r"operation failed: .*\(0x(?P<code>[0-9a-fA-F]{2})\)\s*$")
 
 
 @dataclass(frozen=True)
@@ -137,6 +143,16 @@ class AsyncNckClient:
                                       f"{self.timeout_s} s; the connection was closed") from None
             except NckError:
                 raise
+            except S7ProtocolError as exc:
+                refused = _SNAP7_ITEM_ERROR.search(str(exc))
+                if refused is None:
+                    await self.disconnect()
+                    raise NckConnectionError(f"{what}: connection to {self.host}:{self.port} lost ({exc}); "
+                                             "the next call reconnects") from None
+                # python-snap7 raises the item's return code as a protocol error; the connection is fine
+                code = int(refused["code"], 16)
+                raise item_error_for(code, f"{what}: the controller refused it: "
+                                           f"{describe_return_code(code)}") from None
             except Exception as exc:
                 await self.disconnect()
                 raise NckConnectionError(f"{what}: connection to {self.host}:{self.port} lost ({exc}); "
@@ -150,9 +166,10 @@ class AsyncNckClient:
                                         lambda client: client.iso_exchange_buffer(request))
         answer = s7.parse_pdu(bytes(raw))
         if answer.error_class or answer.error_code:
+            code = (answer.error_class << 8) | answer.error_code
+            text = HEADER_ERROR_TEXTS.get(code, "an error without a known text")
             raise service_error_for(answer.error_class, answer.error_code,
-                                    f"the controller refused the job: header error "
-                                    f"0x{answer.error_class:02X}{answer.error_code:02X}")
+                                    f"the controller refused the job: {text} (header error 0x{code:04X})")
         if answer.parameter[:1] != parameter[:1]:
             raise NckProtocolError(f"answer to function 0x{parameter[0]:02X} carries function "
                                    f"0x{answer.parameter[0] if answer.parameter else 0:02X}")
@@ -230,7 +247,14 @@ class AsyncNckClient:
         await self.exchange(pi.build_pi_request(pi.PiServiceRequest(service, tuple(arguments))))
 
     async def login(self, password: str) -> None:
-        await self.pi_service("_N_LOGIN_", "/NC", password)
+        try:
+            await self.pi_service("_N_LOGIN_", "/NC", password)
+        except NckServiceError as exc:
+            if exc.header_error not in PASSWORD_REFUSED:
+                raise
+            raise service_error_for(exc.error_class, exc.error_code,
+                                    f"password refused: the controller does not know this password "
+                                    f"(header error 0x{exc.header_error:04X})") from None
 
     # ------------------------------------------------------------------ PLC memory (S7ANY)
     async def db_read(self, db_number: int, start: int, size: int) -> bytes:

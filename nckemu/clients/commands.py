@@ -5,13 +5,15 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
 from nckemu.catalogue.names import Variable, parse_variable
+from nckemu.cliutil import default_host, default_port, port_number
 from nckemu.errors import NckConfigError, NckError
-from nckemu.protocol.addresses import NckType
+from nckemu.protocol.addresses import NckArea, NckType
 from nckemu.protocol.codes import describe_return_code
 
 from .async_client import AsyncNckClient, ItemResult
@@ -19,24 +21,27 @@ from .channel840c import Channel840C
 
 
 def _connection_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--host", default="127.0.0.1", help="controller or emulator address (127.0.0.1)")
-    parser.add_argument("--port", type=int, default=102, help="TCP port (102)")
+    parser.add_argument("--host", default=None,
+                        help="controller or emulator address (default: $NCKEMU_HOST, else 127.0.0.1)")
+    parser.add_argument("--port", type=port_number, default=None,
+                        help="TCP port (default: $NCKEMU_PORT, else 102; make serve uses 1102)")
     parser.add_argument("--rack", type=int, default=0)
     parser.add_argument("--slot", type=int, default=4, help="4 = 840D sl NCK (some use 3), 2 = PLC")
     parser.add_argument("--timeout", type=float, default=5.0, help="seconds to wait for an answer")
-    parser.add_argument("--json", action="store_true", help="machine-readable output")
+    parser.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     raw = argparse.RawDescriptionHelpFormatter
     get = subparsers.add_parser("get", help="read NCK variables (FB2 GET)", formatter_class=raw,
-                                epilog="example: nckemu get --port 1102 SD43900[AX4] SD43910[AX4] R5")
-    get.add_argument("variables", nargs="+", metavar="VAR", help="e.g. SD43900[AX4], MD32750[AX4], R5")
+                                epilog="example: nckemu get --port 1102 SD43900[AX4] SD43910[AX4] R5\n")
+    get.add_argument("variables", nargs="+", metavar="VAR",
+                     help="e.g. SD43900[AX4], MD32750[AX4], R5 (axis variables need their axis)")
     _connection_options(get)
     get.set_defaults(func=run_get)
 
     put = subparsers.add_parser("put", help="write NCK variables in one job (FB3 PUT)", formatter_class=raw,
-                                epilog="example: nckemu put --port 1102 SD43900[AX4]=0.3 SD43920[AX4]=0")
+                                epilog="example: nckemu put --port 1102 SD43900[AX4]=0.3 SD43920[AX4]=0\n")
     put.add_argument("assignments", nargs="+", metavar="VAR=VALUE")
     put.add_argument("--password", help="log in first (_N_LOGIN_), e.g. EVENING for machine data")
     put.add_argument("--real32", action="store_true", help="round REAL8 values through a 32-bit REAL, as a PLC")
@@ -44,7 +49,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     put.set_defaults(func=run_put)
 
     pi = subparsers.add_parser("pi", help="start a PI service (FB4 PI_SERV)", formatter_class=raw,
-                               epilog="example: nckemu pi --port 1102 _N_SELECT 201 /_N_MPF_DIR/_N_TEST_MPF")
+                               epilog="example: nckemu pi --port 1102 _N_SELECT 201 /_N_MPF_DIR/_N_TEST_MPF\n")
     pi.add_argument("service")
     pi.add_argument("arguments", nargs="*")
     _connection_options(pi)
@@ -52,13 +57,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
     comp = subparsers.add_parser(
         "comp840c", help="send 840C temperature compensation (user DB + DB41 function 9)", formatter_class=raw,
-        epilog="example: nckemu comp840c --port 1102 --slot 2 --axis 4 --k0 0.3 --slope 0 --p0 100 --flags UA")
+        epilog="examples:\n"
+               "  nckemu comp840c --port 1102 --axis 4 --k0 0.3\n"
+               "  nckemu comp840c --port 1102 --slot 2 --axis 4 --k0 0.3 --slope 0.00001 --p0 100 --flags UA\n")
     comp.add_argument("--axis", type=int, required=True)
     comp.add_argument("--k0", type=float, default=0.0, help="K_TCabs in mm")
     comp.add_argument("--slope", type=float, default=0.0, help="tan(beta), dimensionless")
-    comp.add_argument("--p0", type=float, default=0.0, help="reference position P0 in mm (not the axis zero)")
-    comp.add_argument("--flags", default="UA", help="U: position independent, A: position dependent")
-    comp.add_argument("--db", type=int, default=131, help="user DB number (131)")
+    comp.add_argument("--p0", type=float, default=None,
+                      help="reference position P0 in mm, not the axis zero (needed with --flags A)")
+    comp.add_argument("--flags", default=None,
+                      help="U: position independent, A: position dependent (default: UA with --slope or "
+                           "--p0, else U)")
+    comp.add_argument("--db", type=int, default=131,
+                      help="user DB number (131; the default machine has DB41, DB100, DB130, DB131)")
     comp.add_argument("--dw", type=int, default=0, help="first data word n in the user DB (0)")
     _connection_options(comp)
     comp.set_defaults(func=run_comp840c, slot=2)
@@ -68,7 +79,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         description="Sends nckemu's PI service _N_NCKEMU_LEC with the program's path: the emulator reads the "
                     "file on its own host (the same machine for a loopback emulator). As on the control, tables "
                     "load only while MD32700 = 0 and act after power-on with MD32700 = 1 and the axis referenced.",
-        epilog="example: nckemu lec --port 1102 --password EVENING --power-on fixtures/lec/x_axis.mpf")
+        epilog="example: nckemu lec --port 1102 --password EVENING --power-on fixtures/lec/z_axis.mpf\n")
     lec.add_argument("program", help="NC program with $AA_ENC_COMP[...] lines")
     lec.add_argument("--password", help="log in first (_N_LOGIN_): loading needs MD32700's write level")
     lec.add_argument("--power-on", action="store_true", help="then power on the NCK (_N_NCKRES)")
@@ -77,8 +88,49 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 
 def _client(args: argparse.Namespace) -> AsyncNckClient:
+    if args.host is None:
+        args.host = default_host()
+    if args.port is None:
+        args.port = default_port()
+    if not args.timeout > 0:
+        raise NckConfigError(f"--timeout {args.timeout}: expected a positive number of seconds")
     return AsyncNckClient(args.host, args.port, rack=args.rack, slot=args.slot, timeout_s=args.timeout,
                           plc_real32=getattr(args, "real32", False))
+
+
+def _spec(variable: Variable) -> Any:
+    """The catalogue's row for a variable (limits, unit, access levels), None for an unknown address."""
+    from nckemu.catalogue.table import spec_at
+
+    return spec_at(variable.address)
+
+
+def _limits_text(spec: Any) -> str:
+    unit = f" {spec.unit}" if spec.unit not in ("", "1") else ""
+    low = "-inf" if spec.minimum is None else f"{spec.minimum:g}"
+    high = "inf" if spec.maximum is None else f"{spec.maximum:g}"
+    return f"{low}..{high}{unit}"
+
+
+def _why_refused(result: ItemResult, value: Any) -> str:
+    """What a refused item means in words, then the controller's code."""
+    code = describe_return_code(result.return_code)
+    spec = _spec(result.variable)
+    if value is None or spec is None:
+        return code
+    numbers = value if isinstance(value, list | tuple) else [value]
+    unit = f" {spec.unit}" if spec.unit not in ("", "1") else ""
+    notes = []
+    if any(isinstance(v, float) and not math.isfinite(v) for v in numbers):
+        notes.append(f"{value!r} is not a finite number (limits {_limits_text(spec)})")
+    elif any(isinstance(v, int | float) and ((spec.minimum is not None and v < spec.minimum)
+                                             or (spec.maximum is not None and v > spec.maximum)) for v in numbers):
+        shown = ", ".join(f"{v:g}" for v in numbers)
+        notes.append(f"{shown}{unit} is outside its limits {_limits_text(spec)}")
+    if result.return_code == 0x03:
+        notes.append(f"writing it needs access level {spec.write_level} or higher (give --password)"
+                     if spec.write_level >= 0 else "it is read-only")
+    return f"{'; '.join(notes)}; the controller answered {code}" if notes else code
 
 
 def _record(result: ItemResult) -> dict[str, Any]:
@@ -89,8 +141,8 @@ def _record(result: ItemResult) -> dict[str, Any]:
             "ok": result.ok, "value": result.value, "unit_of_measure": result.variable.unit_of_measure}
 
 
-def _print_results(results: list[ItemResult], as_json: bool) -> int:
-    failed = [r for r in results if not r.ok]
+def _print_results(results: list[ItemResult], as_json: bool, written: list[Any] | None = None) -> int:
+    failed = [(r, written[i] if written else None) for i, r in enumerate(results) if not r.ok]
     if as_json:
         print(json.dumps([_record(r) for r in results]))
     else:
@@ -101,13 +153,23 @@ def _print_results(results: list[ItemResult], as_json: bool) -> int:
                 suffix = f" {result.variable.unit_of_measure}" if result.variable.unit_of_measure not in ("", "1") else ""
                 print(f"{result.variable} = {shown}{suffix}" if result.value is not None
                       else f"{result.variable}: ok")
-    for result in failed:
-        print(f"nckemu: {result.variable}: {describe_return_code(result.return_code)}", file=sys.stderr)
+    for result, value in failed:
+        print(f"nckemu: {result.variable}: {_why_refused(result, value)}", file=sys.stderr)
     return 1 if failed else 0
 
 
+def _parse(text: str) -> Variable:
+    """A variable name; an axis variable without its axis is refused (it would silently be AX1)."""
+    variable = parse_variable(text)
+    spec = _spec(variable)
+    if spec is not None and spec.areas == {NckArea.A} and "[" not in text:
+        raise NckConfigError(f"{text!r}: {spec.number or spec.name} is an axis variable: say which axis, "
+                             f"e.g. {text.strip()}[AX4]")
+    return variable
+
+
 def run_get(args: argparse.Namespace) -> int:
-    variables = [parse_variable(v) for v in args.variables]
+    variables = [_parse(v) for v in args.variables]
 
     async def go() -> list[ItemResult]:
         async with _client(args) as client:
@@ -133,7 +195,7 @@ def run_put(args: argparse.Namespace) -> int:
         name, sep, text = assignment.partition("=")
         if not sep:
             raise NckConfigError(f"{assignment!r}: expected VAR=VALUE")
-        variable = parse_variable(name)
+        variable = _parse(name)
         pairs.append((variable, _parse_value(variable, text)))
 
     async def go() -> list[ItemResult]:
@@ -144,7 +206,8 @@ def run_put(args: argparse.Namespace) -> int:
 
     results = asyncio.run(go())
     return _print_results([ItemResult(r.variable, r.return_code, v if r.ok else None)
-                           for r, (_, v) in zip(results, pairs, strict=True)], args.json)
+                           for r, (_, v) in zip(results, pairs, strict=True)], args.json,
+                          written=[v for _, v in pairs])
 
 
 def run_pi(args: argparse.Namespace) -> int:
@@ -164,14 +227,27 @@ def run_pi(args: argparse.Namespace) -> int:
 
 
 def run_comp840c(args: argparse.Namespace) -> int:
+    if args.flags is None:
+        args.flags = "UA" if args.slope or args.p0 is not None else "U"
     flags = args.flags.upper()
-    if set(flags) - {"U", "A"}:
+    if not flags or set(flags) - {"U", "A"}:
         raise NckConfigError(f"--flags {args.flags!r}: only U and A")
+    if "A" in flags and not args.p0:
+        raise NckConfigError("--flags A (position dependent) needs --p0, a reference position other than 0: "
+                             "the 840C refuses P0 at the axis zero point (channel error 10)")
+    p0_mm = args.p0 or 0.0
 
     async def go() -> None:
         async with _client(args) as client:
-            await Channel840C(client, user_db=args.db, data_word=args.dw).send(
-                args.axis, args.k0, args.slope, args.p0, "U" in flags, "A" in flags)
+            try:
+                await Channel840C(client, user_db=args.db, data_word=args.dw).send(
+                    args.axis, args.k0, args.slope, p0_mm, "U" in flags, "A" in flags)
+            except NckError as exc:
+                if exc.return_code != 0x0A:
+                    raise
+                raise type(exc)(f"user DB{args.db} does not exist on the controller (--db names it; "
+                                f"`nckemu machine show` lists an emulator's DBs): "
+                                f"{describe_return_code(0x0A)}", return_code=0x0A) from None
 
     asyncio.run(go())
     print(json.dumps({"axis": args.axis, "ok": True}) if args.json else f"840C TC sent for axis {args.axis}")
@@ -188,8 +264,11 @@ def _check_leadscrew_program(path: Path) -> None:
     except (OSError, UnicodeDecodeError) as exc:
         raise NckConfigError(f"cannot read: {exc}", path=str(path)) from None
     axes: dict[str, int] = {}
-    parse_leadscrew_program(text, str(path), lambda ref: axes.setdefault(ref.upper(), len(axes) + 1),
-                            lambda _axis, _encoder: 1 << 30)
+    tables = parse_leadscrew_program(text, str(path), lambda ref: axes.setdefault(ref.upper(), len(axes) + 1),
+                                     lambda _axis, _encoder: 1 << 30)
+    if not tables:
+        raise NckConfigError("no leadscrew table in it (expected $AA_ENC_COMP[...] lines); nothing sent",
+                             path=str(path))
 
 
 def run_lec(args: argparse.Namespace) -> int:
@@ -205,7 +284,12 @@ def run_lec(args: argparse.Namespace) -> int:
             try:
                 await client.pi_service(PI_LOAD_LEADSCREW, "/NC", str(path))
             except NckError as exc:
-                raise type(exc)(f"{path}: the controller refused the table ({exc}); its log names the line",
+                if exc.header_error == 0x8703:
+                    why = ("the access level is too low: loading needs MD32700's write level "
+                           "(log in with --password, e.g. EVENING)")
+                else:
+                    why = "the controller refused the table; the emulator's log (nckemu serve) says why"
+                raise type(exc)(f"{path}: {why} ({exc})",
                                 error_class=exc.error_class, error_code=exc.error_code) from None
             if args.power_on:
                 await client.pi_service(PI_POWER_ON, "/NC")

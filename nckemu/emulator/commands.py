@@ -10,7 +10,9 @@ import logging
 import signal
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
+from nckemu.cliutil import check_output, listen_port
 from nckemu.errors import NckConfigError
 
 from .core import Emulator
@@ -21,7 +23,7 @@ log = logging.getLogger(__name__)
 EXAMPLE = """\
 examples:
   nckemu serve --port 1102
-  nckemu serve --machine fixtures/machines/lathe.toml --state state.json --record session.pcapng
+  nckemu serve --machine fixtures/machines/warm_z.toml --state state.json --record session.pcapng
 then, e.g. with python-snap7:
   import snap7; c = snap7.Client(); c.connect("127.0.0.1", 0, 4, 1102); print(c.get_cpu_info())
 """
@@ -34,7 +36,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         description="Serve an emulated SINUMERIK NCU (NCK + PLC) on ISO-on-TCP (S7comm).")
     parser.add_argument("--machine", help="machine TOML (default: the built-in default machine)")
     parser.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
-    parser.add_argument("--port", type=int, default=102, help="TCP port (default 102, needs root)")
+    parser.add_argument("--port", type=listen_port, default=102,
+                        help="TCP port 1..65535, 0 for any free one (default 102, needs root; make serve uses 1102)")
     parser.add_argument("--state", help="retained-data file (SD/MD survive restarts)")
     parser.add_argument("--record", help="write every frame both ways to this pcapng file")
     parser.add_argument("--lec", action="append", default=[],
@@ -46,8 +49,56 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help="seconds a begun frame may take to complete")
     parser.add_argument("--loop", choices=("auto", "uvloop", "asyncio"), default="auto",
                         help="event loop: uvloop (faster, libuv) when installed, else asyncio's own (auto)")
-    parser.add_argument("--json", action="store_true", help="print the ready line as JSON")
+    parser.add_argument("--json", action="store_true", help="print the ready line as JSON on stdout")
     parser.set_defaults(func=run_serve)
+
+    machine = subparsers.add_parser("machine", help="show a machine: axes, sensors, PLC memory, passwords")
+    machine_commands = machine.add_subparsers(dest="machine_command", metavar="COMMAND")
+    show = machine_commands.add_parser(
+        "show", help="what a machine TOML (or the built-in default machine) serves",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  nckemu machine show\n  nckemu machine show --machine fixtures/machines/bed_ramp.toml --json\n")
+    show.add_argument("--machine", help="machine TOML (default: the built-in default machine)")
+    show.add_argument("--json", action="store_true", help="print the machine as JSON on stdout")
+    show.set_defaults(func=run_machine_show)
+    machine.set_defaults(func=lambda args: machine.print_help() or 2)
+
+
+def run_machine_show(args: argparse.Namespace) -> int:
+    from nckemu.protocol.db41 import CHANNEL_DB
+
+    from .machine import load_machine
+    from .plc.memory import AREA_BYTES
+
+    machine = load_machine(args.machine)
+    blocks = dict(sorted({**machine.data_blocks, CHANNEL_DB: machine.data_blocks.get(CHANNEL_DB, 64)}.items()))
+    document = {
+        "name": machine.name, "source": machine.source,
+        "axes": [{"number": a.number, "name": a.name, "travel_mm": [a.travel_min_mm, a.travel_max_mm],
+                  "rotary": a.rotary, "spindle": a.spindle, "referenced": a.referenced} for a in machine.axes],
+        "sensors": [{"name": s.name, "plc_input": s.plc_input, "temperature_C": s.temperature_C}
+                    for s in machine.sensors],
+        "plc": {"data_blocks": {str(n): size for n, size in blocks.items()},
+                "inputs_bytes": AREA_BYTES, "outputs_bytes": AREA_BYTES, "flags_bytes": AREA_BYTES},
+        "passwords": machine.passwords, "connection_access_level": machine.connection_access_level,
+    }
+    if args.json:
+        print(json.dumps(document))
+        return 0
+    print(f"machine '{machine.name}' ({machine.source})")
+    for axis in machine.axes:
+        kind = "spindle" if axis.spindle else "rotary" if axis.rotary else \
+            f"travel {axis.travel_min_mm:g}..{axis.travel_max_mm:g} mm"
+        print(f"  axis {axis.number} {axis.name}: {kind}{'' if axis.referenced else ', not referenced'}")
+    for sensor in machine.sensors:
+        print(f"  sensor {sensor.name}: {sensor.plc_input or 'no PLC input'}, {sensor.temperature_C:g} degC")
+    print("  PLC data blocks (number: bytes): "
+          + ", ".join(f"DB{n}: {size}" for n, size in blocks.items()) + "; any other DB does not exist")
+    print(f"  PLC inputs, outputs, flags: {AREA_BYTES} bytes each (I/Q/M 0..{AREA_BYTES - 1})")
+    print(f"  access level of a new connection: {machine.connection_access_level}; passwords: "
+          + ", ".join(f"{name} -> {level}" for name, level in machine.passwords.items()))
+    print("  NCK variables: the variable table (README, Variables); e.g. nckemu get SD43900[AX4]")
+    return 0
 
 
 def loop_factory(choice: str = "auto") -> Callable[[], asyncio.AbstractEventLoop]:
@@ -63,11 +114,23 @@ def loop_factory(choice: str = "auto") -> Callable[[], asyncio.AbstractEventLoop
     return asyncio.new_event_loop
 
 
+def _read_program(path: str) -> str:
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise NckConfigError(f"cannot read: {exc.strerror}", path=path) from None
+    except UnicodeDecodeError:
+        raise NckConfigError("not a text file (an NC program is text)", path=path) from None
+
+
 def run_serve(args: argparse.Namespace) -> int:
+    check_output(args.record, "--record")
+    check_output(args.state, "--state")
+    programs = [(path, _read_program(path)) for path in args.lec]
     emulator = Emulator(args.machine, state_path=args.state)
-    for path in args.lec:
-        with open(path, encoding="utf-8") as handle:
-            emulator.nck.load_leadscrew_program(handle.read(), source=path)
+    for path, text in programs:
+        if not emulator.nck.load_leadscrew_program(text, source=path):
+            raise NckConfigError("no leadscrew table in it (expected $AA_ENC_COMP[...] lines)", path=path)
     if args.lec:
         emulator.power_on()
     limits = ServerLimits(max_connections=args.max_connections, idle_timeout_s=args.idle_timeout,

@@ -13,6 +13,7 @@ from .clock import Clock, MonotonicClock
 from .dispatch import Dispatcher
 from .machine import Machine, load_machine
 from .nck.access import HIGHEST_LEVEL, AccessContext
+from .nck.alarms import ALARM_RETAINED_STATE
 from .nck.model import NckModel
 from .plc import PlcModel
 from .state import RetainedStore
@@ -28,7 +29,7 @@ class Emulator:
         self.machine = machine if isinstance(machine, Machine) else load_machine(machine)
         self.clock = clock or MonotonicClock()
         self.nck = NckModel(self.machine, self.clock)
-        self.plc = PlcModel(self.machine, self.nck)
+        self.plc = PlcModel(self.machine, self.nck, clock=self.clock)
         self.store = RetainedStore(Path(state_path)) if state_path is not None else None
         # An alarm text while retained state cannot be written (disk full, read-only directory).
         self.persist_alarm: str | None = None
@@ -38,7 +39,9 @@ class Emulator:
                 self.nck.restore_retained(snapshot)
                 log.info("retained state loaded from %s", self.store.path)
         self.dispatcher = Dispatcher(self.nck, self.plc, persist=self.persist,
-                                     default_access_level=self.default_access_level)
+                                     default_access_level=self.default_access_level,
+                                     userdata_not_served_error=self.machine.settings.userdata_not_served_error,
+                                     unsupported_function_error=self.machine.settings.unsupported_function_error)
 
     @property
     def default_access_level(self) -> int:
@@ -57,7 +60,7 @@ class Emulator:
             if self.persist_alarm is not None:
                 self.nck.alarm_list.clear(self.persist_alarm)
             self.persist_alarm = f"retained state not saved: {exc}"
-            self.nck.alarm_list.raise_alarm(self.persist_alarm)
+            self.nck.alarm_list.raise_alarm(self.persist_alarm, ALARM_RETAINED_STATE, (str(exc),))
         else:
             if self.persist_alarm is not None:
                 log.warning("retained state written again to %s; alarm cleared", self.store.path)

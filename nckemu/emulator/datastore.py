@@ -7,6 +7,7 @@ implement these; a test or another backend can too.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from datetime import datetime
 from typing import Protocol
 
 from nckemu.protocol.addresses import NckAddress, NckType
@@ -41,6 +42,14 @@ class PlcDatastore(Protocol):
 
     def szl(self, szl_id: int, szl_index: int) -> bytes:
         """The SZL answer's records (raises an NckError when the list is not available)."""
+        ...
+
+    def now(self) -> datetime:
+        """The PLC's clock (userdata "read clock")."""
+        ...
+
+    def block_counts(self) -> dict[int, int]:
+        """Blocks by type code (0x38 OB, 0x41 DB, ...) for userdata "list blocks"."""
         ...
 
     def plc_control(self, action: str) -> None:

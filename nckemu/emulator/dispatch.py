@@ -12,6 +12,7 @@ import logging
 from collections.abc import Callable
 
 from nckemu.errors import (
+    HeaderError,
     NckAddressOutOfRange,
     NckError,
     NckItemError,
@@ -42,12 +43,18 @@ RC_OBJECT_DOES_NOT_EXIST = int(ReturnCode.OBJECT_DOES_NOT_EXIST)
 # Read jobs by parameter bytes: clients poll the same items; the parsed request is immutable.
 MAX_CACHED_READ_REQUESTS = 1024
 
-# Data-item transport sizes of answers to S7ANY reads (the length counts bits for 0x03/0x04/0x05).
+# Data-item transport sizes of answers to S7ANY reads (the length counts bits for 0x03/0x04/0x05),
+# as C snap7's PerformFunctionRead answers them: BIT 0x03; BYTE, WORD, DWORD 0x04; INT and DINT 0x05;
+# REAL 0x07; CHAR, TIMER, COUNTER 0x09 (notes/catalogue.md 5 (e); no capture of a real CPU found).
 DATA_TS_BIT = 0x03
 DATA_TS_BYTE_WORD_DWORD = 0x04
 DATA_TS_INTEGER = 0x05
 DATA_TS_REAL = 0x07
 DATA_TS_OCTET_STRING = 0x09
+# Userdata groups and subfunctions we do not serve: a userdata answer with this error in its parameter
+# and data 0A 00 00 00 (the form C snap7 gives unavailable SZLs and tshark decodes; what a real CPU
+# answers for an unserved group was not found: the machine's settings.userdata_not_served_error).
+USERDATA_NOT_SERVED = 0x8104
 
 _ELEMENT_BYTES: dict[int, int] = {
     S7TransportSize.BYTE: 1, S7TransportSize.CHAR: 1, S7TransportSize.WORD: 2,
@@ -55,9 +62,9 @@ _ELEMENT_BYTES: dict[int, int] = {
     S7TransportSize.REAL: 4, S7TransportSize.COUNTER: 2, S7TransportSize.TIMER: 2,
 }
 _ANSWER_TRANSPORT_SIZE: dict[int, int] = {
-    S7TransportSize.BYTE: DATA_TS_BYTE_WORD_DWORD, S7TransportSize.CHAR: DATA_TS_BYTE_WORD_DWORD,
+    S7TransportSize.BYTE: DATA_TS_BYTE_WORD_DWORD, S7TransportSize.CHAR: DATA_TS_OCTET_STRING,
     S7TransportSize.WORD: DATA_TS_BYTE_WORD_DWORD, S7TransportSize.DWORD: DATA_TS_BYTE_WORD_DWORD,
-    S7TransportSize.INT: DATA_TS_INTEGER, S7TransportSize.DINT: DATA_TS_BYTE_WORD_DWORD,
+    S7TransportSize.INT: DATA_TS_INTEGER, S7TransportSize.DINT: DATA_TS_INTEGER,
     S7TransportSize.REAL: DATA_TS_REAL, S7TransportSize.COUNTER: DATA_TS_OCTET_STRING,
     S7TransportSize.TIMER: DATA_TS_OCTET_STRING,
 }
@@ -113,9 +120,14 @@ class Dispatcher:
 
     def __init__(self, nck: NckDatastore, plc: PlcDatastore, *,
                  persist: Callable[[], None] | None = None,
-                 default_access_level: int = 7) -> None:
+                 default_access_level: int = 7,
+                 userdata_not_served_error: int = USERDATA_NOT_SERVED,
+                 unsupported_function_error: int = HeaderError.NOT_IMPLEMENTED) -> None:
         self.nck = nck
         self.plc = plc
+        self.userdata_not_served_error = userdata_not_served_error
+        # The session answers a job this dispatcher returns None for with an ACK carrying this error.
+        self.unsupported_function_error = unsupported_function_error
         self._persist = persist
         self.default_access_level = default_access_level
         self._read_requests: dict[bytes, s7.ReadVarRequest] = {}
@@ -248,14 +260,27 @@ class Dispatcher:
 
     # ------------------------------------------------------------------ userdata
     def userdata(self, pdu: s7.S7Pdu, ctx: AccessContext) -> s7.S7Pdu | None:
-        request = szl.parse_szl_request(pdu.parameter, pdu.data)
-        try:
-            records = self.plc.szl(request.szl_id, request.szl_index)
-        except NckError as exc:
-            log.info("SZL 0x%04X/0x%04X refused: %s", request.szl_id, request.szl_index, exc)
-            parameter, data = szl.build_szl_error_response(request)
+        """Read SZL, list blocks, read clock; any other group or subfunction gets a userdata answer
+        with ``userdata_not_served_error`` in its parameter (a parameter that does not parse raises,
+        and the session answers 0x8500 as for any job)."""
+        request = szl.parse_userdata_request(pdu.parameter, pdu.data)
+        service = (request.group, request.subfunction)
+        if service == (szl.GROUP_CPU_FUNCTIONS, szl.SUBFUNCTION_READ_SZL):
+            szl_request = szl.szl_request_of(request)
+            try:
+                records = self.plc.szl(szl_request.szl_id, szl_request.szl_index)
+            except NckError as exc:
+                log.info("SZL 0x%04X/0x%04X refused: %s", szl_request.szl_id, szl_request.szl_index, exc)
+                parameter, data = szl.build_userdata_error_response(request, exc.header_error)
+            else:
+                parameter, data = szl.build_szl_response(szl_request, records)
+        elif service == (szl.GROUP_BLOCK_FUNCTIONS, szl.SUBFUNCTION_LIST_BLOCKS):
+            parameter, data = szl.build_userdata_response(request, szl.build_block_counts(self.plc.block_counts()))
+        elif service == (szl.GROUP_TIME_FUNCTIONS, szl.SUBFUNCTION_READ_CLOCK):
+            parameter, data = szl.build_userdata_response(request, szl.build_clock(self.plc.now()))
         else:
-            parameter, data = szl.build_szl_response(request, records)
+            log.info("userdata group %d subfunction %d not served", request.group, request.subfunction)
+            parameter, data = szl.build_userdata_error_response(request, self.userdata_not_served_error)
         return s7.S7Pdu(s7.Rosctr.USERDATA, pdu.pdu_ref, parameter, data)
 
     # ------------------------------------------------------------------ items

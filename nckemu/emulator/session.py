@@ -11,7 +11,15 @@ Policy for bad input, in order of how much of the frame we could understand:
   does not parse: the connection is closed (the controller cannot even tell whom to answer);
 * an S7 job whose header parses but whose parameters do not: ACK_DATA with header error 0x85/0x00
   ("wrong frames"), echoing the PDU reference and function, the connection stays open;
-* an S7 function we do not serve: ACK_DATA with 0x81/0x04 (what a real 840D sl answered, GH107);
+* an S7 function we do not serve (upload, download, ...): ACK (ROSCTR 2) with the header error and
+  no parameter, the form C snap7 and python-snap7 answer and tshark decodes for every function
+  (ROSCTR 3 with the function byte alone is "malformed" for 0x1D start upload: notes/catalogue.md
+  5 (c)); the error is the machine's settings.unsupported_function_error, by default 0x81/0x04, what
+  a real 840D sl answered (GH107);
+* a userdata group we do not serve: a userdata answer with the error in its parameter (dispatch.py);
+* an empty COTP DT (with or without EOT, e.g. the 7-byte DT some collectors send after every job in
+  the same TCP write) is ignored, as C snap7 does: no answer, the connection stays open;
+* an answer longer than the negotiated TPDU size goes out in several DTs (COTP segmentation);
 * a job before setup communication: 0x84/0x01 ("invalid service sequence");
 * more jobs outstanding than the granted AMQ: the extras get 0x83/0x02 (no resources).
 """
@@ -26,12 +34,17 @@ from dataclasses import dataclass, field
 from nckemu.emulator.dispatch import Dispatcher
 from nckemu.emulator.nck.access import AccessContext
 from nckemu.errors import HeaderError, NckError
-from nckemu.protocol import cotp, s7, tpkt
+from nckemu.protocol import cotp, s7, szl, tpkt, userdata
 from nckemu.protocol.errors import NckProtocolError
 
 log = logging.getLogger(__name__)
 
 SETUP_PARAMETER_BYTES = 8
+MIN_PDU_SIZE = 240
+# Job functions answered in ACK_DATA with the function byte in the parameter; any other function is
+# answered with an ACK (ROSCTR 2) that carries only the header error.
+_ACK_DATA_FUNCTIONS = frozenset({s7.Function.READ_VAR, s7.Function.WRITE_VAR, s7.Function.PI_SERVICE,
+                                 s7.Function.PLC_STOP, s7.Function.SETUP_COMMUNICATION})
 # Where the S7 PDU starts in a frame with one whole PDU in one DT: TPKT (4) + COTP DT (3).
 _PDU_OFFSET = 7
 
@@ -137,6 +150,10 @@ class ServerSession:
         self._fragment_bytes = 0
         self._src_ref = 0x0001
         self._on_close = on_close
+        # The parts still to send of one userdata answer longer than the PDU: sequence number and the
+        # (parameter, data) pairs; one long answer at a time, as a client reads them one by one.
+        self._userdata_parts: tuple[int, list[tuple[bytes, bytes]]] | None = None
+        self._userdata_sequence = 0
 
     @property
     def has_partial_frame(self) -> bool:
@@ -181,7 +198,7 @@ class ServerSession:
             # framing loop: what the loop below would answer (tests/property/test_fast_read.py).
             read_answer = self._fast_read(data)
             if read_answer is not None:
-                return [read_answer]
+                return self._data_frames(read_answer)
         if self.closed:
             return []
         buffer = self._buffer + data if self._buffer else data
@@ -202,18 +219,19 @@ class ServerSession:
             if jobs_in_flight >= self.info.amq * self.limits.flood_factor:
                 self.close(f"flooding: more than {jobs_in_flight} jobs at once, AMQ is {self.info.amq}")
                 break
-            if frame[4:7] == cotp.DT_HEADER_EOT and self.state is SessionState.READY and not self._fragments:
+            if frame[4:7] == cotp.DT_HEADER_EOT and len(frame) > _PDU_OFFSET and self.state is SessionState.READY \
+                    and not self._fragments:
                 # The common case, a whole S7 PDU in one DT: skip building a DataTpdu for it.
                 jobs_in_flight += 1
                 over_amq = jobs_in_flight > self.info.amq
                 if not over_amq:
                     read_answer = self._fast_read(frame)
                     if read_answer is not None:
-                        out.append(read_answer)
+                        out.extend(self._data_frames(read_answer))
                         continue
                 answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=over_amq)
                 if answer is not None:
-                    out.append(cotp.build_data_frame(answer))
+                    out.extend(self._data_frames(answer))
                 continue
             try:
                 payload = tpkt.parse_tpkt(frame)
@@ -228,7 +246,7 @@ class ServerSession:
                 jobs_in_flight += 1
                 answer = self._handle_pdu(pdu_bytes, over_amq=jobs_in_flight > self.info.amq)
                 if answer is not None:
-                    out.append(cotp.build_data_frame(answer))
+                    out.extend(self._data_frames(answer))
             elif isinstance(tpdu, cotp.ConnectRequest):
                 out.extend(self._handle_connect(tpdu))
             elif isinstance(tpdu, cotp.DisconnectRequest):
@@ -238,12 +256,21 @@ class ServerSession:
                 self.close(f"unexpected COTP {type(tpdu).__name__}")
         return out
 
+    def _data_frames(self, pdu: bytes) -> list[bytes]:
+        """The frames carrying one answer PDU: one DT, or several where it exceeds the TPDU size."""
+        if len(pdu) + len(cotp.DT_HEADER_EOT) <= self.info.tpdu_size:
+            return [cotp.build_data_frame(pdu)]
+        return cotp.build_data_frames(pdu, self.info.tpdu_size)
+
     def _reassemble(self, tpdu: cotp.DataTpdu) -> bytes | None:
         self._advance(Event.DATA)
         if self.closed:
             return None
-        if not tpdu.payload and not tpdu.eot:
-            return None  # "fast acknowledge" some peers send; nothing to answer
+        if not tpdu.payload and (not tpdu.eot or not self._fragments):
+            # An empty DT: the "fast acknowledge" some peers send, or the 7-byte DT LSC (828D
+            # collector) sends after every job (notes/catalogue.md 2.1); with EOT and no PDU begun it
+            # ends nothing. C snap7 ignores both; nothing to answer, the connection stays open.
+            return None
         self._fragment_bytes += len(tpdu.payload)
         if self._fragment_bytes > self.limits.max_reassembly_bytes:
             self.close("fragmented PDU larger than the reassembly limit")
@@ -275,7 +302,7 @@ class ServerSession:
 
     # ------------------------------------------------------------------ S7
     def _fast_read(self, frame: bytes) -> bytes | None:
-        """The answer frame to a well-formed read-var job within the limits, straight from the header;
+        """The answer PDU to a well-formed read-var job within the limits, straight from the header;
         None leaves the job to ``_handle_pdu``, which also gives every error its answer."""
         job = s7.peek_read_var_job(frame, _PDU_OFFSET)
         if job is None or len(frame) - _PDU_OFFSET > self.info.pdu_size:
@@ -287,7 +314,7 @@ class ServerSession:
         if len(answer) > self.info.pdu_size:
             return None
         self.info.jobs += 1
-        return cotp.build_data_frame(answer)
+        return answer
 
     def _handle_pdu(self, raw: bytes, *, over_amq: bool) -> bytes | None:
         try:
@@ -311,6 +338,10 @@ class ServerSession:
             return self._error_answer(pdu, HeaderError.NO_RESOURCES)
         if len(raw) > self.info.pdu_size:
             return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
+        if pdu.rosctr == s7.Rosctr.USERDATA and self._userdata_parts is not None:
+            next_part = self._next_userdata_part(pdu)
+            if next_part is not None:
+                return next_part
         try:
             if pdu.rosctr == s7.Rosctr.USERDATA:
                 answer = self.dispatcher.userdata(pdu, self.access)
@@ -325,11 +356,38 @@ class ServerSession:
             log.exception("job 0x%02X from %s failed inside the emulator", function & 0xFF, self.info.peer)
             return self._error_answer(pdu, HeaderError.NOT_IMPLEMENTED)
         if answer is None:
-            return self._error_answer(pdu, HeaderError.NOT_IMPLEMENTED)
+            return self._error_answer(pdu, self.dispatcher.unsupported_function_error)
         encoded = s7.build_pdu(answer)
         if len(encoded) > self.info.pdu_size:
+            if answer.rosctr == s7.Rosctr.USERDATA:
+                return self._userdata_in_parts(answer)
             return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         return encoded
+
+    def _userdata_in_parts(self, answer: s7.S7Pdu) -> bytes:
+        """The first part of a userdata answer longer than the PDU (a long SZL at PDU 240); the client
+        asks for the others with next-part requests naming the sequence number."""
+        head = userdata.parse_userdata_parameter(answer.parameter)
+        self._userdata_sequence = self._userdata_sequence % 255 + 1
+        parts = szl.split_userdata_answer(head.group, head.subfunction, answer.data,
+                                          self.info.pdu_size - szl.PART_OVERHEAD, self._userdata_sequence)
+        self._userdata_parts = (self._userdata_sequence, parts[1:])
+        return s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, answer.pdu_ref, *parts[0]))
+
+    def _next_userdata_part(self, pdu: s7.S7Pdu) -> bytes | None:
+        """The next part, where ``pdu`` asks for it; None leaves the PDU to the dispatcher."""
+        assert self._userdata_parts is not None
+        try:
+            head = userdata.parse_userdata_parameter(pdu.parameter)
+        except NckProtocolError:
+            return None
+        sequence, parts = self._userdata_parts
+        if not szl.is_next_part_request(head) or head.sequence != sequence or not parts:
+            return None
+        parameter, data = parts.pop(0)
+        if not parts:
+            self._userdata_parts = None
+        return s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, pdu.pdu_ref, parameter, data))
 
     def _handle_setup(self, pdu: s7.S7Pdu) -> bytes:
         try:
@@ -338,8 +396,9 @@ class ServerSession:
             return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         # The granted AMQ is the server's own (as real CPUs and python-snap7's server answer a
         # fixed value); python-snap7 3.3 asks for 1 and then pipelines up to 8 jobs anyway.
-        pdu_size = max(min(request.pdu_length, self.limits.pdu_size_max), 240) \
-            if request.pdu_length >= 240 else request.pdu_length
+        # A PDU size below 240 (even 0) is raised to 240, as C snap7's PerformFunctionNegotiate does
+        # (MinPduSize; notes/catalogue.md 5 (f)): granted verbatim, every job would be refused.
+        pdu_size = max(min(request.pdu_length, self.limits.pdu_size_max), MIN_PDU_SIZE)
         self.info.pdu_size = pdu_size
         self.info.amq = self.limits.max_amq
         self._advance(Event.SETUP)
@@ -355,6 +414,9 @@ class ServerSession:
         if pdu.rosctr == s7.Rosctr.USERDATA:
             return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu.pdu_ref, function,
                                          error_class=error_class, error_code=error_code))
+        if function and function[0] not in _ACK_DATA_FUNCTIONS:
+            return s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK, pdu.pdu_ref, error_class=error_class,
+                                         error_code=error_code))
         parameter = function
         if function and function[0] in (s7.Function.READ_VAR, s7.Function.WRITE_VAR):
             parameter = function + b"\x00"

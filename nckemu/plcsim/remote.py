@@ -31,8 +31,7 @@ class InputMirror:
         value = self._values.get(key)
         if value is None:
             try:
-                value = self.client.submit(self.client.async_client.plc_read(S7Area.I, 0, offset, size)) \
-                    .result(self.timeout_s)
+                value = self.client.plc_read(S7Area.I, 0, offset, size)
             except (NckError, concurrent.futures.TimeoutError) as exc:
                 log.warning("input bytes %d..%d: %s; the program sees zeros", offset, offset + size - 1, exc)
                 self.failures += 1

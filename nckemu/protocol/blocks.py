@@ -29,13 +29,15 @@ import struct
 from dataclasses import dataclass
 
 from .errors import NckProtocolError, NckTruncatedError
+from .s7 import Function
 
-REQUEST_DOWNLOAD = 0x1A
-DOWNLOAD_BLOCK = 0x1B
-DOWNLOAD_ENDED = 0x1C
-START_UPLOAD = 0x1D
-UPLOAD = 0x1E
-END_UPLOAD = 0x1F
+# The block transfer functions as plain ints (they are compared with raw parameter bytes).
+REQUEST_DOWNLOAD = int(Function.REQUEST_DOWNLOAD)
+DOWNLOAD_BLOCK = int(Function.DOWNLOAD_BLOCK)
+DOWNLOAD_ENDED = int(Function.DOWNLOAD_ENDED)
+START_UPLOAD = int(Function.START_UPLOAD)
+UPLOAD = int(Function.UPLOAD)
+END_UPLOAD = int(Function.END_UPLOAD)
 FUNCTIONS = frozenset(range(REQUEST_DOWNLOAD, END_UPLOAD + 1))
 
 BLOCK_TYPE_NAMES = {"08": "OB", "09": "CMod", "0A": "DB", "0B": "SDB", "0C": "FC", "0D": "SFC", "0E": "FB",

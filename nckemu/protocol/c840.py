@@ -24,6 +24,7 @@ USER_DB_BYTES = 2 * USER_DB_WORDS
 LENGTH_WORDS = 7
 MAX_UNITS = 1_073_741_823
 TAN_BETA_SCALE = 2**31 - 1
+TAN_BETA_MIN = -(2**31)
 
 
 class C840FormatError(NckProtocolError):
@@ -72,6 +73,9 @@ class TempCompUserDb:
 
     @property
     def tan_beta(self) -> float:
+        # 0x80000000 is exactly -1 (weight 2^-31); +1 is 0x7FFFFFFF, one unit short (issue 14 2.10).
+        if self.tan_beta_raw == TAN_BETA_MIN:
+            return -1.0
         return self.tan_beta_raw / TAN_BETA_SCALE
 
     def p0_mm(self, layout: C840Layout = C840Layout()) -> float:
@@ -96,7 +100,7 @@ def build_user_db(db: TempCompUserDb, layout: C840Layout = C840Layout()) -> byte
     for value, word in ((db.k_tcabs_units, 2), (db.p0_units, 6)):
         if abs(value) > MAX_UNITS:
             raise C840FormatError(f"{value} outside +-{MAX_UNITS}", word)
-    if abs(db.tan_beta_raw) > TAN_BETA_SCALE:
+    if not TAN_BETA_MIN <= db.tan_beta_raw <= TAN_BETA_SCALE:
         raise C840FormatError("|tan beta| > 1", 4)
     flags = (db.position_independent << layout.u_bit) | (db.position_dependent << layout.a_bit)
     words = [LENGTH_WORDS, flags | db.axis]
@@ -124,8 +128,6 @@ def parse_user_db(data: bytes, layout: C840Layout = C840Layout()) -> TempCompUse
     p0_units = _join(words[6], words[7], layout.high_word_first)
     if abs(k_units) > MAX_UNITS:
         raise C840FormatError(f"K_TCabs {k_units} outside +-{MAX_UNITS}", 2)
-    if tan_raw == -(2**31):
-        raise C840FormatError("tan beta 0x80000000 is beyond -1", 4)
     if abs(p0_units) > MAX_UNITS:
         raise C840FormatError(f"P0 {p0_units} outside +-{MAX_UNITS}", 6)
     return TempCompUserDb(axis, bool(words[1] >> layout.u_bit & 1), bool(words[1] >> layout.a_bit & 1),

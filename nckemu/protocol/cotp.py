@@ -220,6 +220,23 @@ def build_data_frame(payload: bytes) -> bytes:
     return build_tpkt(DT_HEADER_EOT + payload)
 
 
+DT_HEADER_MORE = bytes([2, CODE_DT, 0x00])
+
+
+def build_data_frames(payload: bytes, tpdu_size: int) -> list[bytes]:
+    """One S7 PDU in as many DTs as the negotiated TPDU size needs (COTP segmentation, ISO 8073:
+    the TPDU size counts the 3-byte DT header and the user data, not TPKT); every DT but the last
+    has EOT clear. Class 0 numbers no TPDU, so the number stays 0 (as C snap7 sends them)."""
+    room = tpdu_size - len(DT_HEADER_EOT)
+    if room <= 0:
+        raise NckProtocolError(f"TPDU size {tpdu_size} leaves no room for data")
+    if len(payload) <= room:
+        return [build_tpkt(DT_HEADER_EOT + payload)]
+    last = (len(payload) - 1) // room * room
+    return [build_tpkt((DT_HEADER_EOT if offset == last else DT_HEADER_MORE) + payload[offset:offset + room])
+            for offset in range(0, len(payload), room)]
+
+
 def build_frame(tpdu: Cotp) -> bytes:
     """A whole frame: TPKT around COTP."""
     return build_tpkt(build_cotp(tpdu))

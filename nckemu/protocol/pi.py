@@ -112,6 +112,14 @@ PI_SERVICES: dict[str, PiServiceSpec] = _specs(
     ("_N_TMMVTL", "Loads or unloads a tool",
      "addressident,toolnumber,placenrsource,magnrsource,placenrdestination,magnrdestination"),
     ("_N_TMPCIT", "Sets increment value of the piece counter", "addressident,spindlenumber,incrementnumber"),
+    # Names, texts and argument lists as tshark 4.0.17 decodes them (notes/catalogue.md 5 (d)).
+    ("_N_TMFPBP", "Searches for empty location",
+     "addressident,magnrfrom,placenrfrom,magnrto,placenrto,magrefnr,placerefnr,halfplacesleft,"
+     "halfplacesright,halfplacesup,halfplacesdown,placetype,searchdirection"),
+    ("_N_TMPOSM", "Positions a magazine or tool",
+     "addressident,toolnumber,toolid,duplonumber,placenrsource,magnrsource,placenrdestination,magnrdestination"),
+    ("_N_TSEARC", "Complex search via search screenforms",
+     "addressident,magnrfrom,placenrfrom,magnrto,placenrto,magrefnr,placerefnr,searchdirection,kindofsearch"),
     ("_N_TRESMO", "Reset monitoring values", "addressident,toolnumber,dnr,monitoringmode"),
     # Not in Wireshark's table (tshark shows "Unknown PI Service"): SET USER DATA TAKE OVER.
     ("_N_SETUDT", "Activates current user data (tool offsets, frames)", "addressident"),

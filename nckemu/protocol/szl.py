@@ -1,27 +1,160 @@
-"""Userdata (ROSCTR 7), CPU functions, read SZL: what S7 clients ask to identify a CPU.
+"""Userdata (ROSCTR 7): CPU functions (read SZL), block functions (list blocks), time (read clock).
 
 Request parameter ``00 01 12 04 11 44 01 00`` (head, length 4, method request, type request and
 group 4 "CPU functions", subfunction 1 "read SZL", sequence); data ``FF 09 00 04`` + SZL ID + index.
 Answer parameter ``00 01 12 08 12 84 01 <seq> 00 00 <error code>``; data ``FF 09 len`` + the SZL
 (ID, index, record length, record count, records), or ``0A 00 00 00`` with an error code.
+
+Every other group answers in the same form, ``12 8<group> <subfunction>`` in the parameter; an
+error travels in the parameter's last two bytes with data ``0A 00 00 00`` (C snap7's
+``SZLNotAvailable`` answer; python-snap7 3.3's client reads the error from parameter bytes 10-11;
+tshark 4.0 decodes group 7 and group 3 answers of this form without "malformed": notes/catalogue.md
+section 5 (a)).
 """
 
 from __future__ import annotations
 
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
+from datetime import datetime
 
+from . import userdata
 from .errors import NckProtocolError, NckServiceError, NckTruncatedError
+from .userdata import METHOD_REQUEST, METHOD_RESPONSE, TYPE_PUSH, TYPE_REQUEST, TYPE_RESPONSE
 
-METHOD_REQUEST = 0x11
-METHOD_RESPONSE = 0x12
-GROUP_CPU_FUNCTIONS = 0x04
+GROUP_BLOCK_FUNCTIONS = userdata.GROUP_BLOCK
+GROUP_CPU_FUNCTIONS = userdata.GROUP_CPU
+GROUP_TIME_FUNCTIONS = userdata.GROUP_TIME
 SUBFUNCTION_READ_SZL = 0x01
-TYPE_PUSH = 0x0
-TYPE_REQUEST = 0x4
-TYPE_RESPONSE = 0x8
-# Userdata error code for an SZL the CPU does not have ("invalid SZL ID", as S7 CPUs answer).
+SUBFUNCTION_LIST_BLOCKS = 0x01
+SUBFUNCTION_READ_CLOCK = 0x01
+# Userdata error codes for an SZL the CPU does not have. Wireshark 4.0 gives both the text
+# "Information function unavailable"; its 2015 plugin named 0xD401 "invalid SZL ID" and 0xD402
+# "invalid index"; C snap7 answers 0xD402 for every SZL it lacks (notes/catalogue.md 5 (b)).
 ERROR_SZL_NOT_AVAILABLE = 0xD401
+ERROR_SZL_INVALID_INDEX = 0xD402
+# Data part of every userdata error answer: return code 0x0A "object does not exist", no data.
+ERROR_DATA = b"\x0A\x00\x00\x00"
+# Block types of the "list blocks" answer, in the order S7 CPUs and C snap7 list them: OB, DB, SDB,
+# FC, SFC, FB, SFB (python-snap7 3.3 requires exactly these seven entries, 28 bytes). Each entry's
+# type is two ASCII characters, "0" and these codes ("0A" = DB, as in block names: protocol/blocks.py).
+BLOCK_TYPES = (0x38, 0x41, 0x42, 0x43, 0x44, 0x45, 0x46)
+BLOCK_TYPE_DB = 0x41
+
+
+@dataclass(frozen=True, slots=True)
+class UserdataRequest:
+    """A userdata request of any group: the dispatcher picks the service by group and subfunction."""
+
+    group: int
+    subfunction: int
+    sequence_number: int = 0
+    data: bytes = b""
+
+
+def parse_userdata_request(parameter: bytes, data: bytes) -> UserdataRequest:
+    head = userdata.parse_userdata_parameter(parameter)
+    # pyS7 (0.x) sends its SZL reads with type 0 ("push") and the request method; it works against
+    # real CPUs, which go by the method, so we do too.
+    if head.method != METHOD_REQUEST or head.type not in (TYPE_REQUEST, TYPE_PUSH):
+        raise NckProtocolError("userdata is not a request")
+    return UserdataRequest(head.group, head.subfunction, head.sequence, data)
+
+
+def build_userdata_response(request: UserdataRequest, data: bytes, error_code: int = 0
+                            ) -> tuple[bytes, bytes]:
+    """Answer parameter ``00 01 12 08 12 8<group> <subfunction> <seq> 00 00 <error>`` and ``data``."""
+    parameter = userdata.build_userdata_parameter(userdata.UserdataParameter(
+        METHOD_RESPONSE, TYPE_RESPONSE, request.group, request.subfunction, request.sequence_number & 0xFF,
+        long=True, error_code=error_code))
+    return parameter, data
+
+
+# Bytes around each part of an answer in several PDUs: S7 header (10), long parameter (12), data header (4).
+PART_OVERHEAD = 10 + 12 + 4
+
+
+def is_next_part_request(head: userdata.UserdataParameter) -> bool:
+    """The client's request for the next part of a long answer: method 0x12 with type request and the
+    8-byte parameter carrying the answer's sequence number (python-snap7 3.3's
+    ``build_userdata_followup_request``; the two-part SZL of icsnpp-s7comm's snap7.pcap)."""
+    return head.method == METHOD_RESPONSE and head.type == TYPE_REQUEST and head.long
+
+
+def split_userdata_answer(group: int, subfunction: int, data: bytes, room: int, sequence: int
+                          ) -> list[tuple[bytes, bytes]]:
+    """One userdata answer's data part (``FF 09 len`` + payload) as parameter/data pairs of at most
+    ``room`` payload bytes each: every part but the last says "last data unit: no" (1) and all carry
+    ``sequence`` (as sequence number and data unit reference), which the client's next-part requests
+    name. A CPU answers a long SZL so (snap7.pcap: sequence 2, last data unit 1, then 0)."""
+    if len(data) < 4 or room <= 0:
+        raise NckProtocolError("userdata answer to split has no data header or no room")
+    return_code, transport_size = data[0], data[1]
+    payload = data[4:]
+    chunks = [payload[offset:offset + room] for offset in range(0, len(payload), room)] or [b""]
+    parts = []
+    for index, chunk in enumerate(chunks):
+        more = index < len(chunks) - 1
+        parameter = userdata.build_userdata_parameter(userdata.UserdataParameter(
+            METHOD_RESPONSE, TYPE_RESPONSE, group, subfunction, sequence & 0xFF, long=True,
+            data_unit_ref=sequence & 0xFF, last_data_unit=1 if more else 0))
+        parts.append((parameter, struct.pack(">BBH", return_code, transport_size, len(chunk)) + chunk))
+    return parts
+
+
+def build_userdata_error_response(request: UserdataRequest, error_code: int) -> tuple[bytes, bytes]:
+    return build_userdata_response(request, ERROR_DATA, error_code)
+
+
+def build_block_counts(counts: Mapping[int, int]) -> bytes:
+    """Data of the "list blocks" answer: ``FF 09 00 1C`` + ``30 <type> <count>`` for the seven types."""
+    entries = b"".join(struct.pack(">BBH", 0x30, block_type, min(counts.get(block_type, 0), 0xFFFF))
+                       for block_type in BLOCK_TYPES)
+    return struct.pack(">BBH", 0xFF, 0x09, len(entries)) + entries
+
+
+def parse_block_counts(data: bytes) -> dict[int, int]:
+    if len(data) < 4 or data[0] != 0xFF:
+        raise NckProtocolError("block list answer without return code 0xFF")
+    (length,) = struct.unpack_from(">H", data, 2)
+    body = data[4:4 + length]
+    if len(body) != length or length % 4:
+        raise NckTruncatedError("block list shorter than announced or not in 4-byte entries")
+    return {body[i + 1]: int.from_bytes(body[i + 2:i + 4], "big") for i in range(0, length, 4)}
+
+
+def _bcd(value: int) -> int:
+    return (value // 10) << 4 | value % 10
+
+
+def _from_bcd(value: int) -> int:
+    high, low = value >> 4, value & 0x0F
+    if high > 9 or low > 9:
+        raise NckProtocolError(f"0x{value:02X} is not BCD")
+    return high * 10 + low
+
+
+def build_clock(moment: datetime) -> bytes:
+    """Data of the "read clock" answer: ``FF 09 00 0A`` + reserved, century, year, month, day, hour,
+    minute, second (BCD), milliseconds as three BCD digits and the weekday (1 = Sunday) in the low
+    nibble of the last byte (the S7 clock format; python-snap7 3.3's ``parse_get_clock_response``)."""
+    milliseconds = moment.microsecond // 1000
+    weekday = (moment.isoweekday() % 7) + 1  # ISO Monday 1 .. Sunday 7 -> S7 Sunday 1 .. Saturday 7
+    clock = bytes([0x00, _bcd(moment.year // 100), _bcd(moment.year % 100), _bcd(moment.month),
+                   _bcd(moment.day), _bcd(moment.hour), _bcd(moment.minute), _bcd(moment.second),
+                   _bcd(milliseconds // 10), (milliseconds % 10) << 4 | weekday])
+    return struct.pack(">BBH", 0xFF, 0x09, len(clock)) + clock
+
+
+def parse_clock(data: bytes) -> datetime:
+    if len(data) < 14 or data[0] != 0xFF or data[3] != 10:
+        raise NckProtocolError("read clock answer is not FF 09 00 0A + 10 bytes")
+    c = data[4:14]
+    year = _from_bcd(c[1]) * 100 + _from_bcd(c[2])
+    milliseconds = _from_bcd(c[8]) * 10 + (c[9] >> 4)
+    return datetime(year, _from_bcd(c[3]), _from_bcd(c[4]), _from_bcd(c[5]), _from_bcd(c[6]),
+                    _from_bcd(c[7]), milliseconds * 1000)
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,20 +174,19 @@ class SzlReadResponse:
 
 
 def parse_szl_request(parameter: bytes, data: bytes) -> SzlReadRequest:
-    if len(parameter) < 8 or parameter[:3] != b"\x00\x01\x12":
-        raise NckProtocolError("userdata parameter head is not 00 01 12")
-    method, type_group, subfunction, sequence = parameter[4], parameter[5], parameter[6], parameter[7]
-    # pyS7 (0.x) sends its SZL reads with type 0 ("push") and the request method; it works against
-    # real CPUs, which go by the method, so we do too.
-    if method != METHOD_REQUEST or type_group >> 4 not in (TYPE_REQUEST, TYPE_PUSH):
-        raise NckProtocolError("userdata is not a request")
-    if type_group & 0x0F != GROUP_CPU_FUNCTIONS or subfunction != SUBFUNCTION_READ_SZL:
-        raise NckServiceError(f"userdata group {type_group & 0x0F} subfunction {subfunction} not served",
+    request = parse_userdata_request(parameter, data)
+    if request.group != GROUP_CPU_FUNCTIONS or request.subfunction != SUBFUNCTION_READ_SZL:
+        raise NckServiceError(f"userdata group {request.group} subfunction {request.subfunction} not served",
                               error_class=0x81, error_code=0x04)
-    if len(data) < 8:
+    return szl_request_of(request)
+
+
+def szl_request_of(request: UserdataRequest) -> SzlReadRequest:
+    """The SZL ID and index of a group 4 / subfunction 1 request."""
+    if len(request.data) < 8:
         raise NckTruncatedError("SZL request data shorter than 8 bytes")
-    szl_id, szl_index = struct.unpack_from(">HH", data, 4)
-    return SzlReadRequest(szl_id, szl_index, sequence)
+    szl_id, szl_index = struct.unpack_from(">HH", request.data, 4)
+    return SzlReadRequest(szl_id, szl_index, request.sequence_number)
 
 
 def build_szl_request(request: SzlReadRequest) -> tuple[bytes, bytes]:
@@ -64,8 +196,8 @@ def build_szl_request(request: SzlReadRequest) -> tuple[bytes, bytes]:
 
 
 def _response_parameter(sequence: int, error_code: int) -> bytes:
-    return bytes([0x00, 0x01, 0x12, 0x08, METHOD_RESPONSE, (TYPE_RESPONSE << 4) | GROUP_CPU_FUNCTIONS,
-                  SUBFUNCTION_READ_SZL, sequence & 0xFF, 0x00, 0x00]) + struct.pack(">H", error_code)
+    request = UserdataRequest(GROUP_CPU_FUNCTIONS, SUBFUNCTION_READ_SZL, sequence)
+    return build_userdata_response(request, b"", error_code)[0]
 
 
 def build_szl_response(request: SzlReadRequest, szl: bytes) -> tuple[bytes, bytes]:

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from nckemu.cliutil import check_output, working, write_json
 from nckemu.errors import NckConfigError
 
 # numpy/scipy and the modules on them load when a command runs, not for every `nckemu` call
@@ -18,21 +19,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     simulate = subparsers.add_parser(
         "simulate", help="the model's prediction on a recording's inputs", formatter_class=raw,
         epilog="example: nckemu simulate --model fixtures/thermal/baseline_spindle_bed.toml "
-               "--inputs rec.csv --out sim.csv")
+               "--inputs rec.csv --out sim.csv\n"
+               "  (rec.csv: t_s, temp_<sensor>_C for the model's sensors, spindle_rpm, pos_<axis>_mm, err_<axis>_um)\n")
     simulate.add_argument("--model", required=True, help="model TOML (a sum of named terms)")
     simulate.add_argument("--inputs", required=True, help="recording CSV with the model's sensors")
     simulate.add_argument("--out", help="write the recording with a sim_<axis>_um column (default: stdout)")
-    simulate.add_argument("--json", action="store_true", help="print summary figures as JSON")
+    simulate.add_argument("--json", action="store_true", help="print summary figures as JSON on stdout")
     simulate.set_defaults(func=run_simulate)
 
     find = subparsers.add_parser(
         "discover", help="locate model mismatch, name the missing physics, fit it", formatter_class=raw,
-        epilog="example: nckemu discover fixtures/thermal/seed003_spindle_elongation.csv --axis Z "
-               "--json out.json --report out.html")
+        epilog="examples:\n"
+               "  nckemu discover fixtures/thermal/seed003_spindle_elongation.csv --axis Z "
+               "--json-out out.json --report out.html\n"
+               "  nckemu discover fixtures/thermal/seed003_spindle_elongation.csv --json\n"
+               "Without --model and without a sim_<axis>_um column the baseline is a constant offset: "
+               "discover then says which sensors explain the axis on their own.\n")
     find.add_argument("recording", help="recording CSV")
-    find.add_argument("--model", help="baseline model TOML (default: the recording's sim_<axis>_um column)")
-    find.add_argument("--axis", help="which err_<axis>_um to explain (default: the model's axis)")
-    find.add_argument("--json", dest="json_out", metavar="OUT.json", help="write the findings as JSON")
+    find.add_argument("--model", help="baseline model TOML (default: the recording's sim_<axis>_um column, "
+                                      "else a constant offset)")
+    find.add_argument("--axis", help="which err_<axis>_um to explain (default: the model's axis, or the "
+                                     "recording's only one)")
+    find.add_argument("--json", action="store_true", help="print the findings as JSON on stdout")
+    find.add_argument("--json-out", metavar="FILE", help="write the findings as JSON to FILE (- for stdout)")
     find.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
     find.add_argument("--write-model", metavar="IMPROVED.toml", help="write the improved model")
     find.set_defaults(func=run_discover)
@@ -44,6 +53,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     from .recording import Recording, load_recording, write_recording
     from .terms import load_model
 
+    check_output(args.out, "--out")
     model = load_model(args.model)
     recording = load_recording(args.inputs)
     prediction = model.predict_um(recording)
@@ -66,26 +76,55 @@ def run_discover(args: argparse.Namespace) -> int:
     from .discover import discover
     from .recording import load_recording
     from .report import write_report
-    from .terms import load_model, render_model
+    from .terms import Term, ThermalModel, load_model, render_model
 
+    for option, path in (("--json-out", args.json_out), ("--report", args.report),
+                         ("--write-model", args.write_model)):
+        check_output(path, option)
     model = load_model(args.model) if args.model else None
     recording = load_recording(args.recording)
-    if model is None and args.axis and args.axis not in recording.simulated_um:
-        raise NckConfigError(f"no baseline: give --model or a sim_{args.axis}_um column", path=args.recording)
-    result = discover(recording, axis=args.axis, model=model)
+    axis = args.axis or (model.axis if model is not None else None)
+    if axis is None:
+        if len(recording.errors_um) != 1:
+            raise NckConfigError(f"which axis? give --axis ({', '.join(sorted(recording.errors_um))})",
+                                 path=args.recording)
+        axis = next(iter(recording.errors_um))
+    if axis not in recording.errors_um:
+        raise NckConfigError(f"no err_{axis}_um column (it has: "
+                             f"{', '.join(sorted(recording.errors_um)) or 'none'})", path=args.recording)
+    baseline = f"the sim_{axis}_um column of {args.recording}"
+    if model is None and axis not in recording.simulated_um:
+        # No baseline at all: start from a constant offset, so the sensors explain the axis on their own.
+        model = ThermalModel(axis, [Term("offset", {"value_um": 0.0})], "<constant offset>")
+        baseline = "a constant offset (no --model, no sim column)"
+        print(f"nckemu discover: baseline: {baseline}", file=sys.stderr)
+    with working("discover", enabled=not args.json):
+        result = discover(recording, axis=axis, model=model)
+    args.discovery = result  # for options other components add to discover (plcsim: --write-stl)
     document = result.to_json()
-    if args.json_out:
-        Path(args.json_out).write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
+    findings = None
+    if model is None:  # the baseline is a program's compensation: say what it did and left out
+        from .wording import program_findings
+
+        findings = program_findings(result)
+        document["program"] = dict(findings)
+    write_json(document, args.json_out)
     if args.report:
-        write_report(args.report, result, f"nckemu discover: {Path(args.recording).name}")
+        write_report(args.report, result, f"nckemu discover: {Path(args.recording).name}", findings)
     if args.write_model:
-        note = "" if args.model else f"# baseline: the sim_{result.axis}_um column of {args.recording}\n"
+        note = "" if args.model else f"# baseline: {baseline}\n"
         Path(args.write_model).write_text(note + render_model(result.improved_model), encoding="utf-8")
+    if args.json:
+        print(json.dumps(document))
+        return 0
+    text = sys.stderr if args.json_out == "-" else sys.stdout
     print(f"axis {result.axis}: RMS as given {result.baseline_rms_um:.3f} um, recalibrated "
           f"{result.recalibrated_rms_um:.3f} um, held-out {result.heldout_rms_before_um:.3f} -> "
-          f"{result.heldout_rms_after_um:.3f} um", file=sys.stderr if not args.json_out else sys.stdout)
+          f"{result.heldout_rms_after_um:.3f} um", file=text)
+    for heading, sentence in findings or []:
+        print(f"  {heading}: {sentence}", file=text)
     for effect in result.missing_physics:
-        print(f"  missing: {effect['effect']} {json.dumps(effect['parameters'])}")
+        print(f"  missing: {effect['effect']} {json.dumps(effect['parameters'])}", file=text)
     if not result.missing_physics:
-        print("  nothing missing")
+        print("  nothing missing", file=text)
     return 0

@@ -514,7 +514,7 @@ class Discoverer:
                 terms = [t.with_coefficient(t.coefficient * problem.model.gain * gain) for t in problem.base_terms]
         else:
             terms = [term.with_coefficient(c) for term, c in zip(problem.base_terms, coefficients, strict=False)]
-            coefficients = coefficients[len(problem.base_terms):]
+            coefficients = coefficients[len(problem.base_columns):]  # a sim_ column is a column, not a term
         for term, coefficient, record in zip(added, coefficients, discovered[1 if gain_reported else 0:],
                                              strict=False):
             updated = term.with_coefficient(float(coefficient))

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -61,9 +62,14 @@ def load_recording(path: str | Path) -> Recording:
     path = Path(path)
     source = str(path)
     try:
-        handle = path.open(newline="", encoding="utf-8")
+        text = path.read_bytes().decode("utf-8")
     except OSError as exc:
         raise NckConfigError(f"cannot read: {exc.strerror}", path=source) from None
+    except UnicodeDecodeError:
+        raise NckConfigError("not a text file (a recording is CSV text in UTF-8)", path=source) from None
+    if "\x00" in text:
+        raise NckConfigError("not a text file (it holds NUL bytes; a recording is CSV text)", path=source)
+    handle = io.StringIO(text, newline="")
     with handle:
         reader = csv.reader(handle)
         try:

@@ -30,7 +30,14 @@ def _shade(axes: plt.Axes, discovery: Discovery) -> None:
                      label="located mismatch" if index == 0 else None)
 
 
-def write_report(path: str | Path, discovery: Discovery, title: str) -> None:
+def findings_html(findings: list[tuple[str, str]]) -> str:
+    """The program's findings (``wording.program_findings``) as a definition list."""
+    items = "".join(f"<dt><b>{html.escape(h)}</b></dt><dd>{html.escape(s)}</dd>" for h, s in findings)
+    return f"<h2>The program against the recording</h2><dl>{items}</dl>"
+
+
+def write_report(path: str | Path, discovery: Discovery, title: str,
+                 findings: list[tuple[str, str]] | None = None) -> None:
     series = discovery.series
     hours = series["t_s"] / 3600
     figure, axes = plt.subplots(figsize=(10, 4))
@@ -65,6 +72,7 @@ table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}</style></hea
 <p>Axis {html.escape(discovery.axis)}, {discovery.samples} measured samples. RMS as given
 {discovery.baseline_rms_um:.3f} um; recalibrated {discovery.recalibrated_rms_um:.3f} um; held-out
 {discovery.heldout_rms_before_um:.3f} &rarr; {discovery.heldout_rms_after_um:.3f} um.</p>
+{findings_html(findings) if findings else ""}
 <h2>Missing physics</h2><table><tr><th>effect</th><th>parameters</th><th>evidence</th></tr>{rows}</table>
 <h2>Where the model disagrees</h2><ul>{windows}</ul>
 <img alt="recording, baseline and improved model" src="data:image/png;base64,{overview}">

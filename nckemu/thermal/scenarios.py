@@ -124,3 +124,47 @@ def make_scenario(name: str, seed: int = 1, duration_h: float = 36.0, dt_s: floa
         spindle_rpm=rpm, positions_mm={AXIS: position}, errors_um={AXIS: measured},
     )
     return Scenario(name, recording, base, effect, parameters, window)
+
+
+# ---------------------------------------------------------------------- the closed loop (issue 13)
+LOOP_SCENARIOS = ("bed_program_spindle_lag",)
+LOOP_BED_COEFF_UM_PER_K = 2.0
+LOOP_SPINDLE_COEFF_UM_PER_K = 3.0
+LOOP_SPINDLE_TAU_S = 2400.0
+
+
+def make_loop_scenario(name: str = "bed_program_spindle_lag", seed: int = 1, duration_h: float = 36.0,
+                       dt_s: float = 60.0) -> Scenario:
+    """A machine whose compensation program knows only the bed: Z grows 2 um/K with the bed and 3 um/K
+    with a spindle structure that follows its sensor through a 2400 s lag. ``baseline`` is the program's
+    law (what a bed-only program compensates, e.g. ``fixtures/plc/bed_only_z.awl``); the missing effect
+    is the spindle's lag. Sensors: spindle and bed only (both wired to the PLC in
+    ``fixtures/machines/loop_mill.toml``)."""
+    if name not in LOOP_SCENARIOS:
+        raise ValueError(f"unknown loop scenario {name!r}; known: {', '.join(LOOP_SCENARIOS)}")
+    base = make_scenario("temperature", seed, duration_h, dt_s)  # time base, inputs, positions, noise draws
+    recording = base.recording
+    t = recording.t_s
+    rng = np.random.default_rng(seed + 1000)
+    rpm = recording.spindle_rpm if recording.spindle_rpm is not None else np.zeros_like(t)
+    ambient = 20.0 + 1.0 * np.sin(2 * np.pi * t / 86400.0)
+    spindle = first_order_lag(t, ambient + 8.0 * rpm / 10000.0, 1200.0)
+    bed = first_order_lag(t, ambient + 2.0 * rpm / 10000.0, 3 * 3600.0)
+    truth = LOOP_BED_COEFF_UM_PER_K * (bed - 20.0) \
+        + LOOP_SPINDLE_COEFF_UM_PER_K * (first_order_lag(t, spindle, LOOP_SPINDLE_TAU_S) - 20.0)
+    phi = 0.95
+    ar = np.zeros_like(t)
+    innovations = rng.normal(0.0, 0.3 * np.sqrt(1 - phi ** 2), len(t))
+    for k in range(1, len(t)):
+        ar[k] = phi * ar[k - 1] + innovations[k]
+    measured = truth + rng.normal(0.0, 0.3, len(t)) + ar
+    measured[np.arange(len(t)) % 3 != 0] = np.nan
+    loop_recording = Recording(
+        source=f"<loop scenario {name} seed {seed}>", t_s=t,
+        temperatures_C={"temp_spindle_C": spindle + rng.normal(0.0, 0.03, len(t)),
+                        "temp_bed_C": bed + rng.normal(0.0, 0.03, len(t))},
+        spindle_rpm=rpm, positions_mm=dict(recording.positions_mm), errors_um={AXIS: measured})
+    program_law = ThermalModel(AXIS, [Term("temperature", {"sensor": "bed", "t_ref_C": 20.0,
+                                                           "coeff_um_per_K": LOOP_BED_COEFF_UM_PER_K})])
+    return Scenario(name, loop_recording, program_law, "thermal_lag",
+                    {"tau_s": LOOP_SPINDLE_TAU_S, "coeff_um_per_K": LOOP_SPINDLE_COEFF_UM_PER_K})

@@ -200,6 +200,8 @@ def load_model(path: str | Path) -> ThermalModel:
         text = path.read_text("utf-8")
     except OSError as exc:
         raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
+    except UnicodeDecodeError:
+        raise NckConfigError("not a text file (a model is TOML text in UTF-8)", path=str(path)) from None
     return parse_model(text, str(path))
 
 

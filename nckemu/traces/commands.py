@@ -38,8 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     again.add_argument("--realtime", action="store_true", help="keep the recorded timing")
     again.add_argument("--seed-state", action="store_true",
                        help="first set the values the trace's first reads show, to reproduce the field state")
-    again.add_argument("--json", action="store_true")
-    again.add_argument("--quiet", action="store_true", help="no progress bar")
+    again.add_argument("--timeout", type=float, default=5.0, metavar="SECONDS",
+                       help="seconds to wait for each answer (5, as get)")
+    again.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
+    again.add_argument("--quiet", action="store_true", help="no progress bar (there is none when not a terminal)")
     again.set_defaults(func=run_replay)
     trace.set_defaults(func=lambda args: trace.print_help() or 2)
 
@@ -48,6 +50,10 @@ def run_show(args: argparse.Namespace) -> int:
     capture = read_capture(args.capture, port=args.port)
     exchanges = decode(capture)
     if args.connection is not None:
+        if args.connection not in capture.connections:
+            known = ", ".join(str(n) for n in capture.connections) or "none"
+            raise NckConfigError(f"--connection {args.connection}: the capture has no such connection "
+                                 f"(it has: {known})", path=args.capture)
         exchanges = [e for e in exchanges if e.connection == args.connection]
     if args.var:
         exchanges = [e for e in exchanges if any(args.var.upper() in i.name.upper() for i in e.items)]
@@ -73,14 +79,17 @@ def run_replay(args: argparse.Namespace) -> int:
     capture = read_capture(args.capture, port=args.port)
     if not capture.pdus:
         raise NckConfigError(f"no S7 traffic on port {args.port}", path=args.capture)
+    if not args.timeout > 0:
+        raise NckConfigError(f"--timeout {args.timeout}: expected a positive number of seconds")
     progress = progress_printer(not args.quiet)
     if args.emulator:
         host, _, port_text = args.emulator.rpartition(":")
-        if not host or not port_text.isdigit():
-            raise NckConfigError(f"--emulator {args.emulator!r}: expected HOST:PORT")
+        if not host or not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
+            raise NckConfigError(f"--emulator {args.emulator!r}: expected HOST:PORT (port 1..65535)")
         if args.seed_state:
             _seed_remote(host, int(port_text), capture)
-        report = replay(capture, host, int(port_text), realtime=args.realtime, progress=progress)
+        report = replay(capture, host, int(port_text), realtime=args.realtime, timeout_s=args.timeout,
+                        progress=progress)
     else:
         # The one place where a trace tool starts an emulator (``--spawn``): the command composes the
         # two; the trace library itself stays independent of the emulator (see .importlinter).
@@ -90,13 +99,17 @@ def run_replay(args: argparse.Namespace) -> int:
             if args.seed_state:
                 values = seed_values(decode(capture))
                 emulator.call(lambda: emulator.emulator.seed_nck(values))
-            report = replay(capture, "127.0.0.1", emulator.port, realtime=args.realtime, progress=progress)
+            report = replay(capture, "127.0.0.1", emulator.port, realtime=args.realtime, timeout_s=args.timeout,
+                            progress=progress)
     if args.json:
         print(json.dumps(report.to_json()))
     else:
-        print(f"{report.jobs} jobs replayed: {report.matching_items} items match, {report.differing_values} "
-              f"values differ, {report.differing_return_codes} return codes differ, {report.differing_errors} "
-              f"header errors differ, {report.missing_answers} answers missing")
+        print(f"{_count(report.jobs, 'job')} replayed: {_count(report.matching_items, 'item')} "
+              f"{'matches' if report.matching_items == 1 else 'match'}, "
+              f"{_count(report.differing_values, 'value')} {_differ(report.differing_values)}, "
+              f"{_count(report.differing_return_codes, 'return code')} {_differ(report.differing_return_codes)}, "
+              f"{_count(report.differing_errors, 'header error')} {_differ(report.differing_errors)}, "
+              f"{_count(report.missing_answers, 'answer')} missing")
         skipped = ", ".join(f"{count} {what}" for what, count in report.skipped.items() if count)
         if skipped:
             print(f"not replayed: {skipped}")
@@ -105,6 +118,14 @@ def run_replay(args: argparse.Namespace) -> int:
                   f"{difference['item']}: {difference['kind']}: recorded {difference['recorded']!r}, "
                   f"emulated {difference['emulated']!r}")
     return 0 if report.all_match else 1
+
+
+def _count(number: int, noun: str) -> str:
+    return f"{number} {noun}" if number == 1 else f"{number} {noun}s"
+
+
+def _differ(number: int) -> str:
+    return "differs" if number == 1 else "differ"
 
 
 def _seed_remote(host: str, port: int, capture: object) -> None:

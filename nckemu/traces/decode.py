@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from nckemu.catalogue.table import display_name, table_index
+from nckemu.catalogue.table import display_name, spec_at
 from nckemu.errors import NckError, ReturnCode
 from nckemu.protocol import blocks, pi, s7, szl, userdata
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
@@ -105,7 +105,7 @@ def name_of(address: object) -> tuple[str, NckType | None, int | None, str]:
 
 def _name_of(address: object) -> tuple[str, NckType | None, int | None, str]:
     if isinstance(address, NckAddress):
-        spec = table_index().get((address.module, address.column))
+        spec = spec_at(address)
         if spec is None:
             where = f"{NckArea(address.area).name}{address.unit}"
             return (f"NCK {where} col {address.column} line {address.line} ({describe_module(address.module)})",

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from nckemu.errors import NckError
+from nckemu.errors import NckConnectionError, NckError, NckTimeoutError
 from nckemu.protocol import cotp, s7, tpkt
 from nckemu.protocol.addresses import NckAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS
@@ -48,7 +48,13 @@ class _Link:
     """One replayed connection: raw frames over a socket."""
 
     def __init__(self, host: str, port: int, timeout_s: float) -> None:
-        self.sock = socket.create_connection((host, port), timeout=timeout_s)
+        try:
+            self.sock = socket.create_connection((host, port), timeout=timeout_s)
+        except TimeoutError:
+            raise NckTimeoutError(f"no connection to {host}:{port} within {timeout_s} s") from None
+        except OSError as exc:
+            raise NckConnectionError(f"cannot connect to {host}:{port}: {exc.strerror or exc} "
+                                     f"(is an emulator listening there? nckemu serve --port {port})") from None
         self.buffer = b""
 
     def send_frame(self, frame: bytes) -> None:
@@ -228,16 +234,18 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
 
 
 def progress_printer(enabled: bool) -> Callable[[int, int], None] | None:
+    """A progress bar on a terminal (tqdm on stderr), None when not enabled or not a terminal."""
     if not enabled or not sys.stderr.isatty():
         return None
+    from nckemu.cliutil import progress_bar
+
+    bar = progress_bar(None, description="replay", unit="job")
 
     def show(done: int, total: int) -> None:
-        if done == total or done % 50 == 0:
-            width = 30
-            filled = int(width * done / max(total, 1))
-            sys.stderr.write(f"\rreplay [{'#' * filled}{'.' * (width - filled)}] {done}/{total}")
-            if done == total:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+        if done == total:
+            bar.close()
 
     return show

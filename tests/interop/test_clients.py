@@ -191,9 +191,9 @@ def test_channel_840c(emulator: EmulatorThread) -> None:
     async def run() -> None:
         async with AsyncNckClient("127.0.0.1", emulator.port, slot=2) as client:
             channel = Channel840C(client, user_db=131)
+            # P0 = 0 with the A flag is accepted (issue 14 2.10: the manual only advises against it)
+            await channel.send(axis=4, k_tcabs_mm=0.0, tan_beta=0.00001, p0_mm=0.0)
             await channel.send(axis=4, k_tcabs_mm=0.05, tan_beta=0.00001, p0_mm=-200.0)
-            with pytest.raises(Channel840CError, match="error 10"):
-                await channel.send(axis=4, k_tcabs_mm=0.0, tan_beta=0.00001, p0_mm=0.0)
             with pytest.raises(Channel840CError, match="error 6"):
                 await channel.send(axis=7, k_tcabs_mm=0.05, tan_beta=0.0, p0_mm=10.0)
 
@@ -202,6 +202,22 @@ def test_channel_840c(emulator: EmulatorThread) -> None:
     tan_beta = round(0.00001 * (2**31 - 1)) / (2**31 - 1)  # what 2^-31 fixed point carries
     expected = 0.05 + tan_beta * (position + 200.0)
     assert emulator.call(lambda: emulator.nck.tc_value_mm(4)) == pytest.approx(expected, abs=1e-12)
+
+
+def test_channel_840c_refuses_p0_at_zero_when_the_machine_says_so() -> None:
+    import nckemu.emulator
+    from nckemu.emulator.machine import parse_machine
+
+    text = (Path(nckemu.emulator.__file__).parent / "machines" / "default.toml").read_text()
+    machine = parse_machine(text.replace("c840_refuse_p0_at_zero = false", "c840_refuse_p0_at_zero = true"))
+
+    async def run(port: int) -> None:
+        async with AsyncNckClient("127.0.0.1", port, slot=2) as client:
+            with pytest.raises(Channel840CError, match="error 10"):
+                await Channel840C(client, user_db=131).send(axis=4, k_tcabs_mm=0.0, tan_beta=0.00001, p0_mm=0.0)
+
+    with EmulatorThread(machine) as strict:
+        asyncio.run(run(strict.port))
 
 
 class PutGetAgreement(RuleBasedStateMachine):
@@ -235,3 +251,46 @@ class PutGetAgreement(RuleBasedStateMachine):
 
 TestPutGetAgreement = PutGetAgreement.TestCase
 TestPutGetAgreement.settings = settings(max_examples=15, stateful_step_count=12, deadline=None)
+
+
+def test_sync_facade_mirrors_every_public_coroutine() -> None:
+    """One copy of the protocol code: every public coroutine of AsyncNckClient has its sync twin."""
+    import inspect
+
+    from nckemu.clients import AsyncNckClient, NckClient
+
+    coroutines = {name for name, member in inspect.getmembers(AsyncNckClient)
+                  if not name.startswith("_") and inspect.iscoroutinefunction(member)}
+    assert coroutines <= {name for name in dir(NckClient) if not name.startswith("_")}
+
+
+def test_sync_clients_share_a_loop_and_a_failed_connect_leaks_no_thread() -> None:
+    import socket
+    import threading
+
+    from nckemu.clients import NckClient
+    from nckemu.clients.sync import ClientLoop
+    from nckemu.emulator.runner import EmulatorThread
+    from nckemu.errors import NckConnectionError
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        closed_port = probe.getsockname()[1]
+    before = threading.active_count()
+    for _ in range(3):
+        with pytest.raises(NckConnectionError):
+            with NckClient("127.0.0.1", closed_port, timeout_s=1.0):
+                pass
+    assert threading.active_count() <= before
+    loop = ClientLoop()
+    try:
+        with EmulatorThread() as emulator:
+            with NckClient("127.0.0.1", emulator.port, loop=loop) as one, \
+                    NckClient("127.0.0.1", emulator.port, loop=loop) as two:
+                one.put({"SD43900[AX1]": 0.25})
+                assert two.get("SD43900[AX1]") == [0.25]
+        assert loop.loop.is_running()  # a shared loop outlives its clients
+    finally:
+        loop.stop()
+    with pytest.raises(NckConnectionError, match="not running"):
+        loop.run(asyncio.sleep(0))

@@ -23,9 +23,9 @@ KNOWN = st.sampled_from([NckAddress(3, 4, 43900, 1, 0x16), NckAddress(2, 1, 1, 1
                          S7AnyAddress(0x04, 3, 0, 0x83, 10), S7AnyAddress(0x02, 2, 0, 0x81, 0)])
 
 
-def _ready(pdu_size: int) -> ServerSession:
+def _ready(pdu_size: int, tpdu_size_code: int = 0x0A) -> ServerSession:
     session = ServerSession(EMULATOR.dispatcher, limits=SessionLimits(pdu_size_max=pdu_size, max_amq=8))
-    session.receive(CR)
+    session.receive(CR[:-9] + bytes([tpdu_size_code]) + CR[-8:])  # TPDU size 2 ** code
     setup = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 1, s7.build_setup_communication(
         s7.SetupCommunication(1, 1, pdu_size))))
     session.receive(cotp.build_data_frame(setup))
@@ -93,21 +93,23 @@ def test_planned_s7any_reads_answer_as_the_general_path(items: list[S7AnyAddress
 
 @settings(max_examples=200, deadline=None)
 @given(items=st.lists(st.one_of(KNOWN, PLANNED), min_size=1, max_size=8), pdu_ref=st.integers(0, 0xFFFF),
-       split=st.integers(1, 200), copies=st.integers(1, 3))
+       split=st.integers(1, 200), copies=st.integers(1, 3), tpdu_size_code=st.sampled_from([0x07, 0x08, 0x0A]))
 def test_read_jobs_answer_alike_whole_split_or_pipelined(items: list[object], pdu_ref: int, split: int,
-                                                        copies: int) -> None:
+                                                        copies: int, tpdu_size_code: int) -> None:
     """A read job alone in a segment takes the session's shortest path; split across segments or
-    pipelined with others it goes through the framing loop: the answers are the same bytes."""
+    pipelined with others it goes through the framing loop: the answers are the same bytes (in as
+    many DTs as the TPDU size needs)."""
     job = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, pdu_ref, s7.build_read_var_request(s7.ReadVarRequest(tuple(items)))))
     frame = cotp.build_data_frame(job)
-    general_answer = _ready(480)._handle_pdu(job, over_amq=False)
+    general = _ready(480, tpdu_size_code)
+    general_answer = general._handle_pdu(job, over_amq=False)
     assert general_answer is not None
-    expected = cotp.build_data_frame(general_answer)
-    whole, pieces = _ready(480), _ready(480)
+    expected = general._data_frames(general_answer)
+    whole, pieces = _ready(480, tpdu_size_code), _ready(480, tpdu_size_code)
     jobs_before = whole.info.jobs
-    assert whole.receive(frame) == [expected]
+    assert whole.receive(frame) == expected
     stream = frame * copies
     cut = min(split, len(stream) - 1)
     answers = pieces.receive(stream[:cut]) + pieces.receive(stream[cut:])
-    assert answers == [expected] * copies
+    assert answers == expected * copies
     assert whole.info.jobs == jobs_before + 1 and pieces.info.jobs == jobs_before + copies

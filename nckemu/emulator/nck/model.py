@@ -2,7 +2,7 @@
 
 It never sees bytes. ``store`` holds stored and active values by typed address, ``axes`` and
 ``sensors`` the machine's state, ``compensation`` the TC and LEC engines, ``programs`` and
-``alarm_list`` what the NCK reports; variables with a named ``source`` are computed through
+``alarm_list`` and ``channels`` (program run state) what the NCK reports; variables with a named ``source`` are computed through
 ``sources.SOURCES`` and PI services run through ``pi_services``. The dispatcher sees only the
 ``NckDatastore`` methods (read_typed, variable_type, read, write, pi_service, power_on).
 """
@@ -15,7 +15,7 @@ from typing import Any
 
 from nckemu.catalogue.leadscrew import LeadscrewTable
 from nckemu.catalogue.pi_services import PI_LOAD_LEADSCREW, PI_POWER_ON  # noqa: F401 (old import path)
-from nckemu.catalogue.table import VariableSpec, find_by_name, load_table
+from nckemu.catalogue.table import VariableSpec, load_table
 from nckemu.errors import NckAccessDenied, NckConfigError, NckTypeInconsistent
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType
 
@@ -25,6 +25,7 @@ from . import pi_services
 from .access import AccessContext
 from .alarms import Alarms
 from .axes import Axes
+from .channel import Channel
 from .compensation import (  # noqa: F401 (old import path)
     TC_BIT_POSITION_DEPENDENT,
     TC_BIT_POSITION_INDEPENDENT,
@@ -63,17 +64,31 @@ class NckModel:
     def __init__(self, machine: Machine, clock: Clock, specs: Sequence[VariableSpec] | None = None) -> None:
         self.machine = machine
         self.clock = clock
-        specs = tuple(specs if specs is not None else load_table())
+        if specs is None:
+            specs = machine.variables or load_table()
+        specs = tuple(specs)
         check_sources(specs, machine.source)
         self.store = VariableStore(specs, self._units, machine.settings.limit_violation_return_code)
-        self.store.apply_initial(machine.initial, find_by_name, machine.source)
+        self.store.apply_initial(machine.initial, self._finder(specs), machine.source)
         self.store.activate_all()
         self.axes = Axes(machine, before_change=lambda axis: self.compensation.advance(axis))
         self.sensors = Sensors(machine, clock)
         self.compensation = Compensation(machine, clock, self.store, self.axes)
         self.programs = Programs()
-        self.alarm_list = Alarms()
+        self.alarm_list = Alarms(clock)
+        spindles = sum(axis.spindle for axis in machine.axes)
+        self.channels = {number: Channel(number, clock, spindles if number == 1 else 0)
+                         for number in range(1, machine.channels + 1)}
         self._power_on_hooks: list[Callable[[], None]] = []
+
+    @staticmethod
+    def _finder(specs: Sequence[VariableSpec]) -> Callable[[str], VariableSpec | None]:
+        """By Siemens number or name in this machine's table (as ``find_by_name`` in the built-in one)."""
+        index: dict[str, VariableSpec] = {}
+        for spec in specs:
+            index.setdefault(spec.number.upper(), spec)
+            index.setdefault(spec.name.upper(), spec)
+        return lambda name: index.get(name.upper())
 
     def _units(self, spec: VariableSpec) -> list[int]:
         units: list[int] = []
@@ -137,6 +152,12 @@ class NckModel:
 
     def pi_service(self, service: str, arguments: Sequence[str], ctx: AccessContext) -> None:
         pi_services.run_service(self, service, arguments, ctx)
+
+    def activate_new_config(self) -> list[str]:
+        """PI _N_CONFIG: machine data with effectiveness "new_conf" take effect (as at power-on, but
+        nothing else of a power-on happens); the names activated."""
+        self.compensation.advance_all()
+        return self.store.activate("new_conf")
 
     def power_on(self) -> None:
         """Power-on: new machine data take effect, LEC activates, 840C TC data are erased."""

@@ -11,7 +11,7 @@ import logging
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
-from nckemu.catalogue.pi_services import NC_SERVICE_ARGUMENTS, PI_LOAD_LEADSCREW, PI_POWER_ON
+from nckemu.catalogue.pi_services import NC_SERVICE_ARGUMENTS, PI_LOAD_LEADSCREW, PI_NEW_CONFIG, PI_POWER_ON
 from nckemu.errors import (
     NckConfigError,
     NckNoSuchFile,
@@ -58,6 +58,12 @@ def _power_on(model: NckModel, arguments: list[str], ctx: AccessContext) -> None
     model.power_on()
 
 
+def _new_config(model: NckModel, arguments: list[str], ctx: AccessContext) -> None:
+    # The second argument is Wireshark's "class"; no source gives its values, so any is taken.
+    names = model.activate_new_config()
+    log.info("%s: new configuration active (%s)", PI_NEW_CONFIG, ", ".join(names) or "no NEW_CONF data")
+
+
 def _load_leadscrew(model: NckModel, arguments: list[str], ctx: AccessContext) -> None:
     enable = model.store.spec("ENC_COMP_ENABLE")
     if not ctx.may(enable.write_level):  # the same protection as the machine data that enables it
@@ -88,6 +94,7 @@ HANDLERS: dict[str, Handler] = {
     "_N_F_DELE": _delete,
     "_N_SETUDT": _setudt,
     PI_POWER_ON: _power_on,
+    PI_NEW_CONFIG: _new_config,
     PI_LOAD_LEADSCREW: _load_leadscrew,
 }
 assert set(HANDLERS) == set(NC_SERVICE_ARGUMENTS), "every catalogued NC service needs a handler"

@@ -12,7 +12,7 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
-from nckemu.catalogue.table import VariableSpec
+from nckemu.catalogue.table import VariableSpec, index_by_address
 from nckemu.errors import (
     NckAddressOutOfRange,
     NckConfigError,
@@ -33,14 +33,14 @@ class VariableStore:
     def __init__(self, specs: Iterable[VariableSpec], units_of: Callable[[VariableSpec], list[int]],
                  limit_violation_return_code: int) -> None:
         self.specs = tuple(specs)
-        self._index = {(spec.module, spec.column): spec for spec in self.specs}
+        self._index = index_by_address(self.specs)
         self._by_name = {spec.name: spec for spec in self.specs}
         self._modules = frozenset(spec.module for spec in self.specs)
         self._limit_rc = limit_violation_return_code
         self._valid_units = {spec.name: frozenset(units_of(spec)) for spec in self.specs}
         self._resolved: dict[NckAddress, tuple[VariableSpec, int]] = {}
         self.stored: dict[tuple[str, int], list[Any]] = {
-            (spec.name, unit): [spec.default] * spec.lines
+            (spec.name, unit): list(spec.default) if isinstance(spec.default, tuple) else [spec.default] * spec.lines
             for spec in self.specs if not spec.computed for unit in units_of(spec)
         }
         self.active: dict[tuple[str, int], list[Any]] = {}
@@ -61,8 +61,8 @@ class VariableStore:
     def _resolve_uncached(self, address: NckAddress) -> tuple[VariableSpec, int]:
         if address.module not in self._modules:
             raise NckObjectDoesNotExist(f"module 0x{address.module:02X} is not served")
-        spec = self._index.get((address.module, address.column))
-        if spec is None or address.area not in spec.areas:
+        spec = self._index.get((address.module, address.column, address.area))
+        if spec is None:
             raise NckObjectDoesNotExist(f"no variable at module 0x{address.module:02X} column "
                                         f"{address.column} in area {NckArea(address.area).name}")
         unit = address.unit
@@ -110,6 +110,19 @@ class VariableStore:
     def activate_all(self) -> None:
         """Stored values become active (power-on)."""
         self.active = {key: list(values) for key, values in self.stored.items()}
+
+    def activate(self, effective: str) -> list[str]:
+        """Stored values of the variables with this effectiveness become active (e.g. "new_conf" on
+        PI _N_CONFIG); the names of those variables."""
+        names = []
+        for spec in self.specs:
+            if spec.effective != effective or spec.computed:
+                continue
+            names.append(spec.name)
+            for key, values in self.stored.items():
+                if key[0] == spec.name:
+                    self.active[key] = list(values)
+        return names
 
     def apply_initial(self, initial: Mapping[str, Mapping[int, object]], find: Callable[[str], Any],
                       source: str) -> None:

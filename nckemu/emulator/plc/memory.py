@@ -10,11 +10,14 @@ from __future__ import annotations
 import logging
 import struct
 from collections.abc import Callable
+from datetime import datetime, timedelta
 from typing import Any
 
 from nckemu.errors import NckAddressOutOfRange, NckError, NckObjectDoesNotExist, NckServiceError
-from nckemu.protocol import c840, db41
+from nckemu.protocol import c840, db41, szl
 from nckemu.protocol.addresses import S7Area
+
+from ..clock import Clock, MonotonicClock
 
 log = logging.getLogger(__name__)
 
@@ -25,6 +28,18 @@ ORDER_NUMBER = "6FC5372-0AA30-0AA0"  # NCU 720.3 PN; the PLC part answers as the
 HARDWARE_VERSION = 3
 FIRMWARE_VERSION = (3, 2, 6)  # of the PLC part (a CPU 317-2 PN/DP); not a measured value
 MODULE_NAME = "nckemu NCU"
+# SZL 0x0424 record: event ID 0x5144, "ae" 0xFF, then the mode (0x08 RUN, 0x03 STOP), as the record
+# C snap7 took "from a physical CPU" (s7_firmware.h SZL_ID_0424_IDX_XXXX, node-snap7 1.0.9); bytes
+# 12..19 are the time of the last mode change as an S7 DATE_AND_TIME (same source).
+SZL_0424_EVENT_ID = 0x5144
+# SZL 0x0131 index 1 (communication): MPI and K-bus rates in bit/s as the same physical CPU's record
+# (s7_firmware.h SZL_ID_0131_IDX_0001); max connections 16 is that CPU's value (snap7 exposes 1024).
+MAX_CONNECTIONS = 16
+MPI_RATE_BPS = 12_000_000
+KBUS_RATE_BPS = 187_500
+# SZL 0x0232 index 4 (protection): key-switch level 1, no password level, effective level 1, mode
+# switch position 2 (RUN-P), as the physical CPU's record (s7_firmware.h SZL_ID_0232_IDX_0004).
+PROTECTION = (1, 0, 1, 2, 0)
 
 
 def _text(value: str, size: int) -> bytes:
@@ -35,10 +50,22 @@ class PlcModel:
     """The PLC part of the emulated NCU."""
 
     def __init__(self, machine: Any = None, nck: Any = None, *,
-                 data_blocks: dict[int, int] | None = None, layout: c840.C840Layout | None = None) -> None:
+                 data_blocks: dict[int, int] | None = None, layout: c840.C840Layout | None = None,
+                 clock: Clock | None = None) -> None:
         self.machine = machine
         self.nck = nck
         self.layout = layout or c840.C840Layout()
+        settings = getattr(machine, "settings", None)
+        self.szl_unknown_id_error = getattr(settings, "szl_unknown_id_error", szl.ERROR_SZL_NOT_AVAILABLE)
+        self.szl_unknown_index_error = getattr(settings, "szl_unknown_index_error", szl.ERROR_SZL_INVALID_INDEX)
+        self.szl_index0_python_snap7 = getattr(settings, "szl_index0_python_snap7", True)
+        self.c840_refuse_p0_at_zero = getattr(settings, "c840_refuse_p0_at_zero", False)
+        self.pdu_size_max = int(getattr(machine, "pdu_size_max", 960))
+        # The PLC's clock: the wall time at start, advanced by the emulator's clock (a simulated clock
+        # moves it as it moves everything else).
+        self.clock = clock or MonotonicClock()
+        self._clock_epoch = datetime.now() - timedelta(seconds=self.clock.now_s())
+        self._mode_changed = self.now()
         blocks = data_blocks if data_blocks is not None else (
             dict(getattr(machine, "data_blocks", {})) if machine is not None else {41: 64, 100: 256})
         blocks.setdefault(db41.CHANNEL_DB, 64)
@@ -163,12 +190,44 @@ class PlcModel:
             return self._szl(szl_id, szl_index, 34, records)
         if szl_id == 0x0424:
             mode = 0x08 if self.running else 0x03
-            record = bytes([0x51, 0xFF, mode, 0x00, 0x00]) + bytes(15)
-            return self._szl(szl_id, szl_index, 20, [struct.pack(">H", 0x0002)[1:] + record[:19]])
-        if szl_id == 0x0131 and szl_index == 1:
-            record = struct.pack(">HHHH", 1, 960, 64, 12) + bytes(32)
-            return self._szl(szl_id, szl_index, 40, [record])
-        raise NckServiceError(f"SZL 0x{szl_id:04X} index 0x{szl_index:04X} is not available")
+            record = struct.pack(">HBB", SZL_0424_EVENT_ID, 0xFF, mode) + bytes(8) \
+                + szl.build_clock(self._mode_changed)[6:]
+            return self._szl(szl_id, szl_index, 20, [record])
+        if szl_id == 0x0131:
+            if szl_index == 1:
+                record = struct.pack(">HHHII", 1, self.pdu_size_max, MAX_CONNECTIONS, MPI_RATE_BPS, KBUS_RATE_BPS)
+                return self._szl(szl_id, szl_index, 40, [record])
+            if szl_index == 0 and self.szl_index0_python_snap7:
+                # python-snap7 3.3's get_cp_info reads index 0 and takes the four words right after ID
+                # and index as max PDU, max connections, MPI and bus rate (in Mbit/s as its own server
+                # sends them: 12, 12); no real CPU defines index 0 (notes/catalogue.md 5 (g), (h)).
+                return struct.pack(">HHHHHH", szl_id, szl_index, self.pdu_size_max, MAX_CONNECTIONS,
+                                   MPI_RATE_BPS // 1_000_000, MPI_RATE_BPS // 1_000_000)
+            raise NckServiceError(f"SZL 0x0131 has no index 0x{szl_index:04X}",
+                                  error_class=self.szl_unknown_index_error >> 8,
+                                  error_code=self.szl_unknown_index_error & 0xFF)
+        if szl_id == 0x0232:
+            if szl_index == 4:
+                record = struct.pack(">6H", 4, *PROTECTION)
+                return self._szl(szl_id, szl_index, 40, [record])
+            if szl_index == 0 and self.szl_index0_python_snap7:
+                # python-snap7 3.3's get_protection reads index 0, five words after ID and index.
+                return struct.pack(">7H", szl_id, szl_index, *PROTECTION)
+            raise NckServiceError(f"SZL 0x0232 has no index 0x{szl_index:04X}",
+                                  error_class=self.szl_unknown_index_error >> 8,
+                                  error_code=self.szl_unknown_index_error & 0xFF)
+        raise NckServiceError(f"SZL 0x{szl_id:04X} index 0x{szl_index:04X} is not available",
+                              error_class=self.szl_unknown_id_error >> 8,
+                              error_code=self.szl_unknown_id_error & 0xFF)
+
+    # ------------------------------------------------------------------ userdata: blocks and clock
+    def now(self) -> datetime:
+        """The PLC's clock (read by userdata group 7, "read clock")."""
+        return self._clock_epoch + timedelta(seconds=self.clock.now_s())
+
+    def block_counts(self) -> dict[int, int]:
+        """Blocks by type code for "list blocks": the DBs this PLC holds; it has no OB, FC or FB."""
+        return {szl.BLOCK_TYPE_DB: len(self.data_blocks)}
 
     @staticmethod
     def _szl(szl_id: int, szl_index: int, record_length: int, records: list[bytes]) -> bytes:
@@ -176,7 +235,10 @@ class PlcModel:
         return struct.pack(">HHHH", szl_id, szl_index, record_length, len(records)) + body
 
     def plc_control(self, action: str) -> None:
-        self.running = action == "start"
+        running = action == "start"
+        if running != self.running:
+            self._mode_changed = self.now()
+        self.running = running
         log.info("PLC %s", "RUN" if self.running else "STOP")
 
     # ------------------------------------------------------------------ 840C command channel
@@ -211,7 +273,9 @@ class PlcModel:
         if self.nck is None:
             return errors.OPTION_MISSING
         p0_mm = user.p0_mm(self.layout)
-        if user.position_dependent and p0_mm == 0.0:
+        # The manual only says P0 should not coincide with the axis zero point (issue 14 2.10): accepted
+        # unless the machine's settings.c840_refuse_p0_at_zero asks for the refusal.
+        if self.c840_refuse_p0_at_zero and user.position_dependent and p0_mm == 0.0:
             return errors.P0_AT_AXIS_ZERO
         try:
             self.nck.apply_840c_tc(user.axis, user.k_tcabs_mm(self.layout), user.tan_beta, p0_mm,

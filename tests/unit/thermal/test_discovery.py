@@ -62,7 +62,7 @@ def test_seed003_table_names_the_gain_error(tmp_path: Path) -> None:
     out = tmp_path / "out.json"
     report = tmp_path / "out.html"
     improved = tmp_path / "improved.toml"
-    assert main(["discover", str(FIXTURES / "seed003_spindle_elongation.csv"), "--axis", "Z", "--json", str(out),
+    assert main(["discover", str(FIXTURES / "seed003_spindle_elongation.csv"), "--axis", "Z", "--json-out", str(out),
                  "--report", str(report), "--write-model", str(improved)]) == 0
     document = json.loads(out.read_text())
     for key in ("baseline_rms_um", "recalibrated_rms_um", "mismatch", "missing_physics", "heldout_rms_before_um",
@@ -85,7 +85,7 @@ def test_improved_model_is_a_baseline_again(tmp_path: Path) -> None:
     model_path = tmp_path / "baseline.toml"
     model_path.write_text((FIXTURES / "baseline_spindle_bed.toml").read_text())
     improved_path = tmp_path / "improved.toml"
-    assert main(["discover", str(recording_path), "--model", str(model_path), "--json", str(tmp_path / "a.json"),
+    assert main(["discover", str(recording_path), "--model", str(model_path), "--json-out", str(tmp_path / "a.json"),
                  "--write-model", str(improved_path)]) == 0
     again = discover(load_recording(recording_path), model=load_model(improved_path))
     assert again.missing_physics == []
@@ -126,7 +126,18 @@ def test_bad_models_and_missing_baseline(tmp_path: Path) -> None:
         parse_model('axis = "Z"\n[[term]]\neffect = "offset"\ncolour = 1\n', "m.toml")
     path = tmp_path / "rec.csv"
     path.write_text("t_s,err_Z_um\n" + "".join(f"{i},{i}\n" for i in range(20)))
-    assert main(["discover", str(path), "--axis", "Z"]) == 1
+    assert main(["discover", str(path), "--axis", "X"]) == 1  # no err_X_um column
+
+
+def test_discover_without_a_baseline_starts_from_an_offset(shared_dir: Path, capsys) -> None:
+    # "which sensors explain ch3" on FL_THERMAL needs no hand-written zero model (issue 15)
+    assert main(["discover", str(shared_dir / "data" / "fl_thermal" / "recording.csv"), "--axis", "ch3",
+                 "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "baseline: a constant offset" in captured.err
+    document = json.loads(captured.out)
+    assert document["axis"] == "ch3"
+    assert document["heldout_rms_after_um"] <= document["heldout_rms_before_um"]
 
 
 def test_fl_thermal_recording_claims_no_centrifugal_growth(shared_dir: Path) -> None:

@@ -1,0 +1,237 @@
+"""``nckemu loop``: test a compensation program against a recorded machine, find what it misses,
+generate the fixed program and judge it on held-out blocks of the recording.
+
+1. The user's program runs in awlsim against the emulator, driven by the recording
+   (``replay.run_on_recording``): ``sim_`` is what the NCK would have compensated.
+2. ``discover`` takes that column as the baseline: what the program compensated, the residual, where
+   it falls short, what physics it leaves out.
+3. The improved model is generated as STL (``stlgen``) and run the same way.
+Held-out judgement: the recording is cut into ``folds`` contiguous blocks of time; for each block the
+program's coefficients are fitted on the other blocks (the effects and their time constants come
+from step 2, fitted on all data, as ``discover`` does), the program is generated and run over the
+whole recording, and its residual is kept on the block it did not see.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from nckemu.emulator.machine import Axis, Machine, load_machine
+from nckemu.thermal import stats
+from nckemu.thermal.discover import Discovery, discover
+from nckemu.thermal.plcmodel import PlcModel, plc_model, terms_of
+from nckemu.thermal.recording import Recording
+from nckemu.thermal.wording import program_findings
+
+from .replay import check_program, plc_inputs, recording_axis, run_on_recording, with_simulation
+from .stlgen import GeneratedProgram, generate_program
+
+
+@dataclass
+class LoopResult:
+    axis: Axis
+    letter: str
+    recording: Recording
+    sim_old_um: np.ndarray
+    sim_new_um: np.ndarray
+    heldout_sim_um: np.ndarray            # each block from the program fitted without it
+    discovery: Discovery
+    plc: PlcModel
+    program: GeneratedProgram
+    findings: list[tuple[str, str]]
+    fold_rms_um: list[tuple[float, float]] = field(default_factory=list)   # (before, after) per block
+    warnings: list[str] = field(default_factory=list)
+
+    def _rms(self, sim: np.ndarray) -> float:
+        error = self.recording.errors_um[self.letter]
+        rows = np.isfinite(error) & np.isfinite(sim)
+        return stats.rms((error - sim)[rows])
+
+    @property
+    def rms_error_um(self) -> float:
+        return self._rms(np.zeros_like(self.sim_old_um))
+
+    @property
+    def rms_before_um(self) -> float:
+        return self._rms(self.sim_old_um)
+
+    @property
+    def rms_after_um(self) -> float:
+        return self._rms(self.sim_new_um)
+
+    @property
+    def heldout_rms_after_um(self) -> float:
+        return self._rms(self.heldout_sim_um)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "axis": self.letter, "machine_axis": self.axis.number,
+            "rms_error_um": round(self.rms_error_um, 4),
+            "residual_rms_before_um": round(self.rms_before_um, 4),
+            "residual_rms_after_in_sample_um": round(self.rms_after_um, 4),
+            "heldout": {"residual_rms_before_um": round(self.rms_before_um, 4),
+                        "residual_rms_after_um": round(self.heldout_rms_after_um, 4),
+                        "blocks": [{"before_um": round(b, 4), "after_um": round(a, 4)} for b, a in self.fold_rms_um]},
+            "program": dict(self.findings),
+            "discovery": self.discovery.to_json(),
+            "generated": {**self.program.to_json(), "model": self.plc.to_json()},
+            "warnings": self.warnings,
+        }
+
+
+def _law_text(plc: PlcModel) -> str:
+    parts = []
+    for term in plc.program_law:
+        p = term.parameters
+        if term.effect == "offset":
+            parts.append(f"{term.coefficient:+.3f} um")
+        elif term.effect == "temperature":
+            parts.append(f"{term.coefficient:+.4g} um/K x ({p['sensor']} - {float(p['t_ref_C']):g} degC)")
+        else:
+            parts.append(f"{term.coefficient:+.4g} um/m/K x position x ({p['sensor']} - {float(p['t_ref_C']):g} degC)")
+    return " ".join(parts) + f" (within {plc.program_law_rms_um:.3f} um RMS of its output)"
+
+
+def blocks(rows: int, folds: int) -> list[np.ndarray]:
+    edges = np.linspace(0, rows, folds + 1).round().astype(int)
+    return [np.arange(edges[i], edges[i + 1]) for i in range(folds)]
+
+
+def _run_generated(program: GeneratedProgram, machine: Machine, recording: Recording, letter: str,
+                   cycle_s: float, progress: bool | None) -> np.ndarray:
+    with tempfile.TemporaryDirectory(prefix="nckemu-loop-") as directory:
+        path = Path(directory) / "generated.awl"
+        path.write_text(program.text, encoding="utf-8")
+        return run_on_recording(path, machine, recording, letter, cycle_s, progress).sim_um
+
+
+def run_loop(program: str | Path, machine: str | Path | Machine, recording: Recording, letter: str,
+             cycle_s: float = 1.0, folds: int = 5, progress: bool | None = None,
+             write_period_s: float = 10.0) -> LoopResult:
+    program = Path(program)
+    check_program(program)
+    machine = machine if isinstance(machine, Machine) else load_machine(machine)
+    axis = recording_axis(machine, letter)
+    letter = axis.recording
+    if letter not in recording.errors_um:
+        from nckemu.errors import NckConfigError
+
+        raise NckConfigError(f"the recording has no err_{letter}_um column to judge axis {axis.name} by",
+                             path=recording.source, line=1, field=f"err_{letter}_um")
+    old = run_on_recording(program, machine, recording, letter, cycle_s, progress)
+    with_old = with_simulation(recording, letter, old.sim_um)
+    found_discovery = discover(with_old, axis=letter)
+    found = terms_of(found_discovery.missing_physics)
+    plc_sensors, spindle_input = plc_inputs(machine, recording)
+    origin = f"nckemu loop on {Path(recording.source).name} (program {program.name})"
+    model = plc_model(with_old, letter, found, plc_sensors, spindle_input=spindle_input)
+    generated = generate_program(model.model, machine, axis, cycle_s, write_period_s, model.not_compensable, origin)
+    sim_new = _run_generated(generated, machine, recording, letter, cycle_s, progress)
+    heldout = np.full(len(recording.t_s), math.nan)
+    error = recording.errors_um[letter]
+    fold_rms = []
+    for block in blocks(len(recording.t_s), folds):
+        train = np.ones(len(recording.t_s), dtype=bool)
+        train[block] = False
+        fold_model = plc_model(with_old, letter, found, plc_sensors, train=train, spindle_input=spindle_input)
+        fold_program = generate_program(fold_model.model, machine, axis, cycle_s, write_period_s,
+                                        fold_model.not_compensable, origin)
+        sim = _run_generated(fold_program, machine, recording, letter, cycle_s, progress)
+        heldout[block] = sim[block]
+        rows = block[np.isfinite(error[block])]
+        if len(rows):
+            fold_rms.append((stats.rms(error[rows] - old.sim_um[rows]), stats.rms(error[rows] - sim[rows])))
+    findings = program_findings(found_discovery, _law_text(model))
+    warnings = list(old.warnings) + [f"your program: {message}" for message in old.log.errors[:5]]
+    if not np.any(old.sim_um):
+        warnings.append(f"your program compensated nothing on axis {axis.name} (machine axis {axis.number}): check "
+                        f"the unit in its address DB and MD32750")
+    if generated.position_dependent:
+        from .replay import position_dependent_warning
+
+        warning = position_dependent_warning(generated.text, machine, axis)
+        if warning:
+            warnings.append(warning.replace("the program", "the generated program"))
+    return LoopResult(axis, letter, recording, old.sim_um, sim_new, heldout, found_discovery, model, generated,
+                      findings, fold_rms, warnings)
+
+
+# ---------------------------------------------------------------------- the report
+def _png(figure: Any) -> str:
+    import matplotlib.pyplot as plt
+
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=100, bbox_inches="tight")
+    plt.close(figure)
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def write_loop_report(path: str | Path, result: LoopResult, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    hours = (result.recording.t_s - result.recording.t_s[0]) / 3600.0
+    error = result.recording.errors_um[result.letter]
+    measured = np.isfinite(error)
+
+    def shade(axes: Any) -> None:
+        for index, window in enumerate(result.discovery.mismatch):
+            axes.axvspan(window["t_start_s"] / 3600, window["t_end_s"] / 3600, color="orange", alpha=0.15,
+                         label="where the program falls short" if index == 0 else None)
+
+    figure, axes = plt.subplots(figsize=(10, 4))
+    axes.plot(hours[measured], error[measured], ".", markersize=2, color="black", label="measured error")
+    axes.plot(hours, result.sim_old_um, label="compensated by your program")
+    axes.plot(hours, result.sim_new_um, label="compensated by the generated program")
+    shade(axes)
+    axes.set_xlabel("time [h]")
+    axes.set_ylabel(f"axis {result.letter} [um]")
+    axes.legend()
+    overview = _png(figure)
+    figure, axes = plt.subplots(figsize=(10, 3.5))
+    axes.plot(hours[measured], (error - result.sim_old_um)[measured], label="residual, your program")
+    axes.plot(hours[measured], (error - result.heldout_sim_um)[measured], label="residual, generated (held-out)")
+    shade(axes)
+    axes.axhline(0, color="grey", linewidth=0.5)
+    axes.set_xlabel("time [h]")
+    axes.set_ylabel("err - sim [um]")
+    axes.legend()
+    residuals = _png(figure)
+    findings = "".join(f"<dt><b>{html.escape(h)}</b></dt><dd>{html.escape(s)}</dd>" for h, s in result.findings)
+    generated = "".join(f"<li>{html.escape(g['effect'])}: <code>{html.escape(str(g['parameters']))}</code>"
+                        f"{(' &mdash; ' + html.escape(g['plc'])) if g.get('plc') else ''}</li>"
+                        for g in result.program.generated)
+    set_aside = "".join(f"<li>{html.escape(n['effect'])}: {html.escape(n['why'])}</li>"
+                        for n in result.program.not_compensable) or "<li>none</li>"
+    folds = "".join(f"<tr><td>{i + 1}</td><td>{b:.3f}</td><td>{a:.3f}</td></tr>"
+                    for i, (b, a) in enumerate(result.fold_rms_um))
+    warnings = "".join(f"<p><b>Warning:</b> {html.escape(w)}</p>" for w in result.warnings)
+    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{html.escape(title)}</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}td,th{{padding:4px 8px}}
+table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}dd{{margin-bottom:.6em}}</style></head><body>
+<h1>{html.escape(title)}</h1>
+<p>Axis {html.escape(result.letter)} (machine axis {result.axis.number}). Measured error RMS
+{result.rms_error_um:.3f} um. Left after your program: {result.rms_before_um:.3f} um. Left after the generated
+program: {result.heldout_rms_after_um:.3f} um on held-out blocks ({result.rms_after_um:.3f} um fitted on all).</p>
+{warnings}
+<h2>Your program against the recording</h2><dl>{findings}</dl>
+<img alt="measured error and compensation" src="data:image/png;base64,{overview}">
+<img alt="residual before and after" src="data:image/png;base64,{residuals}">
+<h2>The generated program</h2><ul>{generated}</ul>
+<h3>Not compensable in the PLC</h3><ul>{set_aside}</ul>
+<h2>Held-out blocks</h2><p>Each block judged by a program fitted on the other blocks.</p>
+<table><tr><th>block</th><th>your program [um RMS]</th><th>generated [um RMS]</th></tr>{folds}</table>
+<details><summary>Generated STL</summary><pre>{html.escape(result.program.text)}</pre></details>
+</body></html>"""
+    Path(path).write_text(page, encoding="utf-8")
