@@ -1,19 +1,27 @@
-"""Server throughput and latency: nckemu against python-snap7's own Server, same load, same run.
+"""Server throughput and latency: nckemu against python-snap7's own Server and the native snap7
+server (C, through node-snap7), same load, same run.
 
 Loads (each from 1 and 8 client processes over loopback):
 * NCK REAL8 read: one NCK item (SD43900 of axis 4);
-* DB read: 4 bytes of a DB.
-Drivers: ``snap7``, python-snap7's Client (``iso_exchange_buffer`` and ``db_read``), and ``raw``, a
-load generator that sends the very same request frames from pre-built bytes over a plain socket
-and reads the answers. python-snap7's Client is pure Python and, on a small machine, the client
+* DB read: 4 bytes of a DB;
+* PIW read: 2 bytes at input byte 420 (``read_area(Area.PE, 0, 420, 2)``; nckemu wires a sensor there).
+Drivers: ``snap7``, python-snap7's Client (``iso_exchange_buffer``, ``db_read``, ``read_area``), and
+``raw``, a load generator that sends the very same request frames from pre-built bytes over a plain
+socket and reads the answers. python-snap7's Client is pure Python and, on a small machine, the client
 processes take most of the CPU; the raw driver leaves the CPU to the server under test.
-The anchor (python-snap7 3.3 Server) answers the NCK read with DB1 bytes (it ignores the syntax
-ID), so it does the same amount of work per request: the comparison is of request handling.
+The anchors: python-snap7 3.3's Server (it answers the NCK read with DB1 bytes, ignoring the syntax
+ID, so it does the same amount of work per request) and the native snap7 server from the npm package
+node-snap7 (installed into ``--cache``; S7ANY loads only: it does not serve NCK items). Where node or
+npm is missing, or the native build fails, the native anchor is skipped with one line.
+With ``--idle N`` every server is measured again at the largest client count with N further
+connections open (COTP connected, setup communication done) and idle: the cost per request must
+not grow with them.
 Each point also reports the CPU time per request of the server process and of the client processes
 together, and, for loads with more client processes than cores, the throughput the cores allow at
 that CPU cost: it shows when the clients, not the server, set the pace.
 
 Usage: .venv/bin/python bench/bench_server.py [--seconds 3] [--clients 1 8] [--drivers snap7 raw]
+                                              [--loads nck db piw] [--idle 256]
 """
 
 from __future__ import annotations
@@ -31,19 +39,56 @@ from pathlib import Path
 from typing import Any
 
 REPO = Path(__file__).resolve().parent.parent
+PIW_BYTE = 420
 NCK_READ_PDU = bytes.fromhex("32010000000100 0c 0000 04 01 12088264AB7C00011601".replace(" ", ""))
 ANCHOR_SCRIPT = """
 import sys, time, snap7
 from snap7.type import SrvArea
-server = snap7.server.Server(log=False)
+server = snap7.server.Server(log=False, max_clients=1024)
 db = bytearray(64)
 server.register_area(SrvArea.DB, 1, db)
 server.register_area(SrvArea.DB, 130, bytearray(64))
+server.register_area(SrvArea.PE, 0, bytearray(2048))
 server.start(tcp_port=int(sys.argv[1]))
 print("ready", flush=True)
 while True:
     time.sleep(1)
 """
+
+NATIVE_SCRIPT = """
+const s7 = require(process.argv[1]);
+const server = new s7.S7Server();
+server.SetParam(server.LocalPort, parseInt(process.argv[2]));
+server.SetParam(server.MaxClients, 1024);
+server.SetEventMask(0);
+server.RegisterArea(server.srvAreaDB, 1, Buffer.alloc(64));
+server.RegisterArea(server.srvAreaDB, 130, Buffer.alloc(64));
+server.RegisterArea(server.srvAreaPE, Buffer.alloc(2048));
+if (server.StartTo("127.0.0.1") === false) { console.error(server.ErrorText(server.LastError())); process.exit(1); }
+setInterval(() => {}, 1 << 30);
+"""
+DEFAULT_CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "nckemu-bench"
+
+
+def native_snap7(cache: Path) -> tuple[Path | None, str]:
+    """The node-snap7 package directory (installed into ``cache`` by npm on first use), or None and why."""
+    import shutil
+
+    if shutil.which("node") is None or shutil.which("npm") is None:
+        return None, "node or npm is not installed"
+    package = cache / "node_modules" / "node-snap7"
+    if not (package / "package.json").exists():
+        print(f"installing node-snap7 (the native snap7 anchor) into {cache} ...", file=sys.stderr, flush=True)
+        cache.mkdir(parents=True, exist_ok=True)
+        done = subprocess.run(["npm", "install", "--prefix", str(cache), "node-snap7"], capture_output=True,
+                              text=True, check=False)
+        if done.returncode != 0:
+            return None, f"npm install node-snap7 failed: {done.stderr.strip().splitlines()[-1:]}"
+    check = subprocess.run(["node", "-e", "const s7 = require(process.argv[1]); new s7.S7Server();", str(package)],
+                           capture_output=True, text=True, check=False)
+    if check.returncode != 0:
+        return None, f"node-snap7 does not load (native build missing?): {check.stderr.strip().splitlines()[-1:]}"
+    return package, ""
 
 
 def free_port() -> int:
@@ -64,7 +109,8 @@ def wait_port(port: int, timeout_s: float = 20.0) -> None:
 
 
 def start_nckemu(port: int) -> subprocess.Popen[bytes]:
-    return subprocess.Popen([sys.executable, "-m", "nckemu", "serve", "--port", str(port)],
+    return subprocess.Popen([sys.executable, "-m", "nckemu", "serve", "--port", str(port),
+                             "--max-connections", "1024"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=REPO)
 
 
@@ -73,11 +119,30 @@ def start_anchor(port: int) -> subprocess.Popen[bytes]:
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
+def start_native(package: Path, port: int) -> subprocess.Popen[bytes]:
+    return subprocess.Popen(["node", "-e", NATIVE_SCRIPT, str(package), str(port)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def open_idle(port: int, count: int, db: int) -> list[socket.socket]:
+    """``count`` connections that connect (COTP), set up communication and then stay idle."""
+    connect, setup, _request = _raw_frames("db", db)
+    sockets = []
+    for _ in range(count):
+        sock = socket.create_connection(("127.0.0.1", port))
+        for frame in (connect, setup):
+            sock.sendall(frame)
+            _receive_frame(sock)
+        sockets.append(sock)
+    return sockets
+
+
 def client_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue,  # type: ignore[type-arg]
                   start: Any) -> None:
     import logging
 
     import snap7
+    from snap7.type import Area
 
     logging.disable(logging.CRITICAL)
     client = snap7.Client()
@@ -93,6 +158,8 @@ def client_worker(port: int, load: str, seconds: float, db: int, out: mp.Queue, 
             break
         if load == "nck":
             client.iso_exchange_buffer(request)
+        elif load == "piw":
+            client.read_area(Area.PE, 0, PIW_BYTE, 2)
         else:
             client.db_read(db, 0, 4)
         latencies.append(time.perf_counter() - start)
@@ -115,7 +182,9 @@ def _raw_frames(load: str, db: int) -> tuple[bytes, bytes, bytes]:
     if load == "nck":
         request = cotp.build_data_frame(NCK_READ_PDU)
     else:
-        item = S7AnyAddress(transport_size=0x02, count=4, db_number=db, area=0x84, byte_address=0)
+        item = S7AnyAddress(transport_size=0x02, count=4, db_number=db, area=0x84, byte_address=0) \
+            if load == "db" else S7AnyAddress(transport_size=0x02, count=2, db_number=0, area=0x81,
+                                              byte_address=PIW_BYTE)
         request = cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 1, s7.build_read_var_request(
             s7.ReadVarRequest((item,))))))
     return connect, setup, request
@@ -211,43 +280,74 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--clients", type=int, nargs="+", default=[1, 8])
     parser.add_argument("--drivers", nargs="+", choices=("snap7", "raw"), default=["snap7", "raw"])
+    parser.add_argument("--loads", nargs="+", choices=("nck", "db", "piw"), default=["nck", "db", "piw"])
+    parser.add_argument("--idle", type=int, default=256,
+                        help="idle connections held open for the extra rows at the largest client count (0: none)")
+    parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="where npm installs node-snap7")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
+    package, why = native_snap7(args.cache)
+    if package is None:
+        print(f"native snap7 anchor skipped: {why}", flush=True)
+    servers: list[tuple[str, Any, int]] = [("python-snap7 Server", start_anchor, 1)]
+    if package is not None:
+        servers.append(("native snap7", lambda port: start_native(package, port), 130))
+    servers.append(("nckemu", start_nckemu, 130))
     results = []
-    for name, starter, db in (("python-snap7 Server (anchor)", start_anchor, 1), ("nckemu", start_nckemu, 130)):
+    for name, starter, db in servers:
         port = free_port()
         process = starter(port)
         try:
             wait_port(port)
             for driver in args.drivers:
-                for load in ("nck", "db"):
+                for load in args.loads:
+                    if load == "nck" and name == "native snap7":
+                        continue  # it does not serve NCK items
                     for clients in args.clients:
                         figures = measure(port, load, clients, args.seconds, db, driver, process.pid)
                         results.append({"server": name, "driver": driver, "load": load, "clients": clients,
-                                        **figures})
+                                        "idle": 0, **figures})
+                    if args.idle:
+                        clients = max(args.clients)
+                        idle = open_idle(port, args.idle, db)
+                        try:
+                            figures = measure(port, load, clients, args.seconds, db, driver, process.pid)
+                        finally:
+                            for sock in idle:
+                                sock.close()
+                        results.append({"server": name, "driver": driver, "load": load, "clients": clients,
+                                        "idle": args.idle, **figures})
         finally:
             process.terminate()
             process.wait(timeout=10)
-    anchor = {(r["driver"], r["load"], r["clients"]): r for r in results if r["server"].startswith("python-snap7")}
     if args.json:
         print(json.dumps(results, indent=2))
         return 0
+
+    def anchor(server: str, r: dict[str, Any]) -> str:
+        for a in results:
+            if a["server"] == server and all(a[k] == r[k] for k in ("driver", "load", "clients", "idle")):
+                return f"{r['requests_per_s'] / a['requests_per_s']:>8.2f}"
+        return f"{'-':>8}"
+
     cores = os.cpu_count() or 1
     print(f"machine: {cores} cores; {args.seconds:.0f} s per point; CPU in microseconds per request "
-          "(server process; all client processes together)")
-    print(f"{'server':30} {'driver':6} {'load':5} {'clients':>7} {'req/s':>9} {'p50 ms':>8} {'p99 ms':>8} "
-          f"{'x anchor':>9} {'srv CPU':>8} {'cli CPU':>8}")
-    for r in sorted(results, key=lambda r: (r["driver"], r["load"], r["clients"], r["server"])):
-        ratio = r["requests_per_s"] / anchor[(r["driver"], r["load"], r["clients"])]["requests_per_s"]
+          "(server process; all client processes together); x py / x nat: throughput over python-snap7's "
+          "Server / the native snap7 server at the same point")
+    print(f"{'server':20} {'driver':6} {'load':5} {'clients':>7} {'idle':>5} {'req/s':>9} {'p50 ms':>8} "
+          f"{'p99 ms':>8} {'x py':>8} {'x nat':>8} {'srv CPU':>8} {'cli CPU':>8}")
+    order = {name: index for index, (name, _s, _d) in enumerate(servers)}
+    for r in sorted(results, key=lambda r: (r["driver"], r["load"], r["clients"], r["idle"], order[r["server"]])):
         server_cpu = f"{r['server_cpu_us']:8.1f}" if "server_cpu_us" in r else f"{'?':>8}"
-        print(f"{r['server']:30} {r['driver']:6} {r['load']:5} {r['clients']:>7} {r['requests_per_s']:>9.0f} "
-              f"{r['p50_ms']:>8.3f} {r['p99_ms']:>8.3f} {ratio:>9.2f} {server_cpu} {r['client_cpu_us']:8.1f}")
+        print(f"{r['server']:20} {r['driver']:6} {r['load']:5} {r['clients']:>7} {r['idle']:>5} "
+              f"{r['requests_per_s']:>9.0f} {r['p50_ms']:>8.3f} {r['p99_ms']:>8.3f} "
+              f"{anchor('python-snap7 Server', r)} {anchor('native snap7', r)} {server_cpu} {r['client_cpu_us']:8.1f}")
     for r in results:
         if r["server"] == "nckemu" and r["clients"] > cores and "server_cpu_us" in r:
             bound = cores * 1e6 / (r["server_cpu_us"] + r["client_cpu_us"])
-            print(f"{r['driver']} {r['load']} x{r['clients']}: {cores} cores allow at most {bound:,.0f} req/s at "
-                  f"this CPU per request (nckemu {r['server_cpu_us']:.1f} us + clients {r['client_cpu_us']:.1f} us); "
-                  f"measured {r['requests_per_s']:,.0f}")
+            print(f"{r['driver']} {r['load']} x{r['clients']} idle {r['idle']}: {cores} cores allow at most "
+                  f"{bound:,.0f} req/s at this CPU per request (nckemu {r['server_cpu_us']:.1f} us + clients "
+                  f"{r['client_cpu_us']:.1f} us); measured {r['requests_per_s']:,.0f}")
     return 0
 
 

@@ -70,6 +70,47 @@ _ANSWER_TRANSPORT_SIZE: dict[int, int] = {
 }
 
 
+PlanPart = tuple[bytes, Callable[[], bytes], int, bytes]  # data item header, value reader, size, fill
+
+
+def _planned_answer(item_count: int, parts: list[PlanPart],
+                    general: Callable[[int, AccessContext], bytes]) -> Callable[[int, AccessContext], bytes]:
+    """The answer to a read job of byte-sized S7ANY items (``Dispatcher._plan_read``): the ACK_DATA
+    header with the PDU reference put in, then per item its header, value and fill byte. A value
+    that cannot be read (or has another size) sends the job the general way."""
+    data_length = sum(len(header) + size + len(fill) for header, _read, size, fill in parts)
+    head = s7.build_read_var_answer(0, item_count, bytes(data_length))[:s7.READ_ANSWER_DATA_OFFSET]
+    before, after = head[:4], head[6:]  # the PDU reference is bytes 4 and 5
+    if len(parts) == 1:
+        ((header, read, size, _fill),) = parts
+        after += header
+
+        def answer_one(pdu_ref: int, ctx: AccessContext) -> bytes:
+            try:
+                value = read()
+            except Exception:  # noqa: BLE001 - the general path gives the item its error
+                return general(pdu_ref, ctx)
+            if len(value) != size:
+                return general(pdu_ref, ctx)
+            return b"".join((before, pdu_ref.to_bytes(2, "big"), after, value))
+
+        return answer_one
+
+    def answer(pdu_ref: int, ctx: AccessContext) -> bytes:
+        out = [before, pdu_ref.to_bytes(2, "big"), after]
+        try:
+            for header, read, size, fill in parts:
+                value = read()
+                if len(value) != size:
+                    return general(pdu_ref, ctx)
+                out += (header, value, fill)
+        except Exception:  # noqa: BLE001 - the general path gives the item its error
+            return general(pdu_ref, ctx)
+        return b"".join(out)
+
+    return answer
+
+
 def _error_item(return_code: int) -> s7.DataItem:
     return s7.DataItem(return_code, 0x00, b"")
 
@@ -90,6 +131,11 @@ class Dispatcher:
         self._persist = persist
         self.default_access_level = default_access_level
         self._read_requests: dict[bytes, s7.ReadVarRequest] = {}
+        # Read jobs by parameter bytes -> the function answering them (see ``_plan_read``).
+        self._read_plans: dict[bytes, Callable[[int, AccessContext], bytes]] = {}
+        reader = getattr(plc, "reader", None)
+        self._plc_reader: Callable[[int, int, int, int], Callable[[], bytes]] = reader if reader is not None \
+            else lambda area, db, start, size: lambda: plc.read(area, db, start, size)
 
     def new_access_context(self, peer: str) -> AccessContext:
         return AccessContext(level=self.default_access_level, client=peer)
@@ -123,9 +169,66 @@ class Dispatcher:
     def read_answer(self, pdu_ref: int, parameter: bytes, ctx: AccessContext) -> bytes:
         """The whole ACK_DATA PDU answering a read-var job: what ``job`` answers, without the S7Pdu
         objects on the way (clients poll; this is most of the traffic). Raises as ``job`` does."""
+        plan = self._read_plans.get(parameter)
+        if plan is None:
+            plan = self._plan_read(parameter)
+        return plan(pdu_ref, ctx)
+
+    def _plan_read(self, parameter: bytes) -> Callable[[int, AccessContext], bytes]:
+        """The function answering the read job with these parameter bytes (raises as ``job`` does
+        for parameters that do not parse). Where every item is a byte-sized S7ANY read, the answer
+        but for the PDU reference and the values is known before the values are: it is built once,
+        each job joins the values in (the PLC's ``reader`` gives each item's value). Anything else,
+        and any exception on the way, goes the general way (which also gives item errors)."""
         request = self._read_request(parameter)
-        data = s7.build_data_items(self.read_var(request, ctx).items)
-        return s7.build_read_var_answer(pdu_ref, len(request.items), data)
+        item_count = len(request.items)
+
+        read_item, build_data_items, build_answer = self._read_item, s7.build_data_items, s7.build_read_var_answer
+        items = request.items
+
+        def general(pdu_ref: int, ctx: AccessContext) -> bytes:
+            # ``read_var`` and ``build_read_var_response`` without the response objects.
+            if item_count == 1:
+                return build_answer(pdu_ref, 1, build_data_items((read_item(items[0], ctx),)))
+            return build_answer(pdu_ref, item_count, build_data_items(tuple(read_item(item, ctx) for item in items)))
+
+        if len(self._read_plans) >= MAX_CACHED_READ_REQUESTS:
+            return general
+        plan: Callable[[int, AccessContext], bytes] = general
+        parts = self._s7any_plan_parts(request.items)
+        if parts is not None:
+            plan = _planned_answer(item_count, parts, general)
+        self._read_plans[parameter] = plan
+        return plan
+
+    def _s7any_plan_parts(self, items: tuple[object, ...]) -> list[PlanPart] | None:
+        """Per item: data item header, value reader, size, fill byte; None unless all are byte-sized
+        S7ANY reads whose answers fit in a data item."""
+        parts: list[PlanPart] = []
+        last = len(items) - 1
+        total = 0
+        for index, address in enumerate(items):
+            if not isinstance(address, S7AnyAddress) or address.transport_size == S7TransportSize.BIT:
+                return None
+            answer_size = _ANSWER_TRANSPORT_SIZE.get(address.transport_size)
+            try:
+                size = self._s7any_size(address)
+            except NckError:
+                return None
+            if answer_size is None:
+                return None
+            length = s7.data_item_length_field(s7.DataItem(RC_SUCCESS, answer_size, bytes(size)))
+            if length > 0xFFFF:
+                return None
+            header = s7.DATA_ITEM_HEADER.build({"return_code": RC_SUCCESS, "transport_size": answer_size,
+                                                "length": length})
+            fill = b"\x00" if index < last and size % 2 else b""
+            total += len(header) + size + len(fill)
+            if total > 0xFFFF:
+                return None  # no S7 PDU carries it: the general path fails it as ``job`` does
+            parts.append((header, self._plc_reader(address.area, address.db_number, address.byte_address, size),
+                           size, fill))
+        return parts
 
     def read_var(self, request: s7.ReadVarRequest, ctx: AccessContext) -> s7.ReadVarResponse:
         return s7.ReadVarResponse(tuple(self._read_item(item, ctx) for item in request.items))

@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
@@ -88,8 +89,10 @@ class _Connection(asyncio.BufferedProtocol):
         if session.has_partial_frame:
             if self.partial_since_s is None:
                 self.partial_since_s = self.last_activity_s
-        else:
+                self.server.watched.add(self)
+        elif self.partial_since_s is not None:
             self.partial_since_s = None
+            self.server.watched.discard(self)
         if answers:
             out = answers[0] if len(answers) == 1 else b"".join(answers)
             transport.write(out)
@@ -108,14 +111,18 @@ class _Connection(asyncio.BufferedProtocol):
         if self.transport is not None:
             self.transport.pause_reading()
             self.paused_since_s = time.monotonic()
+            self.server.watched.add(self)
 
     def resume_writing(self) -> None:
         if self.transport is not None:
             self.transport.resume_reading()
             self.paused_since_s = None
+            if self.partial_since_s is None:
+                self.server.watched.discard(self)
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.server.connections.discard(self)
+        self.server.watched.discard(self)
         if self.server.recorder is not None and self.session is not None:
             self.server.recorder.close_connection(self)
         if self.session is not None and not self.session.closed:
@@ -161,6 +168,10 @@ class EmulatorServer:
         self.record_port = record_port
         self.recorder: CaptureWriter | None = None
         self.connections: set[_Connection] = set()
+        # Connections with a frame begun or answers unread: the only ones the watchdog looks at on
+        # every turn. Idle ones are looked at once per idle scan: the watchdog's cost per second does
+        # not grow with connections that do nothing.
+        self.watched: set[_Connection] = set()
         self.refused_connections = 0
         self._server: asyncio.AbstractServer | None = None
         self._watchdog: asyncio.Task[None] | None = None
@@ -182,12 +193,20 @@ class EmulatorServer:
         return self
 
     async def _watch_timeouts(self) -> None:
-        period_s = max(0.05, min(1.0, self.limits.idle_timeout_s / 4, self.limits.write_stall_timeout_s / 4,
-                                 self.limits.partial_frame_timeout_s / 4))
+        period_s = max(0.05, min(1.0, self.limits.write_stall_timeout_s / 4, self.limits.partial_frame_timeout_s / 4))
+        # Idle connections are closed within an eighth of the idle timeout after it (at most 10 s).
+        idle_period_s = max(0.05, min(10.0, self.limits.idle_timeout_s / 8))
+        period_s = min(period_s, idle_period_s)
+        next_idle_scan_s = time.monotonic() + idle_period_s
         while True:
             await asyncio.sleep(period_s)
             now_s = time.monotonic()
-            for connection in list(self.connections):
+            if now_s >= next_idle_scan_s:
+                next_idle_scan_s = now_s + idle_period_s
+                watched: Iterable[_Connection] = list(self.connections)
+            else:
+                watched = list(self.watched)
+            for connection in watched:
                 connection.check_timeouts(now_s)
 
     async def stop(self) -> None:

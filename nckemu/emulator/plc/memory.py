@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import struct
+from collections.abc import Callable
 from datetime import datetime, timedelta
 from typing import Any
 
@@ -19,6 +20,8 @@ from nckemu.protocol.addresses import S7Area
 from ..clock import Clock, MonotonicClock
 
 log = logging.getLogger(__name__)
+
+_SENSOR_WORD = struct.Struct(">h")
 
 AREA_BYTES = 2048
 ORDER_NUMBER = "6FC5372-0AA30-0AA0"  # NCU 720.3 PN; the PLC part answers as the NCU
@@ -104,6 +107,34 @@ class PlcModel:
             # The process image of the inputs holds what the peripheral words read.
             return self._read_peripheral(start_byte, size_bytes)
         return bytes(block[start_byte:start_byte + size_bytes])
+
+    def reader(self, area: int, db_number: int, start_byte: int, size_bytes: int) -> Callable[[], bytes]:
+        """A function of no arguments that returns what ``read(area, db_number, start_byte, size_bytes)``
+        returns now, or raises (any exception: the caller then reads through ``read`` for the proper
+        error). For polled items: the area is decided once, a DB read is a slice of its block, a
+        sensor word is the sensor's value packed."""
+        end = start_byte + size_bytes
+        if area in (S7Area.DB, S7Area.DI) and start_byte >= 0 and size_bytes >= 0:
+            blocks = self.data_blocks
+
+            def read_block() -> bytes:
+                block = blocks[db_number]
+                if end > len(block):  # also where nothing is read, as ``_check``
+                    raise NckAddressOutOfRange(f"DB{db_number}: bytes beyond its end")
+                return block[start_byte:end]  # a bytearray slice: a copy, as bytes-like as ``read``'s bytes
+
+            return read_block
+        sensor = self._sensor_inputs.get(start_byte)
+        if size_bytes == 2 and sensor is not None and (area == S7Area.P or area == S7Area.I) \
+                and start_byte + 1 not in self._sensor_inputs and end <= len(self.areas[S7Area.I]):
+            # A whole sensor word (PIW 420): what ``_read_peripheral`` packs byte by byte.
+            nck, name, raw_value, pack = self.nck, sensor.name, sensor.raw_value, _SENSOR_WORD.pack
+            if nck is None:
+                return lambda: pack(raw_value(sensor.temperature_C))
+            temperature_C = nck.sensor_temperature_C
+            return lambda: pack(raw_value(temperature_C(name)))
+        read = self.read
+        return lambda: read(area, db_number, start_byte, size_bytes)
 
     def write(self, area: int, db_number: int, start_byte: int, data: bytes) -> None:
         if area == S7Area.P:
