@@ -29,12 +29,6 @@ from nckemu.errors import (
 
 
 @pytest.fixture
-def emulator() -> Iterator[EmulatorThread]:
-    with EmulatorThread() as emu:
-        yield emu
-
-
-@pytest.fixture
 def nck(emulator: EmulatorThread) -> Iterator[NckClient]:
     with NckClient("127.0.0.1", emulator.port, timeout_s=3.0) as client:
         yield client

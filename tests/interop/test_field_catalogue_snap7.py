@@ -15,12 +15,6 @@ from nckemu.emulator.runner import EmulatorThread
 
 
 @pytest.fixture
-def emulator() -> Iterator[EmulatorThread]:
-    with EmulatorThread() as emu:
-        yield emu
-
-
-@pytest.fixture
 def client(emulator: EmulatorThread) -> Iterator[snap7.Client]:
     logging.getLogger("snap7").setLevel(logging.WARNING)
     c = snap7.Client()

@@ -20,12 +20,6 @@ SD43920_AX4 = NckAddress(3, 4, 43920, 1, 0x16)
 
 
 @pytest.fixture
-def emulator() -> Iterator[EmulatorThread]:
-    with EmulatorThread() as emu:
-        yield emu
-
-
-@pytest.fixture
 def client(emulator: EmulatorThread) -> Iterator[snap7.Client]:
     logging.getLogger("snap7").setLevel(logging.WARNING)
     c = snap7.Client()

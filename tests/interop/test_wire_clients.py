@@ -9,7 +9,6 @@ import logging
 import os
 import shutil
 import subprocess
-from collections.abc import Iterator
 from datetime import datetime, timedelta
 from pathlib import Path
 
@@ -17,12 +16,6 @@ import pytest
 import snap7
 
 from nckemu.emulator.runner import EmulatorThread
-
-
-@pytest.fixture
-def emulator() -> Iterator[EmulatorThread]:
-    with EmulatorThread() as emu:
-        yield emu
 
 
 def _close_to_now(moment: datetime) -> bool:
