@@ -6,7 +6,7 @@ implement these; a test or another backend can too.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime
 from typing import Protocol
 
@@ -33,6 +33,10 @@ class NckDatastore(Protocol):
 
 class PlcDatastore(Protocol):
     def read(self, area: int, db_number: int, start_byte: int, size_bytes: int) -> bytes: ...
+
+    def reader(self, area: int, db_number: int, start_byte: int, size_bytes: int) -> Callable[[], bytes]:
+        """A function reading those bytes now, resolved once (the read plans of polled jobs keep it)."""
+        ...
 
     def write(self, area: int, db_number: int, start_byte: int, data: bytes) -> None: ...
 

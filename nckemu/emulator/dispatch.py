@@ -133,9 +133,7 @@ class Dispatcher:
         self._read_requests: dict[bytes, s7.ReadVarRequest] = {}
         # Read jobs by parameter bytes -> the function answering them (see ``_plan_read``).
         self._read_plans: dict[bytes, Callable[[int, AccessContext], bytes]] = {}
-        reader = getattr(plc, "reader", None)
-        self._plc_reader: Callable[[int, int, int, int], Callable[[], bytes]] = reader if reader is not None \
-            else lambda area, db, start, size: lambda: plc.read(area, db, start, size)
+        self._plc_reader = plc.reader
 
     def new_access_context(self, peer: str) -> AccessContext:
         return AccessContext(level=self.default_access_level, client=peer)
