@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import logging
+import re
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -490,3 +491,19 @@ class PlcRunner:
 
     def shutdown(self) -> None:
         self.sim.shutdown()
+
+
+_OB1 = re.compile(r"^\s*ORGANIZATION_BLOCK\s+OB\s*1\b", re.IGNORECASE | re.MULTILINE)
+
+
+def check_program(program: Path) -> str:
+    """The program's text, or one clear error: unreadable, empty, or without the OB1 a PLC cycle runs."""
+    try:
+        text = program.read_text("utf-8", errors="replace")
+    except OSError as exc:
+        raise NckConfigError(f"cannot read: {exc.strerror}", path=str(program)) from None
+    if not text.strip():
+        raise NckConfigError("the program is empty: the PLC would run nothing", path=str(program))
+    if not _OB1.search(text):
+        raise NckConfigError("no ORGANIZATION_BLOCK OB 1: the PLC would run nothing", path=str(program))
+    return text

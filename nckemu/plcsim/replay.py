@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import concurrent.futures
 import math
-import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,7 +32,7 @@ from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import S7Area
 from nckemu.thermal.recording import Recording
 
-from .bridge import BridgeLog, PlcRunner
+from .bridge import BridgeLog, PlcRunner, check_program
 
 JOB_WAIT_S = 10.0
 TC_BIT_POSITION_DEPENDENT = 2
@@ -44,7 +43,6 @@ POSITION_DEPENDENT_MARKER = "nckemu: position-dependent compensation"
 # from the recording's spindle_rpm column; the generator computes centrifugal growth from it.
 SPINDLE_SPEED_SENSOR = "spindle_rpm"
 
-_OB1 = re.compile(r"^\s*ORGANIZATION_BLOCK\s+OB\s*1\b", re.IGNORECASE | re.MULTILINE)
 
 
 @dataclass
@@ -78,16 +76,6 @@ def recording_axis(machine: Machine, letter: str) -> Axis:
         raise NckConfigError(f"axes {', '.join(a.name for a in matches)} share the recording letter {letter!r}",
                              path=machine.source, field="axis.recording")
     return matches[0]
-
-
-def check_program(program: Path) -> str:
-    try:
-        text = program.read_text("utf-8", errors="replace")
-    except OSError as exc:
-        raise NckConfigError(f"cannot read: {exc.strerror}", path=str(program)) from None
-    if not _OB1.search(text):
-        raise NckConfigError("no ORGANIZATION_BLOCK OB 1: the PLC would run nothing", path=str(program))
-    return text
 
 
 def _check_inputs(machine: Machine, recording: Recording, axis: Axis) -> dict[int, np.ndarray]:

@@ -24,7 +24,7 @@ from nckemu.emulator.runner import EmulatorThread
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area
 
-from .bridge import BridgeLog, PlcRunner
+from .bridge import BridgeLog, PlcRunner, check_program
 from .remote import InputMirror
 
 JOB_WAIT_S = 10.0
@@ -64,6 +64,7 @@ def run_program(program: str | Path, *, machine: str | Path | None = None, emula
     program = Path(program)
     if not program.is_file():
         raise NckConfigError("no such STL source", path=str(program))
+    check_program(program)
     if emulator is not None:
         if machine is not None:
             raise NckConfigError("--machine belongs to the in-process emulator; the one at --emulator has its own")

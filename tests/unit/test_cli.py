@@ -203,12 +203,16 @@ BAD_INPUT = [
     (["serve", "--state", "/nonexistent/s.json", "--port", "0"], "/nonexistent does not exist"),
     (["discover", "{tmp}/missing.csv"], "missing.csv: cannot read"),
     (["vars", "NO_SUCH_THING"], "no NCK variable name, number or BTSS path matches"),
+    (["plc", "run", "{tmp}/empty.awl"], "the program is empty"),
+    (["plc", "run", "{tmp}/no_ob1.awl"], "no ORGANIZATION_BLOCK OB 1"),
 ]
 
 
 @pytest.fixture
 def bad_input_files(tmp_path: Path, capture: Path) -> dict[str, str]:
     (tmp_path / "empty.mpf").write_text("")
+    (tmp_path / "empty.awl").write_text("\n")
+    (tmp_path / "no_ob1.awl").write_text("FUNCTION FC 1 : VOID\nBEGIN\nEND_FUNCTION\n")
     (tmp_path / "unknown_key.toml").write_text('name = "m"\n[[axis]]\nnumber = 1\nname = "X1"\ncolour = "red"\n')
     (tmp_path / "piw.toml").write_text('name = "m"\n[[sensor]]\nname = "bed"\nplc_input = "PIW99999"\n')
     recording = tmp_path / "rec.csv"
