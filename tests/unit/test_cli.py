@@ -116,7 +116,8 @@ def _prepare(argv: list[str], workdir: Path, port: int, capture_path: Path) -> l
 
 
 @pytest.mark.parametrize(("prog", "argv"), HELP_EXAMPLES, ids=[" ".join(a)[:60] for _, a in HELP_EXAMPLES])
-def test_help_example_runs(prog: str, argv: list[str], tmp_path: Path, capture: Path, capsys) -> None:
+def test_help_example_runs(prog: str, argv: list[str], tmp_path: Path, capture: Path, capsys,
+                           monkeypatch: pytest.MonkeyPatch) -> None:
     os.symlink(FIXTURES, tmp_path / "fixtures")
     (tmp_path / "capture.pcapng").write_bytes(capture.read_bytes())
     write_recording(tmp_path / "rec.csv", make_scenario("thermal_gradient").recording)
@@ -125,12 +126,8 @@ def test_help_example_runs(prog: str, argv: list[str], tmp_path: Path, capture: 
         if argv[0] == "serve":
             _run_serve_example(argv, tmp_path)
             return
-        cwd = os.getcwd()
-        os.chdir(tmp_path)
-        try:
-            code = main(argv)
-        finally:
-            os.chdir(cwd)
+        monkeypatch.chdir(tmp_path)
+        code = main(argv)
     err = capsys.readouterr().err
     assert code == 0, f"nckemu {' '.join(argv)} -> {code}: {err}"
 
@@ -223,15 +220,11 @@ def bad_input_files(tmp_path: Path, capture: Path) -> dict[str, str]:
 
 @pytest.mark.parametrize(("argv", "answer"), BAD_INPUT, ids=[" ".join(a)[:70] for a, _ in BAD_INPUT])
 def test_bad_input_is_one_clear_line(argv: list[str], answer: str, bad_input_files: dict[str, str],
-                                     emulator: EmulatorThread, capfd) -> None:
+                                     emulator: EmulatorThread, capfd, monkeypatch: pytest.MonkeyPatch) -> None:
     values = {**bad_input_files, "port": str(emulator.port)}
     argv = [a.format(**values) for a in argv]
-    cwd = os.getcwd()
-    os.chdir(REPO)
-    try:
-        code = main(argv)
-    finally:
-        os.chdir(cwd)
+    monkeypatch.chdir(REPO)
+    code = main(argv)
     out, err = capfd.readouterr()
     lines = [line for line in err.splitlines() if line.strip()]
     assert code == 1, f"nckemu {' '.join(argv)}: exit {code}\n{err}"
