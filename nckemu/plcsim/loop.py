@@ -209,7 +209,7 @@ def write_loop_report(path: str | Path, result: LoopResult, title: str) -> None:
     axes.legend()
     residuals = _png(figure)
     findings = "".join(f"<dt><b>{html.escape(h)}</b></dt><dd>{html.escape(s)}</dd>" for h, s in result.findings)
-    generated = "".join(f"<li>{html.escape(g['effect'])}: <code>{html.escape(str(g['parameters']))}</code>"
+    generated = "".join(f"<li>{html.escape(g['effect'])}: <code>{html.escape(_parameters_text(g['parameters']))}</code>"
                         f"{(' &mdash; ' + html.escape(g['plc'])) if g.get('plc') else ''}</li>"
                         for g in result.program.generated)
     set_aside = "".join(f"<li>{html.escape(n['effect'])}: {html.escape(n['why'])}</li>"
@@ -235,3 +235,9 @@ program: {result.heldout_rms_after_um:.3f} um on held-out blocks ({result.rms_af
 <details><summary>Generated STL</summary><pre>{html.escape(result.program.text)}</pre></details>
 </body></html>"""
     Path(path).write_text(page, encoding="utf-8")
+
+
+def _parameters_text(parameters: dict[str, object]) -> str:
+    """``sensor spindle, tau_s 2373, coeff_um_per_K 3.024``: four significant digits, as a person reads them."""
+    return ", ".join(f"{key} {value:.4g}" if isinstance(value, float) else f"{key} {value}"
+                     for key, value in parameters.items())
