@@ -3,9 +3,10 @@
 The in-process emulator runs on simulated time with the recording's time base. Each PLC cycle
 (``cycle_s``) the machine's sensors take the recording's ``temp_<name>_C`` (linear interpolation
 between rows), so the program reads them through each sensor's ``plc_input`` scaling, and the axes
-take their ``pos_<letter>_mm``. At every recording row the temperature compensation the NCK applies
-to the chosen axis (SD43900/43910/43920 as the program wrote them, MD32750's bits, the MD32760 rate
-limit, the position) is sampled.
+take their ``pos_<letter>_mm``; ``spindle_rpm`` drives a ``spindle_rpm`` input and the NCK's
+actual speed of spindle 1 (what FB2 GET of actSpeed reads). At every recording row the temperature
+compensation the NCK applies to the chosen axis (SD43900/43910/43920 as the program wrote them,
+MD32750's bits, the MD32760 rate limit, the position) is sampled.
 
 Sign: ``sim_<axis>_um`` is the compensation in the direction of the error it cancels, so that
 ``err - sim`` is the error left after compensation. With the default ``compensation_sign = -1`` a

@@ -220,3 +220,22 @@ def test_position_dependent_program_on_the_nck_follows_the_model(tmp_path: Path)
     expected = model.predict_um(recording)
     assert float(np.max(np.abs(run.sim_um - expected)[settled])) < 12.0 * 10.0 / 1800.0 * (2.0 + 11.5 * 0.9)
     assert float(np.max(np.abs(expected))) > 50.0   # the position part matters: up to -100 um
+
+
+def test_plc_run_inputs_runs_the_fb2_get_program(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`plc run --inputs` loads the generated program with FB2 GET in awlsim and runs it on a recording."""
+    from nckemu.cli import main
+    from nckemu.thermal.recording import write_recording
+
+    model = ThermalModel("Z", [Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": 2.0}),
+                               Term("centrifugal_growth", {"coeff_um_per_krpm2": -0.05})])
+    program = generate_program(model, MACHINE, AXIS, cycle_s=1.0)
+    assert program.not_compensable == [] and "CALL FB 2" in program.text
+    (tmp_path / "get.awl").write_text(program.text)
+    write_recording(tmp_path / "rec.csv", make_loop_scenario(seed=1, duration_h=2.0).recording)
+    assert main(["plc", "run", str(tmp_path / "get.awl"), "--machine", str(FIXTURES / "machines" / "loop_mill.toml"),
+                 "--inputs", str(tmp_path / "rec.csv"), "--axis", "Z", "--out", str(tmp_path / "sim.csv"),
+                 "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["errors"] == [] and summary["puts"] > 0
+    assert (tmp_path / "sim.csv").is_file()
