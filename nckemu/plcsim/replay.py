@@ -3,9 +3,10 @@
 The in-process emulator runs on simulated time with the recording's time base. Each PLC cycle
 (``cycle_s``) the machine's sensors take the recording's ``temp_<name>_C`` (linear interpolation
 between rows), so the program reads them through each sensor's ``plc_input`` scaling, and the axes
-take their ``pos_<letter>_mm``. At every recording row the temperature compensation the NCK applies
-to the chosen axis (SD43900/43910/43920 as the program wrote them, MD32750's bits, the MD32760 rate
-limit, the position) is sampled.
+take their ``pos_<letter>_mm``; ``spindle_rpm`` drives a ``spindle_rpm`` input and the NCK's
+actual speed of spindle 1 (what FB2 GET of actSpeed reads). At every recording row the temperature
+compensation the NCK applies to the chosen axis (SD43900/43910/43920 as the program wrote them,
+MD32750's bits, the MD32760 rate limit, the position) is sampled.
 
 Sign: ``sim_<axis>_um`` is the compensation in the direction of the error it cancels, so that
 ``err - sim`` is the error left after compensation. With the default ``compensation_sign = -1`` a
@@ -42,7 +43,9 @@ POSITION_DEPENDENT_MARKER = "nckemu: position-dependent compensation"
 # A [[sensor]] with this name carries the spindle speed to the PLC (its "degrees" are rpm): driven
 # from the recording's spindle_rpm column; the generator computes centrifugal growth from it.
 SPINDLE_SPEED_SENSOR = "spindle_rpm"
-
+# The recording's spindle_rpm also drives the NCK's actual speed (actSpeed) of this spindle of
+# channel 1, so a program can read it with FB2 GET instead.
+NCK_SPINDLE = 1
 
 
 @dataclass
@@ -116,12 +119,18 @@ def _sensor_column(recording: Recording, name: str) -> np.ndarray | None:
 
 
 def plc_inputs(machine: Machine, recording: Recording) -> tuple[list[str], bool]:
-    """The temperature sensors the PLC reads (with a column), and whether it reads the spindle speed."""
+    """The temperature sensors the PLC reads (with a column), and whether it can read the spindle speed
+    (a wired spindle_rpm input, or FB2 GET of the NCK's actual speed when the machine has a spindle)."""
     sensors = [s.name for s in machine.sensors if s.plc_input and s.name != SPINDLE_SPEED_SENSOR
                and f"temp_{s.name}_C" in recording.temperatures_C]
-    spindle = any(s.plc_input and s.name == SPINDLE_SPEED_SENSOR for s in machine.sensors) \
-        and recording.spindle_rpm is not None
+    spindle = (any(s.plc_input and s.name == SPINDLE_SPEED_SENSOR for s in machine.sensors)
+               or nck_spindle_speed(machine)) and recording.spindle_rpm is not None
     return sensors, spindle
+
+
+def nck_spindle_speed(machine: Machine) -> bool:
+    """Whether the NCK has a spindle whose actual speed a recording's spindle_rpm drives."""
+    return any(axis.spindle for axis in machine.axes)
 
 
 def position_dependent_warning(program_text: str, machine: Machine, axis: Axis) -> str | None:
@@ -167,6 +176,8 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
     t_cycles = t0 + cycle_s * np.arange(cycles)
     sensor_series = [(s.name, np.interp(t_cycles, t_rows, _sensor_column(recording, s.name)).tolist())
                      for s in machine.sensors if _sensor_column(recording, s.name) is not None]
+    spindle_series = np.interp(t_cycles, t_rows, recording.spindle_rpm).tolist() \
+        if recording.spindle_rpm is not None and nck_spindle_speed(machine) else None
     position_series = [(number, np.interp(t_cycles, t_rows, values).tolist()) for number, values in positions.items()]
     sign = -machine.settings.compensation_sign
     ipo_s = machine.ipo_cycle_s
@@ -193,6 +204,8 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
                 nck.set_sensor_temperature(name, series[k])
             for number, series in position_series:
                 nck.set_axis_position(number, series[k])
+            if spindle_series is not None:
+                nck.set_spindle_speed(NCK_SPINDLE, spindle_series[k])
 
         runner = PlcRunner(program, client, read_peripheral, clock.now_s)
         bar = tqdm(total=cycles, unit="cycle", disable=None if progress is None else not progress,

@@ -11,10 +11,13 @@ NCVar-selector address DB, at the rate of a self-restarting timer.
   cooling; the states live in a DB and start settled on the first cycle;
 - position_dependent_expansion: tan beta and P0 (needs MD32750 bit 1);
 - centrifugal_growth: from the spindle speed, when the machine wires it to the PLC as a
-  ``[[sensor]]`` named ``spindle_rpm`` (its "degrees" are rpm);
+  ``[[sensor]]`` named ``spindle_rpm`` (its "degrees" are rpm); otherwise, when the machine has a
+  spindle, from the NCK's actual speed of spindle 1 (actSpeed) read with FB2 "GET" through the same
+  address DB at the start of the FC. FB2 answers in the cycle after its request and is asked again in
+  the cycle after that, so the speed the model uses is one or two PLC cycles old;
 - gain_error: a factor on the whole output.
 Effects the PLC cannot compute (time_drift, effects of sensors not wired to the PLC, centrifugal
-growth without a speed input) are not generated; the header lists them as "not compensable in the PLC".
+growth without a speed input or a spindle) are not generated; the header lists them as "not compensable in the PLC".
 
 The sums are kept in um (deviations from the reference temperature), so a 32-bit REAL carries them
 to well below 0.1 um; only the outputs are scaled to mm.
@@ -32,15 +35,20 @@ from nckemu.errors import NckConfigError
 from nckemu.thermal.plcmodel import why_not_compensable
 from nckemu.thermal.terms import Term, ThermalModel
 
-from .replay import POSITION_DEPENDENT_MARKER, SPINDLE_SPEED_SENSOR
+from .replay import NCK_SPINDLE, POSITION_DEPENDENT_MARKER, SPINDLE_SPEED_SENSOR, nck_spindle_speed
 
 ADDRESS_DB = 150
 STATE_DB = 151
 PUT_INSTANCE_DB = 152
+GET_INSTANCE_DB = 153
 FC_NUMBER = 80
 TIMER = 40
 FLAG_BYTE = 240
 STATE_WORD = 242
+GET_FLAG_BYTE = 241
+GET_STATE_WORD = 244
+# actSpeed: module SSP (0x72), area C (channel 1), column 2, line = spindle; REAL8.
+ACT_SPEED = ("ACT_SPEED", 0x72, (2 << 5) | 1, 2)
 # SD43900 TEMP_COMP_ABS_VALUE, SD43910 TEMP_COMP_SLOPE, SD43920 TEMP_COMP_REF_POSITION (columns).
 SETTING_DATA = (("TEMP_COMP_ABS_VALUE", 0xAB7C), ("TEMP_COMP_SLOPE", 0xAB86), ("TEMP_COMP_REF_POSITION", 0xAB90))
 
@@ -110,6 +118,8 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
     if not cycle_s > 0:
         raise NckConfigError("the PLC cycle must be positive")
     sensors = _plc_sensors(machine)
+    spindle_input = SPINDLE_SPEED_SENSOR in sensors
+    speed_by_get = not spindle_input and nck_spindle_speed(machine)
     e = _Emitter()
     total, tanb = e.field("TOTAL_UM"), e.field("TANB_UM_PER_M")
     not_compensable = list(extra_not_compensable or [])
@@ -121,7 +131,7 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
             gain *= term.coefficient
             generated.append({"effect": "gain_error", "parameters": dict(term.parameters)})
             continue
-        reason = why_not_compensable(term, set(sensors), spindle_input=SPINDLE_SPEED_SENSOR in sensors)
+        reason = why_not_compensable(term, set(sensors), spindle_input=spindle_input or speed_by_get)
         if reason is None and term.effect not in _GENERATORS:
             reason = f"no PLC form for {term.effect}"
         if reason:
@@ -134,7 +144,12 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
         raise NckConfigError(f"nothing to generate: no effect of the model can be computed in the PLC "
                              f"(not compensable in the PLC: {listed})", path=model.source)
     used_sensors = sorted({s for t in usable for s in _sensors_of(t)})
+    speed_get = speed_by_get and SPINDLE_SPEED_SENSOR in used_sensors
+    if speed_get:
+        used_sensors.remove(SPINDLE_SPEED_SENSOR)
     inputs = [f"{sensors[s].plc_input} ({s})" for s in used_sensors]
+    if speed_get:
+        inputs.append(f"FB2 GET actSpeed (NCK spindle {NCK_SPINDLE})")
     # Inputs.
     for name in used_sensors:
         sensor = sensors[name]
@@ -172,8 +187,9 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
          f"L {total}", f"L {_real(out / 1000.0)}", "*R", f"T {k0}",
          f"L {tanb}", f"L {_real(out * 1e-6)}", "*R", f"T {slope}",
          f"L {_real(p0_mm or 0.0)}", f"T {p0}")
+    speed = e.temperature(SPINDLE_SPEED_SENSOR) if speed_get else None
     text = _program_text(e, machine, axis, cycle_s, write_period_s, usable, not_compensable, gain,
-                         position_dependent, origin, inputs, k0, slope, p0)
+                         position_dependent, origin, inputs, k0, slope, p0, speed)
     return GeneratedProgram(text, not_compensable, generated, position_dependent, inputs)
 
 
@@ -260,7 +276,7 @@ def _position(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, t
 
 
 def _centrifugal(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: str) -> str:
-    e.op(f"// centrifugal_growth: {term.coefficient:.6g} um/krpm^2 from the spindle speed input",
+    e.op(f"// centrifugal_growth: {term.coefficient:.6g} um/krpm^2 from the spindle speed",
          f"L {e.temperature(SPINDLE_SPEED_SENSOR)}", f"L {_real(1000.0)}", "/R", f"T {e.field('D')}",
          f"L {e.field('D')}", "*R", f"L {_real(term.coefficient)}", "*R")
     e.accumulate(total)
@@ -275,7 +291,8 @@ _GENERATORS = {"offset": _offset, "centrifugal_growth": _centrifugal, "temperatu
 
 def _program_text(e: _Emitter, machine: Machine, axis: Axis, cycle_s: float, write_period_s: float,
                   usable: list[Term], not_compensable: list[dict[str, Any]], gain: float, position_dependent: bool,
-                  origin: str, inputs: list[str], k0: str, slope: str, p0: str) -> str:
+                  origin: str, inputs: list[str], k0: str, slope: str, p0: str, speed: str | None = None) -> str:
+    """The source; with ``speed`` (a state DB REAL) FB2 GET reads the NCK's spindle speed into it first."""
     header = [f"// Generated by nckemu{(' from ' + origin) if origin else ''}: thermal compensation of axis "
               f"{axis.name} (machine axis {axis.number}) of {machine.name}.",
               f"// PLC inputs: {', '.join(inputs)}. Filters are exact for a {cycle_s:g} s PLC cycle.",
@@ -298,6 +315,24 @@ def _program_text(e: _Emitter, machine: Machine, axis: Axis, cycle_s: float, wri
                     "    zeile : WORD := W#16#1;", "    bausteintyp : BYTE := B#16#16;",
                     "    ZEILENANZAHL : BYTE := B#16#1;", "    typ : BYTE := B#16#F;", "    laenge : BYTE := B#16#8;",
                     "  END_STRUCT;"]
+    get: list[str] = []
+    get_instance: list[str] = []
+    if speed is not None:
+        name, module, area_unit, column = ACT_SPEED
+        entries += [f"  {name} : STRUCT", "    SYNTAX_ID : BYTE := B#16#82;",
+                    f"    bereich_u_einheit : BYTE := B#16#{area_unit:02X};", f"    spalte : WORD := W#16#{column:X};",
+                    f"    zeile : WORD := W#16#{NCK_SPINDLE:X};", f"    bausteintyp : BYTE := B#16#{module:02X};",
+                    "    ZEILENANZAHL : BYTE := B#16#1;", "    typ : BYTE := B#16#F;", "    laenge : BYTE := B#16#8;",
+                    "  END_STRUCT;"]
+        g = GET_FLAG_BYTE
+        get = [f"  // the spindle speed: FB2 GET of actSpeed (spindle {NCK_SPINDLE}), asked again in the cycle after "
+               "each answer;", "  // the model below uses the last answer (one or two PLC cycles old)",
+               f"  AN M {g}.0", f"  = M {g}.1",
+               f"  CALL FB 2, DB {GET_INSTANCE_DB} (", f"    Req := M {g}.1,", "    NumVar := 1,",
+               f"    Addr1 := DB{ADDRESS_DB}.{name},", f"    Error := M {g}.2,", f"    NDR := M {g}.3,",
+               f"    State := MW {GET_STATE_WORD},", f"    RD1 := {speed}", "  )",
+               f"  A M {g}.1", f"  S M {g}.0", f"  A M {g}.3", f"  O M {g}.2", f"  R M {g}.0"]
+        get_instance = [f"DATA_BLOCK DB {GET_INSTANCE_DB}", "FB 2", "BEGIN", "END_DATA_BLOCK", ""]
     state = [f"  {name} : REAL := 0.0;" for name in e.state]
     seconds = max(1, round(write_period_s))
     timer = f"S5T#{seconds // 60}M{seconds % 60}S" if seconds >= 60 and seconds % 60 else \
@@ -307,8 +342,8 @@ def _program_text(e: _Emitter, machine: Machine, axis: Axis, cycle_s: float, wri
         *header, "",
         f"DATA_BLOCK DB {ADDRESS_DB}", "STRUCT", *entries, "END_STRUCT;", "BEGIN", "END_DATA_BLOCK", "",
         f"DATA_BLOCK DB {STATE_DB}", "STRUCT", *state, "END_STRUCT;", "BEGIN", "END_DATA_BLOCK", "",
-        f"DATA_BLOCK DB {PUT_INSTANCE_DB}", "FB 3", "BEGIN", "END_DATA_BLOCK", "",
-        f"FUNCTION FC {FC_NUMBER} : VOID", "BEGIN", *e.lines,
+        f"DATA_BLOCK DB {PUT_INSTANCE_DB}", "FB 3", "BEGIN", "END_DATA_BLOCK", "", *get_instance,
+        f"FUNCTION FC {FC_NUMBER} : VOID", "BEGIN", *get, *e.lines,
         "  // a one-cycle request for FB3 at the write rate",
         f"  AN M {flag}.0", f"  L {timer}", f"  SD T {TIMER}", f"  A T {TIMER}", f"  = M {flag}.0",
         f"  A M {flag}.0", f"  = M {flag}.1",

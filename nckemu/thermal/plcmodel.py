@@ -54,7 +54,8 @@ def why_not_compensable(term: Term, plc_sensors: set[str], spindle_input: bool =
     if term.effect == "time_drift":
         return "the PLC cannot know how long the machine has drifted (no physical input carries it)"
     if term.effect == "centrifugal_growth" and not spindle_input:
-        return "no spindle speed input: the machine file wires none to the PLC (a [[sensor]] named spindle_rpm)"
+        return ("no spindle speed: the machine file wires none to the PLC (a [[sensor]] named spindle_rpm) "
+                "and has no spindle whose actual speed FB2 GET could read")
     missing = [s for s in _sensors_of(term) if s not in plc_sensors]
     if missing:
         return f"sensor {', '.join(missing)} is not wired to a PLC input in the machine file"

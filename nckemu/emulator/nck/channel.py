@@ -31,6 +31,9 @@ class Spindle:
     commanded_rpm: float = 0.0
     override_pct: float = 100.0
     direction: int = TURN_STOPPED
+    # An actual speed measured on the machine (plc run --inputs drives it from a recording's
+    # spindle_rpm): when set, actSpeed reports it whatever the channel and the commanded speed say.
+    measured_rpm: float | None = None
 
 
 @dataclass
@@ -128,8 +131,14 @@ class Channel:
             raise NckAddressOutOfRange(f"channel {self.number} has no spindle {line}")
         return spindle
 
+    def set_measured_speed(self, line: int, rpm: float | None) -> None:
+        """Drive spindle ``line``'s actual speed from a measurement (None: back to the commanded speed)."""
+        self.spindle(line).measured_rpm = None if rpm is None else float(rpm)
+
     def spindle_speed_rpm(self, line: int) -> float:
         spindle = self.spindle(line)
+        if spindle.measured_rpm is not None:
+            return spindle.measured_rpm
         if self.state.status != CHAN_ACTIVE or spindle.direction == TURN_STOPPED:
             return 0.0
         return spindle.commanded_rpm * spindle.override_pct / 100.0

@@ -184,6 +184,10 @@ class NckModel:
     def set_sensor_temperature(self, name: str, temperature_C: float) -> None:
         self.sensors.set_temperature(name, temperature_C)
 
+    def set_spindle_speed(self, spindle: int, rpm: float | None, channel: int = 1) -> None:
+        """The measured actual speed of a channel's spindle (actSpeed); None: the commanded one again."""
+        self.channels[channel].set_measured_speed(spindle, rpm)
+
     def add_program(self, path: str) -> None:
         self.programs.add(path)
 

@@ -145,3 +145,73 @@ def test_any_time_base_samples_what_the_nck_applies(times: list[float], cycle_s:
         if index < 0 or time_s - times_put[index] < 0.1:
             continue  # the MD32760 ramp may still be on its way
         assert run.sim_um[row] == pytest.approx(run.log.puts[index].values["SD1"] * 1000.0, abs=1e-6)
+
+
+GET_ACT_SPEED = """
+DATA_BLOCK DB 10
+STRUCT
+  ACT_SPEED : STRUCT
+    SYNTAX_ID : BYTE := B#16#82;
+    bereich_u_einheit : BYTE := B#16#41;
+    spalte : WORD := W#16#2;
+    zeile : WORD := W#16#1;
+    bausteintyp : BYTE := B#16#72;
+    ZEILENANZAHL : BYTE := B#16#1;
+    typ : BYTE := B#16#F;
+    laenge : BYTE := B#16#8;
+  END_STRUCT;
+END_STRUCT;
+BEGIN
+END_DATA_BLOCK
+
+DATA_BLOCK DB 11
+STRUCT
+  RPM : REAL := -1.0;
+END_STRUCT;
+BEGIN
+END_DATA_BLOCK
+
+DATA_BLOCK DB 12
+FB 2
+BEGIN
+END_DATA_BLOCK
+
+ORGANIZATION_BLOCK OB 1
+BEGIN
+  AN M 1.0
+  = M 1.1
+  CALL FB 2, DB 12 (
+    Req := M 1.1,
+    NumVar := 1,
+    Addr1 := DB10.ACT_SPEED,
+    Error := M 1.2,
+    NDR := M 1.3,
+    State := MW 2,
+    RD1 := DB11.RPM
+  )
+  A M 1.1
+  S M 1.0
+  A M 1.3
+  O M 1.2
+  R M 1.0
+END_ORGANIZATION_BLOCK
+"""
+
+
+def test_the_recording_drives_the_nck_spindle_speed(tmp_path: Path) -> None:
+    """With spindle_rpm in the recording, FB2 GET of actSpeed (spindle 1) reads the recorded speed of its cycle."""
+    program = tmp_path / "get_speed.awl"
+    program.write_text(GET_ACT_SPEED)
+    t = np.arange(0.0, 600.0, 10.0)
+    rpm = np.where(t < 300.0, 1500.0, 8000.0) + t   # a step, and a ramp so every request reads a new value
+    recording = Recording("<rpm>", t, {"temp_bed_C": np.full_like(t, 20.0), "temp_spindle_C": np.full_like(t, 20.0)},
+                          rpm, {}, {"Z": np.zeros_like(t)})
+    run = run_on_recording(program, LOOP_MILL, recording, "Z", cycle_s=1.0, progress=False)
+    assert run.log.errors == []
+    gets = [g for g in run.log.gets if g.time_s + run.clock_offset_s >= t[0]]
+    gets = [g for g in gets if "RD1" in g.values]   # the last request may still be on its way
+    assert len(gets) >= 250   # a request every other cycle
+    for get in gets:
+        time_s = get.time_s + run.clock_offset_s
+        assert get.values["RD1"] == pytest.approx(float(np.interp(time_s, t, rpm)), abs=1e-9)
+    assert min(g.values["RD1"] for g in gets) == 1500.0 and max(g.values["RD1"] for g in gets) > 8500.0

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from nckemu.emulator.machine import Machine, load_machine, parse_machine
 from nckemu.plcsim.bridge import PlcRunner
-from nckemu.plcsim.replay import recording_axis, run_on_recording
+from nckemu.plcsim.replay import RecordingRun, recording_axis, run_on_recording
 from nckemu.plcsim.stlgen import STATE_DB, generate_program, lag_coefficient
 from nckemu.thermal.recording import Recording
 from nckemu.thermal.scenarios import make_loop_scenario
@@ -30,6 +30,9 @@ AXIS = recording_axis(MACHINE, "Z")
 MACHINE_RPM = parse_machine((FIXTURES / "machines" / "loop_mill.toml").read_text()
                             + '\n[[sensor]]\nname = "spindle_rpm"\nplc_input = "PIW424"\nraw_per_C = 2.7648\n',
                             "loop_mill + spindle speed")
+# The same mill without a spindle: nothing carries the spindle speed to the PLC.
+MACHINE_NO_SPINDLE = parse_machine((FIXTURES / "machines" / "loop_mill.toml").read_text().replace("spindle = true\n", ""),
+                                   "loop_mill without a spindle")
 
 
 def _probe(name: str) -> Callable[[PlcRunner], float]:
@@ -40,17 +43,24 @@ def _probe(name: str) -> Callable[[PlcRunner], float]:
     return read
 
 
-def plc_values_um(model: ThermalModel, recording: Recording, cycle_s: float, tmp_path: Path,
-                  machine: Machine = MACHINE) -> np.ndarray:
+def plc_run(model: ThermalModel, recording: Recording, cycle_s: float, tmp_path: Path,
+            machine: Machine = MACHINE) -> tuple[np.ndarray, RecordingRun, str]:
     """What the generated program computes at each row: K0 + tan beta * position, in um."""
     program = generate_program(model, machine, AXIS, cycle_s)
     assert program.not_compensable == []
     path = tmp_path / "generated.awl"
     path.write_text(program.text)
-    run = run_on_recording(path, machine, recording, "Z", cycle_s, progress=False,
-                           probes={"k0": _probe("K0_MM"), "tan_beta": _probe("TAN_BETA")})
+    probes = {"k0": _probe("K0_MM"), "tan_beta": _probe("TAN_BETA")}
+    if any(t.effect == "centrifugal_growth" for t in model.terms):
+        probes["rpm"] = _probe("T_SPINDLE_RPM")
+    run = run_on_recording(path, machine, recording, "Z", cycle_s, progress=False, probes=probes)
     assert run.log.errors == []
-    return (run.probes["k0"] + run.probes["tan_beta"] * recording.positions_mm["Z"]) * 1000.0
+    return (run.probes["k0"] + run.probes["tan_beta"] * recording.positions_mm["Z"]) * 1000.0, run, program.text
+
+
+def plc_values_um(model: ThermalModel, recording: Recording, cycle_s: float, tmp_path: Path,
+                  machine: Machine = MACHINE) -> np.ndarray:
+    return plc_run(model, recording, cycle_s, tmp_path, machine)[0]
 
 
 EVERY_EFFECT = ThermalModel("Z", [
@@ -70,9 +80,31 @@ EVERY_EFFECT = ThermalModel("Z", [
 
 def test_float32_program_within_0_1_um_of_the_float64_model(tmp_path: Path) -> None:
     recording = make_loop_scenario(seed=2).recording   # 36 h, one row a minute
-    plc = plc_values_um(EVERY_EFFECT, recording, 60.0, tmp_path, MACHINE_RPM)
+    plc, _run, text = plc_run(EVERY_EFFECT, recording, 60.0, tmp_path, MACHINE_RPM)
+    assert "L PIW 424" in text and "CALL FB 2" not in text   # the wired speed input, no GET
     reference = EVERY_EFFECT.predict_um(recording)
     assert float(np.max(np.abs(plc - reference))) < 0.1
+
+
+def test_spindle_speed_by_fb2_get_within_0_1_um_of_the_float64_model(tmp_path: Path) -> None:
+    """No speed input but a spindle: FB2 GET of actSpeed, which the recording's spindle_rpm drives."""
+    recording = make_loop_scenario(seed=2).recording
+    assert recording.spindle_rpm is not None and np.ptp(recording.spindle_rpm) > 5000.0
+    plc, run, text = plc_run(EVERY_EFFECT, recording, 60.0, tmp_path, MACHINE)
+    assert "CALL FB 2, DB 153" in text and "FB2 GET actSpeed" in text and "PIW424" not in text
+    gets = [g for g in run.log.gets if "RD1" in g.values]
+    assert len(gets) > len(recording.t_s) / 3
+    # The speed the program used at each row: the recording's one or two cycles (60 s) before.
+    rpm = run.probes["rpm"]
+    t = recording.t_s
+    earlier = [np.interp(t - lag_s, t, recording.spindle_rpm).astype(np.float32) for lag_s in (60.0, 120.0)]
+    settled = t >= t[0] + 120.0
+    assert np.all(((rpm == earlier[0]) | (rpm == earlier[1]))[settled])
+    assert float(np.mean((rpm != recording.spindle_rpm.astype(np.float32))[settled])) < 0.2  # the speed steps rarely
+    # And the compensation is the float64 model on that speed.
+    used = Recording(recording.source, t, recording.temperatures_C, rpm.astype(float), recording.positions_mm,
+                     recording.errors_um)
+    assert float(np.max(np.abs(plc - EVERY_EFFECT.predict_um(used))[settled])) < 0.1
 
 
 def test_only_declared_inputs_and_the_rest_listed_as_not_compensable() -> None:
@@ -81,7 +113,7 @@ def test_only_declared_inputs_and_the_rest_listed_as_not_compensable() -> None:
         Term("temperature", {"sensor": "front", "t_ref_C": 20.0, "coeff_um_per_K": 1.0}),
         Term("time_drift", {"um_per_h": 0.25}),
         Term("centrifugal_growth", {"coeff_um_per_krpm2": -0.05})])
-    program = generate_program(model, MACHINE, AXIS)
+    program = generate_program(model, MACHINE_NO_SPINDLE, AXIS)
     declared = {s.plc_input for s in MACHINE.sensors}
     used = {f"PIW{n}" for n in re.findall(r"L PIW (\d+)", program.text)}
     assert used == {"PIW420"} and used <= declared
@@ -188,3 +220,22 @@ def test_position_dependent_program_on_the_nck_follows_the_model(tmp_path: Path)
     expected = model.predict_um(recording)
     assert float(np.max(np.abs(run.sim_um - expected)[settled])) < 12.0 * 10.0 / 1800.0 * (2.0 + 11.5 * 0.9)
     assert float(np.max(np.abs(expected))) > 50.0   # the position part matters: up to -100 um
+
+
+def test_plc_run_inputs_runs_the_fb2_get_program(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`plc run --inputs` loads the generated program with FB2 GET in awlsim and runs it on a recording."""
+    from nckemu.cli import main
+    from nckemu.thermal.recording import write_recording
+
+    model = ThermalModel("Z", [Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": 2.0}),
+                               Term("centrifugal_growth", {"coeff_um_per_krpm2": -0.05})])
+    program = generate_program(model, MACHINE, AXIS, cycle_s=1.0)
+    assert program.not_compensable == [] and "CALL FB 2" in program.text
+    (tmp_path / "get.awl").write_text(program.text)
+    write_recording(tmp_path / "rec.csv", make_loop_scenario(seed=1, duration_h=2.0).recording)
+    assert main(["plc", "run", str(tmp_path / "get.awl"), "--machine", str(FIXTURES / "machines" / "loop_mill.toml"),
+                 "--inputs", str(tmp_path / "rec.csv"), "--axis", "Z", "--out", str(tmp_path / "sim.csv"),
+                 "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["errors"] == [] and summary["puts"] > 0
+    assert (tmp_path / "sim.csv").is_file()
