@@ -30,9 +30,11 @@ from nckemu.thermal import stats
 from nckemu.thermal.discover import Discovery, discover
 from nckemu.thermal.plcmodel import PlcModel, plc_model, terms_of
 from nckemu.thermal.recording import Recording
+from nckemu.thermal.report import findings_html
 from nckemu.thermal.wording import program_findings
 
-from .replay import check_program, plc_inputs, recording_axis, run_on_recording, with_simulation
+from .bridge import check_program
+from .replay import plc_inputs, recording_axis, run_on_recording, with_simulation
 from .stlgen import GeneratedProgram, generate_program
 
 
@@ -208,7 +210,7 @@ def write_loop_report(path: str | Path, result: LoopResult, title: str) -> None:
     axes.set_ylabel("err - sim [um]")
     axes.legend()
     residuals = _png(figure)
-    findings = "".join(f"<dt><b>{html.escape(h)}</b></dt><dd>{html.escape(s)}</dd>" for h, s in result.findings)
+    findings = findings_html(result.findings, "Your program against the recording")
     generated = "".join(f"<li>{html.escape(g['effect'])}: <code>{html.escape(_parameters_text(g['parameters']))}</code>"
                         f"{(' &mdash; ' + html.escape(g['plc'])) if g.get('plc') else ''}</li>"
                         for g in result.program.generated)
@@ -225,7 +227,7 @@ table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}dd{{margin-bo
 {result.rms_error_um:.3f} um. Left after your program: {result.rms_before_um:.3f} um. Left after the generated
 program: {result.heldout_rms_after_um:.3f} um on held-out blocks ({result.rms_after_um:.3f} um fitted on all).</p>
 {warnings}
-<h2>Your program against the recording</h2><dl>{findings}</dl>
+{findings}
 <img alt="measured error and compensation" src="data:image/png;base64,{overview}">
 <img alt="residual before and after" src="data:image/png;base64,{residuals}">
 <h2>The generated program</h2><ul>{generated}</ul>

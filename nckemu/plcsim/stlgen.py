@@ -30,8 +30,11 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
+from nckemu.catalogue.names import parse_variable
 from nckemu.emulator.machine import Axis, Machine, Sensor
 from nckemu.errors import NckConfigError
+from nckemu.protocol.addresses import NckType
+from nckemu.protocol.awl import NcVarDb, NcVarEntry, render_ncvar_db
 from nckemu.thermal.plcmodel import why_not_compensable
 from nckemu.thermal.terms import Term, ThermalModel
 
@@ -48,9 +51,11 @@ STATE_WORD = 242
 GET_FLAG_BYTE = 241
 GET_STATE_WORD = 244
 # actSpeed: module SSP (0x72), area C (channel 1), column 2, line = spindle; REAL8.
-ACT_SPEED = ("ACT_SPEED", 0x72, (2 << 5) | 1, 2)
+# The NCK's actual speed of the spindle read by FB2 GET (channel 1; line = spindle number).
+ACT_SPEED = "ACT_SPEED"
 # SD43900 TEMP_COMP_ABS_VALUE, SD43910 TEMP_COMP_SLOPE, SD43920 TEMP_COMP_REF_POSITION (columns).
-SETTING_DATA = (("TEMP_COMP_ABS_VALUE", 0xAB7C), ("TEMP_COMP_SLOPE", 0xAB86), ("TEMP_COMP_REF_POSITION", 0xAB90))
+# The setting data FB3 PUT writes, by catalogue name (their addresses come from the catalogue).
+SETTING_DATA = ("TEMP_COMP_ABS_VALUE", "TEMP_COMP_SLOPE", "TEMP_COMP_REF_POSITION")
 
 
 def lag_coefficient(cycle_s: float, tau_s: float) -> float:
@@ -307,23 +312,10 @@ def _program_text(e: _Emitter, machine: Machine, axis: Axis, cycle_s: float, wri
     for item in not_compensable:
         header.append(f"// not compensable in the PLC: {item['effect']} {_describe(Term(item['effect'], item['parameters']))}"
                       f" ({item['why'].removeprefix('not compensable in the PLC: ')})")
-    unit = 0x60 | axis.number
-    entries = []
-    for name, column in SETTING_DATA:
-        entries += [f"  {name} : STRUCT", "    SYNTAX_ID : BYTE := B#16#82;",
-                    f"    bereich_u_einheit : BYTE := B#16#{unit:02X};", f"    spalte : WORD := W#16#{column:04X};",
-                    "    zeile : WORD := W#16#1;", "    bausteintyp : BYTE := B#16#16;",
-                    "    ZEILENANZAHL : BYTE := B#16#1;", "    typ : BYTE := B#16#F;", "    laenge : BYTE := B#16#8;",
-                    "  END_STRUCT;"]
     get: list[str] = []
     get_instance: list[str] = []
     if speed is not None:
-        name, module, area_unit, column = ACT_SPEED
-        entries += [f"  {name} : STRUCT", "    SYNTAX_ID : BYTE := B#16#82;",
-                    f"    bereich_u_einheit : BYTE := B#16#{area_unit:02X};", f"    spalte : WORD := W#16#{column:X};",
-                    f"    zeile : WORD := W#16#{NCK_SPINDLE:X};", f"    bausteintyp : BYTE := B#16#{module:02X};",
-                    "    ZEILENANZAHL : BYTE := B#16#1;", "    typ : BYTE := B#16#F;", "    laenge : BYTE := B#16#8;",
-                    "  END_STRUCT;"]
+        name = ACT_SPEED
         g = GET_FLAG_BYTE
         get = [f"  // the spindle speed: FB2 GET of actSpeed (spindle {NCK_SPINDLE}), asked again in the cycle after "
                "each answer;", "  // the model below uses the last answer (one or two PLC cycles old)",
@@ -340,7 +332,7 @@ def _program_text(e: _Emitter, machine: Machine, axis: Axis, cycle_s: float, wri
     flag = FLAG_BYTE
     body = [
         *header, "",
-        f"DATA_BLOCK DB {ADDRESS_DB}", "STRUCT", *entries, "END_STRUCT;", "BEGIN", "END_DATA_BLOCK", "",
+        *_address_db(axis, with_speed=speed is not None).splitlines(),
         f"DATA_BLOCK DB {STATE_DB}", "STRUCT", *state, "END_STRUCT;", "BEGIN", "END_DATA_BLOCK", "",
         f"DATA_BLOCK DB {PUT_INSTANCE_DB}", "FB 3", "BEGIN", "END_DATA_BLOCK", "", *get_instance,
         f"FUNCTION FC {FC_NUMBER} : VOID", "BEGIN", *get, *e.lines,
@@ -348,12 +340,22 @@ def _program_text(e: _Emitter, machine: Machine, axis: Axis, cycle_s: float, wri
         f"  AN M {flag}.0", f"  L {timer}", f"  SD T {TIMER}", f"  A T {TIMER}", f"  = M {flag}.0",
         f"  A M {flag}.0", f"  = M {flag}.1",
         f"  CALL FB 3, DB {PUT_INSTANCE_DB} (", f"    Req := M {flag}.1", "    NumVar := 3,",
-        *[f"    Addr{i + 1} := DB{ADDRESS_DB}.{name}," for i, (name, _column) in enumerate(SETTING_DATA)],
+        *[f"    Addr{i + 1} := DB{ADDRESS_DB}.{name}," for i, name in enumerate(SETTING_DATA)],
         f"    Error := M {flag}.2,", f"    Done := M {flag}.3,", f"    State := MW {STATE_WORD},",
         f"    SD1 := {k0},", f"    SD2 := {slope},", f"    SD3 := {p0}", "  )", "END_FUNCTION", "",
         "ORGANIZATION_BLOCK OB 1", "BEGIN", f"  CALL FC {FC_NUMBER}", "END_ORGANIZATION_BLOCK", ""]
     body[body.index(f"    Req := M {flag}.1")] = f"    Req := M {flag}.1,"
     return "\n".join(body)
+
+
+def _address_db(axis: Axis, with_speed: bool) -> str:
+    """The NCVar-selector address DB of the generated GET/PUT calls, addresses from the catalogue."""
+    entries = [NcVarEntry(name, parse_variable(f"{name}[AX{axis.number}]").address, NckType.REAL8, 8)
+               for name in SETTING_DATA]
+    if with_speed:
+        entries.append(NcVarEntry(ACT_SPEED, parse_variable(f"actSpeed[C1,l{NCK_SPINDLE}]").address,
+                                  NckType.REAL8, 8))
+    return render_ncvar_db(NcVarDb(ADDRESS_DB, tuple(entries)))
 
 
 def _describe(term: Term) -> str:

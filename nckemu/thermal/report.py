@@ -31,10 +31,10 @@ def _shade(axes: plt.Axes, discovery: Discovery) -> None:
                      label="located mismatch" if index == 0 else None)
 
 
-def findings_html(findings: list[tuple[str, str]]) -> str:
-    """The program's findings (``wording.program_findings``) as a definition list."""
+def findings_html(findings: list[tuple[str, str]], heading: str = "The program against the recording") -> str:
+    """The program's findings (``wording.program_findings``) as a definition list under ``heading``."""
     items = "".join(f"<dt><b>{html.escape(h)}</b></dt><dd>{html.escape(s)}</dd>" for h, s in findings)
-    return f"<h2>The program against the recording</h2><dl>{items}</dl>"
+    return f"<h2>{html.escape(heading)}</h2><dl>{items}</dl>"
 
 
 def _um(value: object) -> str:
