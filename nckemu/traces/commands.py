@@ -5,12 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 
+from nckemu.cliutil import progress_bar
 from nckemu.errors import NckConfigError
 
 from .decode import decode, format_exchange
 from .reader import read_capture
-from .replay import progress_printer, replay, seed_values
+from .replay import replay, seed_values
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -73,6 +75,22 @@ def run_show(args: argparse.Namespace) -> int:
               f"({capture.frames} frames read)", file=sys.stderr)
         return 1
     return 0
+
+
+def progress_printer(enabled: bool) -> Callable[[int, int], None] | None:
+    """A progress bar on a terminal (tqdm on stderr), None when not enabled or not a terminal."""
+    if not enabled or not sys.stderr.isatty():
+        return None
+    bar = progress_bar(None, description="replay", unit="job")
+
+    def show(done: int, total: int) -> None:
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+        if done == total:
+            bar.close()
+
+    return show
 
 
 def run_replay(args: argparse.Namespace) -> int:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import socket
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -231,21 +230,3 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
         for link in links.values():
             link.close()
     return report
-
-
-def progress_printer(enabled: bool) -> Callable[[int, int], None] | None:
-    """A progress bar on a terminal (tqdm on stderr), None when not enabled or not a terminal."""
-    if not enabled or not sys.stderr.isatty():
-        return None
-    from nckemu.cliutil import progress_bar
-
-    bar = progress_bar(None, description="replay", unit="job")
-
-    def show(done: int, total: int) -> None:
-        bar.total = total
-        bar.n = done
-        bar.refresh()
-        if done == total:
-            bar.close()
-
-    return show
