@@ -182,7 +182,7 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
 
     from nckemu.thermal.recording import load_recording
 
-    from .replay import check_output_path, run_on_recording, with_simulation, write_atomically
+    from .replay import run_on_recording, with_simulation, write_atomically
 
     if not args.inputs or not args.machine:
         raise NckConfigError("--out needs --inputs, and --inputs needs --machine (the sensors' PLC inputs)")
@@ -193,7 +193,7 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
     except ValueError:
         raise NckConfigError("--cycle takes e.g. 1s, 15s, 1min") from None
     if args.out:
-        check_output_path(args.out)
+        check_output(args.out, "--out")
     recording = load_recording(args.inputs)
     letter = args.axis
     if letter is None:
@@ -306,12 +306,12 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     from nckemu.thermal.plcmodel import plc_model, terms_of
     from nckemu.thermal.recording import load_recording
 
-    from .replay import check_output_path, plc_inputs, recording_axis
+    from .replay import plc_inputs, recording_axis
     from .stlgen import generate_program
 
     if not args.machine:
         raise NckConfigError("--write-stl needs --machine (which sensors the PLC reads, which axis)")
-    check_output_path(args.write_stl, "--write-stl")
+    check_output(args.write_stl, "--write-stl")
     cycle_s = _cycle(args.cycle)
     machine = load_machine(args.machine)
     recording = load_recording(args.recording)

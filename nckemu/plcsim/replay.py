@@ -257,13 +257,3 @@ def write_atomically(path: str | Path, recording: Recording) -> None:
         temporary.replace(path)
     finally:
         temporary.unlink(missing_ok=True)
-
-
-def check_output_path(path: str | Path, what: str = "--out") -> None:
-    """Refuse an output path that cannot be written, before any work."""
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise NckConfigError(f"{what} {path} is a directory")
-    if not directory.is_dir():
-        raise NckConfigError(f"{what} {path}: no such directory {directory}")
