@@ -3,7 +3,6 @@ what the program compensated, the residual, where it falls short, what physics i
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import numpy as np
@@ -48,5 +47,3 @@ def program_findings(discovery: Discovery, law: str | None = None) -> list[tuple
             ("Where it falls short", short), ("What physics it leaves out", physics)]
 
 
-def findings_json(findings: list[tuple[str, str]]) -> str:
-    return json.dumps({heading: sentence for heading, sentence in findings})

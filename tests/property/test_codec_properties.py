@@ -277,3 +277,18 @@ def test_peek_read_var_answer_agrees_with_parse_pdu(pdu: bytes) -> None:
 def test_build_read_var_answer_is_the_general_build(pdu_ref: int, count: int, data: bytes) -> None:
     general = s7.build_pdu(s7.S7Pdu(s7.Rosctr.ACK_DATA, pdu_ref, bytes([s7.Function.READ_VAR, count]), data))
     assert s7.build_read_var_answer(pdu_ref, count, data) == general
+
+
+@given(st.dictionaries(st.sampled_from(szl.BLOCK_TYPES), st.integers(0, 0xFFFF)))
+def test_block_counts_round_trip(counts: dict[int, int]) -> None:
+    """The "list blocks" answer carries all seven block types; a type not given counts 0."""
+    parsed = szl.parse_block_counts(szl.build_block_counts(counts))
+    assert parsed == {block_type: counts.get(block_type, 0) for block_type in szl.BLOCK_TYPES}
+
+
+@given(st.binary(max_size=40))
+def test_block_counts_from_random_bytes_raise_only_typed_errors(data: bytes) -> None:
+    try:
+        szl.parse_block_counts(data)
+    except NckProtocolError:
+        pass
