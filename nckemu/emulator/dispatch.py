@@ -21,7 +21,7 @@ from nckemu.errors import (
     NckTypeInconsistent,
     ReturnCode,
 )
-from nckemu.protocol import pi, s7, szl
+from nckemu.protocol import cotp, pi, s7, szl, tpkt
 from nckemu.protocol.addresses import (
     NCK_SYNTAX_IDS,
     NckAddress,
@@ -71,33 +71,43 @@ _ANSWER_TRANSPORT_SIZE: dict[int, int] = {
 
 
 PlanPart = tuple[bytes, Callable[[], bytes], int, bytes]  # data item header, value reader, size, fill
+# A read job's answer as a whole frame (TPKT, COTP DT, S7 PDU), given the job's PDU reference as its
+# two bytes on the wire and the connection's access context.
+FramedAnswer = Callable[[bytes, AccessContext], bytes]
+# A frame holding one read job, known by its bytes from 13 on: with bytes 0..10 they fix every byte
+# but the PDU reference (11 and 12). Bytes 0..10 and the job's answer.
+FramedRead = tuple[bytes, FramedAnswer]
+FRAME_PDU_OFFSET = 7
+FRAME_PDU_REF_END = FRAME_PDU_OFFSET + 6
+_FRAME_HEAD_BYTES = FRAME_PDU_OFFSET + 4
 
 
-def _planned_answer(item_count: int, parts: list[PlanPart],
-                    general: Callable[[int, AccessContext], bytes]) -> Callable[[int, AccessContext], bytes]:
-    """The answer to a read job of byte-sized S7ANY items (``Dispatcher._plan_read``): the ACK_DATA
-    header with the PDU reference put in, then per item its header, value and fill byte. A value
-    that cannot be read (or has another size) sends the job the general way."""
+def _planned_answer(item_count: int, parts: list[PlanPart], general: FramedAnswer) -> FramedAnswer:
+    """The answer frame to a read job of byte-sized S7ANY items (``Dispatcher._plan_read``): TPKT,
+    DT and ACK_DATA header with the PDU reference put in, then per item its header, value and fill
+    byte. A value that cannot be read (or has another size) sends the job the general way."""
     data_length = sum(len(header) + size + len(fill) for header, _read, size, fill in parts)
-    head = s7.build_read_var_answer(0, item_count, bytes(data_length))[:s7.READ_ANSWER_DATA_OFFSET]
-    before, after = head[:4], head[6:]  # the PDU reference is bytes 4 and 5
+    # The answer with zeros for the PDU reference and the data items: all of it up to them is fixed.
+    blank = cotp.build_data_frame(s7.build_read_var_answer(0, item_count, bytes(data_length)))
+    before = blank[:_FRAME_HEAD_BYTES]
+    after = blank[FRAME_PDU_REF_END:FRAME_PDU_OFFSET + s7.READ_ANSWER_DATA_OFFSET]
     if len(parts) == 1:
         ((header, read, size, _fill),) = parts
         after += header
 
-        def answer_one(pdu_ref: int, ctx: AccessContext) -> bytes:
+        def answer_one(pdu_ref: bytes, ctx: AccessContext) -> bytes:
             try:
                 value = read()
             except Exception:  # noqa: BLE001 - the general path gives the item its error
                 return general(pdu_ref, ctx)
             if len(value) != size:
                 return general(pdu_ref, ctx)
-            return b"".join((before, pdu_ref.to_bytes(2, "big"), after, value))
+            return b"".join((before, pdu_ref, after, value))
 
         return answer_one
 
-    def answer(pdu_ref: int, ctx: AccessContext) -> bytes:
-        out = [before, pdu_ref.to_bytes(2, "big"), after]
+    def answer(pdu_ref: bytes, ctx: AccessContext) -> bytes:
+        out = [before, pdu_ref, after]
         try:
             for header, read, size, fill in parts:
                 value = read()
@@ -132,7 +142,9 @@ class Dispatcher:
         self.default_access_level = default_access_level
         self._read_requests: dict[bytes, s7.ReadVarRequest] = {}
         # Read jobs by parameter bytes -> the function answering them (see ``_plan_read``).
-        self._read_plans: dict[bytes, Callable[[int, AccessContext], bytes]] = {}
+        self._read_plans: dict[bytes, FramedAnswer] = {}
+        # Polled read jobs by frame (``framed_read``): the session answers them without parsing.
+        self.framed_reads: dict[bytes, FramedRead] = {}
         self._plc_reader = plc.reader
 
     def new_access_context(self, peer: str) -> AccessContext:
@@ -170,9 +182,31 @@ class Dispatcher:
         plan = self._read_plans.get(parameter)
         if plan is None:
             plan = self._plan_read(parameter)
-        return plan(pdu_ref, ctx)
+        return plan(pdu_ref.to_bytes(2, "big"), ctx)[FRAME_PDU_OFFSET:]
 
-    def _plan_read(self, parameter: bytes) -> Callable[[int, AccessContext], bytes]:
+    def framed_read(self, frame: bytes) -> FramedRead | None:
+        """For a frame that is one read-var job in one DT (EOT): its bytes 0..10 and the function
+        answering it with a whole frame; None for any other frame, and for jobs whose parameters do
+        not parse (the general path answers those). Kept in ``framed_reads`` by the frame's bytes
+        from 13 on, where a polled job finds it again."""
+        if len(frame) <= FRAME_PDU_OFFSET or frame[0] != tpkt.TPKT_VERSION \
+                or (frame[2] << 8 | frame[3]) != len(frame) or frame[4:FRAME_PDU_OFFSET] != cotp.DT_HEADER_EOT:
+            return None
+        job = s7.peek_read_var_job(frame, FRAME_PDU_OFFSET)
+        if job is None:
+            return None
+        plan = self._read_plans.get(job[1])
+        if plan is None:
+            try:
+                plan = self._plan_read(job[1])
+            except Exception:  # noqa: BLE001 - the general path answers it with its error
+                return None
+        entry = (frame[:_FRAME_HEAD_BYTES], plan)
+        if len(self.framed_reads) < MAX_CACHED_READ_REQUESTS:
+            self.framed_reads[frame[FRAME_PDU_REF_END:]] = entry
+        return entry
+
+    def _plan_read(self, parameter: bytes) -> FramedAnswer:
         """The function answering the read job with these parameter bytes (raises as ``job`` does
         for parameters that do not parse). Where every item is a byte-sized S7ANY read, the answer
         but for the PDU reference and the values is known before the values are: it is built once,
@@ -182,17 +216,20 @@ class Dispatcher:
         item_count = len(request.items)
 
         read_item, build_data_items, build_answer = self._read_item, s7.build_data_items, s7.build_read_var_answer
+        build_frame = cotp.build_data_frame
         items = request.items
 
-        def general(pdu_ref: int, ctx: AccessContext) -> bytes:
+        def general(pdu_ref: bytes, ctx: AccessContext) -> bytes:
             # ``read_var`` and ``build_read_var_response`` without the response objects.
+            ref = pdu_ref[0] << 8 | pdu_ref[1]
             if item_count == 1:
-                return build_answer(pdu_ref, 1, build_data_items((read_item(items[0], ctx),)))
-            return build_answer(pdu_ref, item_count, build_data_items(tuple(read_item(item, ctx) for item in items)))
+                return build_frame(build_answer(ref, 1, build_data_items((read_item(items[0], ctx),))))
+            return build_frame(build_answer(ref, item_count,
+                                            build_data_items(tuple(read_item(item, ctx) for item in items))))
 
         if len(self._read_plans) >= MAX_CACHED_READ_REQUESTS:
             return general
-        plan: Callable[[int, AccessContext], bytes] = general
+        plan: FramedAnswer = general
         parts = self._s7any_plan_parts(request.items)
         if parts is not None:
             plan = _planned_answer(item_count, parts, general)

@@ -75,7 +75,18 @@ class _Connection(asyncio.BufferedProtocol):
         return self._read_buffer
 
     def buffer_updated(self, nbytes: int) -> None:
-        self.data_received(bytes(self._read_view[:nbytes]))
+        data = bytes(self._read_view[:nbytes])
+        session, transport = self.session, self.transport
+        if session is not None and transport is not None and self.server.recorder is None \
+                and self.partial_since_s is None:
+            # A polled read job, alone in its segment: answered without the general bookkeeping
+            # below (nothing was or is half-received, the connection stays open).
+            answer = session.answer_polled_read(data)
+            if answer is not None:
+                self.last_activity_s = time.monotonic()
+                transport.write(answer)
+                return
+        self.data_received(data)
 
     def data_received(self, data: bytes) -> None:
         session, transport = self.session, self.transport

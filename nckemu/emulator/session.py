@@ -31,7 +31,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from nckemu.emulator.dispatch import Dispatcher
+from nckemu.emulator.dispatch import FRAME_PDU_REF_END, Dispatcher
 from nckemu.emulator.nck.access import AccessContext
 from nckemu.errors import HeaderError, NckError
 from nckemu.protocol import cotp, s7, szl, tpkt, userdata
@@ -141,6 +141,7 @@ class ServerSession:
                  access: AccessContext | None = None, peer: str = "",
                  on_close: Callable[[str], None] | None = None) -> None:
         self.dispatcher = dispatcher
+        self._framed_reads = dispatcher.framed_reads
         self.limits = limits or SessionLimits()
         self.access = access if access is not None else dispatcher.new_access_context(peer)
         self.info = SessionInfo(peer=peer)
@@ -190,15 +191,9 @@ class ServerSession:
     # ------------------------------------------------------------------ input
     def receive(self, data: bytes) -> list[bytes]:
         """Feed received bytes; return the frames to send, in order."""
-        if self.state is _READY and not self._buffer and not self._fragments and len(data) > _PDU_OFFSET \
-                and data[0] == tpkt.TPKT_VERSION and (data[2] << 8 | data[3]) == len(data) \
-                and data[4:7] == cotp.DT_HEADER_EOT and len(data) <= self.limits.max_frame_bytes \
-                and self.info.amq >= 1 and self.limits.flood_factor >= 1:
-            # The common case, one whole read job in one DT on an idle ready connection, without the
-            # framing loop: what the loop below would answer (tests/property/test_fast_read.py).
-            read_answer = self._fast_read(data)
-            if read_answer is not None:
-                return self._data_frames(read_answer)
+        frame = self.answer_polled_read(data)
+        if frame is not None:
+            return [frame]
         if self.closed:
             return []
         buffer = self._buffer + data if self._buffer else data
@@ -255,6 +250,31 @@ class ServerSession:
             else:
                 self.close(f"unexpected COTP {type(tpdu).__name__}")
         return out
+
+    def answer_polled_read(self, data: bytes) -> bytes | None:
+        """The answer frame when ``data`` is exactly one read job in one DT on a ready connection
+        with nothing half-received, within the limits; None: ``receive`` it. The common case (clients
+        poll), answered from the dispatcher's plan for the frame, without the framing loop and
+        without parsing: what ``receive`` would answer, byte for byte (tests/property/test_fast_read.py)."""
+        if self.state is not _READY or self._buffer or self._fragments:
+            return None
+        entry = self._framed_reads.get(data[FRAME_PDU_REF_END:])
+        if entry is None:
+            entry = self.dispatcher.framed_read(data)
+            if entry is None:
+                return None
+        info = self.info
+        if not data.startswith(entry[0]) or len(data) - _PDU_OFFSET > info.pdu_size \
+                or len(data) > self.limits.max_frame_bytes or info.amq < 1 or self.limits.flood_factor < 1:
+            return None
+        try:
+            frame = entry[1](data[_PDU_OFFSET + 4:FRAME_PDU_REF_END], self.access)
+        except Exception:  # noqa: BLE001 - the general path answers (or logs) the same job properly
+            return None
+        if len(frame) - _PDU_OFFSET > info.pdu_size or len(frame) - 4 > info.tpdu_size:
+            return None  # the general path refuses it, or sends it in several DTs
+        info.jobs += 1
+        return frame
 
     def _data_frames(self, pdu: bytes) -> list[bytes]:
         """The frames carrying one answer PDU: one DT, or several where it exceeds the TPDU size."""

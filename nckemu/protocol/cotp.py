@@ -7,12 +7,13 @@ and the calling/called TSAPs (0xC1/0xC2), which name rack and slot for S7.
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 
 from construct import Const, GreedyBytes, GreedyRange, Int8ub, Int16ub, Prefixed, Struct
 
 from .errors import NckProtocolError, NckTruncatedError
-from .tpkt import build_tpkt
+from .tpkt import TPKT_HEADER_BYTES, TPKT_VERSION, build_tpkt
 
 CODE_CR = 0xE0
 CODE_CC = 0xD0
@@ -215,9 +216,17 @@ def build_cotp(tpdu: Cotp) -> bytes:
     return bytes([len(header)]) + header
 
 
+# TPKT header and DT header in one pack: every answer goes through here.
+_DATA_FRAME_HEAD = struct.Struct(">BBHBBB")
+_DATA_FRAME_OVERHEAD = TPKT_HEADER_BYTES + len(DT_HEADER_EOT)
+
+
 def build_data_frame(payload: bytes) -> bytes:
     """TPKT + COTP DT (EOT) around one S7 PDU: what every answer is."""
-    return build_tpkt(DT_HEADER_EOT + payload)
+    length = len(payload) + _DATA_FRAME_OVERHEAD
+    if length > 0xFFFF:
+        return build_tpkt(DT_HEADER_EOT + payload)  # raises the TPKT layer's error
+    return _DATA_FRAME_HEAD.pack(TPKT_VERSION, 0, length, 2, CODE_DT, DT_EOT) + payload
 
 
 DT_HEADER_MORE = bytes([2, CODE_DT, 0x00])

@@ -36,14 +36,18 @@ def _ready(pdu_size: int, tpdu_size_code: int = 0x0A) -> ServerSession:
 @given(items=st.lists(st.one_of(KNOWN, addresses), min_size=1, max_size=20), pdu_ref=st.integers(0, 0xFFFF),
        pdu_size=st.sampled_from([240, 480, 960]))
 def test_fast_read_answers_as_the_general_path(items: list[object], pdu_ref: int, pdu_size: int) -> None:
-    job = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, pdu_ref, s7.build_read_var_request(s7.ReadVarRequest(tuple(items)))))
+    """The first sight of a job makes its plan, later ones (another PDU reference) answer from the
+    plan kept by frame: both as the general path answers."""
+    parameter = s7.build_read_var_request(s7.ReadVarRequest(tuple(items)))
     fast_session, general_session = _ready(pdu_size), _ready(pdu_size)
-    fast = fast_session.receive(cotp.build_data_frame(job))
-    general_answer = general_session._handle_pdu(job, over_amq=False)
-    assert general_answer is not None
-    assert fast == [cotp.build_data_frame(general_answer)]
-    assert fast_session.info.jobs == general_session.info.jobs
-    assert not fast_session.closed
+    for ref in (pdu_ref, pdu_ref ^ 0x5AA5, pdu_ref):
+        job = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, ref, parameter))
+        fast = fast_session.receive(cotp.build_data_frame(job))
+        general_answer = general_session._handle_pdu(job, over_amq=False)
+        assert general_answer is not None
+        assert fast == [cotp.build_data_frame(general_answer)]
+        assert fast_session.info.jobs == general_session.info.jobs
+        assert not fast_session.closed
 
 
 # S7ANY items near what exists: DBs and their ends, the sensor word at input byte 420 and its
@@ -108,8 +112,34 @@ def test_read_jobs_answer_alike_whole_split_or_pipelined(items: list[object], pd
     whole, pieces = _ready(480, tpdu_size_code), _ready(480, tpdu_size_code)
     jobs_before = whole.info.jobs
     assert whole.receive(frame) == expected
+    assert whole.receive(frame) == expected  # now from the plan kept by frame
     stream = frame * copies
     cut = min(split, len(stream) - 1)
     answers = pieces.receive(stream[:cut]) + pieces.receive(stream[cut:])
     assert answers == expected * copies
-    assert whole.info.jobs == jobs_before + 1 and pieces.info.jobs == jobs_before + copies
+    assert whole.info.jobs == jobs_before + 2 and pieces.info.jobs == jobs_before + copies
+
+
+def _ready_on(emulator: Emulator) -> ServerSession:
+    session = ServerSession(emulator.dispatcher, limits=SessionLimits(pdu_size_max=480, max_amq=8))
+    session.receive(CR)
+    session.receive(cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 1, s7.build_setup_communication(
+        s7.SetupCommunication(1, 1, 480))))))
+    return session
+
+
+@settings(max_examples=300, deadline=None)
+@given(items=st.lists(st.one_of(KNOWN, PLANNED), min_size=1, max_size=4), position=st.integers(0, 10),
+       value=st.integers(0, 255))
+def test_a_frame_like_a_polled_one_but_for_its_head_is_not_taken_for_it(items: list[object], position: int,
+                                                                        value: int) -> None:
+    """Polled jobs are kept by their bytes from 13 on and checked against bytes 0..10: a frame that
+    differs in those (TPKT, COTP, S7 header) is answered as a server that never saw the job answers it."""
+    frame = cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 7, s7.build_read_var_request(
+        s7.ReadVarRequest(tuple(items))))))
+    changed = bytearray(frame)
+    changed[position] = value
+    seen, unseen = _ready_on(Emulator(clock=SimulatedClock(100.0))), _ready_on(Emulator(clock=SimulatedClock(100.0)))
+    seen.receive(frame)
+    assert seen.receive(bytes(changed)) == unseen.receive(bytes(changed))
+    assert seen.closed == unseen.closed and seen.info.jobs - 1 == unseen.info.jobs

@@ -181,6 +181,9 @@ class NckModel:
     def sensor_temperature_C(self, name: str) -> float:
         return self.sensors.temperature_C(name)
 
+    def sensor_temperature_reader(self, name: str) -> Callable[[], float]:
+        return self.sensors.temperature_reader(name)
+
     def set_sensor_temperature(self, name: str, temperature_C: float) -> None:
         self.sensors.set_temperature(name, temperature_C)
 

@@ -2,10 +2,24 @@
 
 from __future__ import annotations
 
+from bisect import bisect_left
+from collections.abc import Callable
+
 from nckemu.errors import NckObjectDoesNotExist
 
 from ..clock import Clock
-from ..machine import Machine
+from ..machine import Machine, Sensor
+
+
+def profile_value_C(points: tuple[tuple[float, float], ...], times_s: list[float], t_s: float) -> float:
+    """The profile at ``t_s``: linear between points (whose times rise strictly), end values held."""
+    index = bisect_left(times_s, t_s)
+    if index == 0:
+        return points[0][1]
+    if index == len(points):
+        return points[-1][1]
+    (t0, c0), (t1, c1) = points[index - 1], points[index]
+    return c0 + (c1 - c0) * (t_s - t0) / (t1 - t0)
 
 
 class Sensors:
@@ -13,26 +27,42 @@ class Sensors:
         self.machine = machine
         self.clock = clock
         self._override_C: dict[str, float] = {}
+        self._times_s = {sensor.name: [t_s for t_s, _c in sensor.profile] for sensor in machine.sensors}
 
-    def temperature_C(self, name: str) -> float:
+    def _sensor(self, name: str) -> Sensor:
         for sensor in self.machine.sensors:
             if sensor.name == name:
-                break
-        else:
-            raise NckObjectDoesNotExist(f"no sensor {name!r}")
+                return sensor
+        raise NckObjectDoesNotExist(f"no sensor {name!r}")
+
+    def temperature_C(self, name: str) -> float:
+        sensor = self._sensor(name)
         if name in self._override_C:
             return self._override_C[name]
         if not sensor.profile:
             return sensor.temperature_C
-        t_s = self.clock.now_s()
-        points = sensor.profile
-        if t_s <= points[0][0]:
-            return points[0][1]
-        for (t0, c0), (t1, c1) in zip(points, points[1:], strict=False):
-            if t_s <= t1:
-                return c0 + (c1 - c0) * (t_s - t0) / (t1 - t0)
-        return points[-1][1]
+        return profile_value_C(sensor.profile, self._times_s[name], self.clock.now_s())
+
+    def temperature_reader(self, name: str) -> Callable[[], float]:
+        """A function of no arguments giving what ``temperature_C(name)`` gives at the time of the
+        call, with the sensor looked up once (a polled sensor word reads it on every job)."""
+        sensor = self._sensor(name)
+        overrides = self._override_C
+        if not sensor.profile:
+            fixed_C = sensor.temperature_C
+
+            def fixed() -> float:
+                return overrides.get(name, fixed_C)
+
+            return fixed
+        points, times_s, now_s = sensor.profile, self._times_s[name], self.clock.now_s
+
+        def over_time() -> float:
+            override_C = overrides.get(name)
+            return profile_value_C(points, times_s, now_s()) if override_C is None else override_C
+
+        return over_time
 
     def set_temperature(self, name: str, temperature_C: float) -> None:
-        self.temperature_C(name)
+        self._sensor(name)
         self._override_C[name] = temperature_C

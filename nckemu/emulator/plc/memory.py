@@ -128,11 +128,11 @@ class PlcModel:
         if size_bytes == 2 and sensor is not None and (area == S7Area.P or area == S7Area.I) \
                 and start_byte + 1 not in self._sensor_inputs and end <= len(self.areas[S7Area.I]):
             # A whole sensor word (PIW 420): what ``_read_peripheral`` packs byte by byte.
-            nck, name, raw_value, pack = self.nck, sensor.name, sensor.raw_value, _SENSOR_WORD.pack
-            if nck is None:
+            raw_value, pack = sensor.raw_value, _SENSOR_WORD.pack
+            if self.nck is None:
                 return lambda: pack(raw_value(sensor.temperature_C))
-            temperature_C = nck.sensor_temperature_C
-            return lambda: pack(raw_value(temperature_C(name)))
+            temperature_C = self.nck.sensor_temperature_reader(sensor.name)
+            return lambda: pack(raw_value(temperature_C()))
         read = self.read
         return lambda: read(area, db_number, start_byte, size_bytes)
 
