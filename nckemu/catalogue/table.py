@@ -243,6 +243,8 @@ def display_name(spec: VariableSpec, address: NckAddress) -> str:
     """``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[1,AX4]`` (an array's
     index first and 0-based, as written in part programs and accepted by the name parser)."""
     count = f",x{address.line_count}" if address.line_count > 1 else ""
+    if spec.columns > 1:  # the column is an index (module TO: the T number)
+        count = f",col{address.column}{count}"
     if spec.name == "R":
         return f"R{address.line - R_PARAMETER_LINE_OFFSET}[C{address.unit}{count}]"
     where = f"AX{address.unit}" if address.area == NckArea.A else f"{NckArea(address.area).name}{address.unit}"
