@@ -68,7 +68,7 @@ def describe(spec: VariableSpec) -> dict[str, object]:
     return {
         "name": spec.name, "number": spec.number, "path": spec.path,
         "areas": [NckArea(area).name for area in sorted(spec.areas)],
-        "module": spec.module, "column": spec.column, "lines": spec.lines,
+        "module": spec.module, "column": spec.column, "columns": spec.columns, "lines": spec.lines,
         "type": NckType(spec.nck_type).name,
         "bytes": spec.string_length if spec.nck_type == NckType.STRING else NckType(spec.nck_type).size_bytes,
         "unit": spec.unit, "min": spec.minimum, "max": spec.maximum,
@@ -90,7 +90,8 @@ def format_table(specs: Iterable[VariableSpec]) -> str:
     for spec in specs:
         row = describe(spec)
         lines = f" l1..{spec.lines}" if spec.lines > 1 else ""
-        address = f"{'/'.join(row['areas'])} 0x{spec.module:02X} col {spec.column}{lines}"  # type: ignore[arg-type]
+        columns = f"..{spec.column + spec.columns - 1}" if spec.columns > 1 else ""
+        address = f"{'/'.join(row['areas'])} 0x{spec.module:02X} col {spec.column}{columns}{lines}"  # type: ignore[arg-type]
         kind = f"{row['type']}({row['bytes']})" if spec.nck_type == NckType.STRING else str(row["type"])
         write = "-" if spec.write_level == READ_ONLY else str(spec.write_level)
         rows.append((spec.name, spec.number, address, kind, spec.unit, _limits(row),

@@ -5,6 +5,7 @@ Accepted forms (case-insensitive):
   MD32700[1,AX4]   (array index first, 0-based, as in part programs: line = index + 1)
   R5  R[5]  R[5,C1]   (R parameter 5 of channel 1; line = 5 + r_parameter_line_offset)
   NAME[u4,l2]  NAME[u4,l2,x3]   (explicit unit, line and line count)
+  cuttEdgeParam[2,T1,col5]   (column for a variable over several columns: here T5, line 3, TO unit 1)
 A ``Variable`` carries the address and how to decode the value (the NCVar selector's typ/laenge).
 """
 
@@ -57,10 +58,15 @@ def parse_variable(text: str) -> Variable:
     if spec is None:
         raise NckConfigError(f"unknown NCK variable {match['name']!r} in {text!r}")
     area = min(spec.areas)
-    unit, line, count = 1, 1, 1
+    unit, line, count, column = 1, 1, 1, spec.column
     for part in [p.strip() for p in (match["index"] or "").split(",") if p.strip()]:
         lower = part.lower()
-        if lower.startswith("ax") and lower[2:].isdigit():
+        if lower.startswith("col") and lower[3:].isdigit():
+            column = int(lower[3:])
+            if not spec.column <= column < spec.column + spec.columns:
+                raise NckConfigError(f"{text!r}: {spec.name} has columns {spec.column}.."
+                                     f"{spec.column + spec.columns - 1}")
+        elif lower.startswith("ax") and lower[2:].isdigit():
             unit, area = int(lower[2:]), NckArea.A
         elif lower.startswith("u") and lower[1:].isdigit():
             unit = int(lower[1:])
@@ -68,7 +74,7 @@ def parse_variable(text: str) -> Variable:
             line = int(lower[1:])
         elif lower.startswith("x") and lower[1:].isdigit():
             count = int(lower[1:])
-        elif lower[0] in "cnb" and lower[1:].isdigit():
+        elif lower[0] in "cnbt" and lower[1:].isdigit():
             unit = int(lower[1:])
         elif part.lstrip("-").isdigit():
             index = int(part)
@@ -78,7 +84,7 @@ def parse_variable(text: str) -> Variable:
     if area not in spec.areas:
         raise NckConfigError(f"{spec.number} {spec.name} is not an axis variable: {text!r}")
     try:
-        address = NckAddress(area, unit, spec.column, line, spec.module, count)
+        address = NckAddress(area, unit, column, line, spec.module, count)
     except ValueError as exc:
         raise NckConfigError(f"{text!r}: {exc}") from None
     return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)

@@ -26,6 +26,7 @@ BUILTIN_SOURCE = "nckemu/catalogue/variables.toml"
 ROW_KEYS = frozenset({
     "name", "number", "module", "column", "areas", "type", "lines", "length", "unit", "min", "max",
     "default", "read_level", "write_level", "retained", "effective", "source", "description", "path",
+    "columns",
 })
 REQUIRED_KEYS = ("name", "number", "module", "column", "areas", "type")
 
@@ -53,6 +54,9 @@ class VariableSpec:
     description: str = ""
     # The BTSS / NC-Var-Selector path ("/Channel/State/actParts"); "" when no source names it.
     path: str = ""
+    # How many columns from ``column`` on the variable occupies: > 1 where the column is an index, as
+    # the T number of the tool offsets (module TO: column = T number); its value source gets the column.
+    columns: int = 1
 
     @property
     def read_only(self) -> bool:
@@ -104,14 +108,18 @@ def _spec(row: Mapping[str, object]) -> VariableSpec:
             raise KeyError("effective", f"{effective!r} is not one of {', '.join(EFFECTIVENESS)}")
         default = row.get("default", "" if nck_type == NckType.STRING else 0)
         lines = _integer(row, "lines", 1, 0xFFFF, 1)
+        column = _integer(row, "column", 0, 0xFFFF)
+        columns = _integer(row, "columns", 1, 0xFFFF - column + 1, 1)
         if isinstance(default, list) and len(default) != lines:
             raise KeyError("default", f"a list default needs one value per line ({lines}), not {len(default)}")
         source = row.get("source")
         if source is not None and (not isinstance(source, str) or not source):
             raise KeyError("source", "must name a value source such as \"axes.actual_position\"")
+        if columns > 1 and source is None:
+            raise KeyError("columns", "a variable over several columns needs a value source (it gets the column)")
         return VariableSpec(
             name=str(row["name"]), number=str(row["number"]),
-            module=_integer(row, "module", 0, 0xFF), column=_integer(row, "column", 0, 0xFFFF),
+            module=_integer(row, "module", 0, 0xFF), column=column, columns=columns,
             areas=frozenset(NckArea[str(a)].value for a in areas), nck_type=nck_type,
             lines=lines, string_length=length,
             unit=str(row.get("unit", "")), minimum=_number(row, "min"), maximum=_number(row, "max"),
@@ -132,7 +140,8 @@ def row_lines(text: str, header: str = "[[var]]") -> list[int]:
 
 
 def _keys(spec: VariableSpec) -> list[tuple[int, int, int]]:
-    return [(spec.module, spec.column, area) for area in sorted(spec.areas)]
+    return [(spec.module, column, area) for area in sorted(spec.areas)
+            for column in range(spec.column, spec.column + spec.columns)]
 
 
 def build_table(rows: Iterable[Mapping[str, object]], source: str, lines: list[int] | None = None,
@@ -166,7 +175,7 @@ def build_table(rows: Iterable[Mapping[str, object]], source: str, lines: list[i
         for address in _keys(spec):
             holder = addresses.get(address)
             if holder is not None and holder.upper() != key:
-                raise NckConfigError(f"{spec.name}: module 0x{spec.module:02X} column {spec.column} area "
+                raise NckConfigError(f"{spec.name}: module 0x{spec.module:02X} column {address[1]} area "
                                      f"{NckArea(address[2]).name} is already {holder}", path=source, line=line,
                                      field="column")
         specs[key] = spec
@@ -234,6 +243,8 @@ def display_name(spec: VariableSpec, address: NckAddress) -> str:
     """``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[1,AX4]`` (an array's
     index first and 0-based, as written in part programs and accepted by the name parser)."""
     count = f",x{address.line_count}" if address.line_count > 1 else ""
+    if spec.columns > 1:  # the column is an index (module TO: the T number)
+        count = f",col{address.column}{count}"
     if spec.name == "R":
         return f"R{address.line - R_PARAMETER_LINE_OFFSET}[C{address.unit}{count}]"
     where = f"AX{address.unit}" if address.area == NckArea.A else f"{NckArea(address.area).name}{address.unit}"

@@ -1,4 +1,5 @@
-"""A machine from TOML: axes, sensors, PLC data blocks, initial data and settings for open facts.
+"""A machine from TOML: axes, sensors, tools, work offsets, PLC data blocks, initial data and settings
+for open facts.
 
 One machine per file; the built-in default machine is ``machines/default.toml`` in this package.
 Every problem is reported as an ``NckConfigError`` naming the file and the field.
@@ -6,13 +7,14 @@ Every problem is reported as an ``NckConfigError`` naming the file and the field
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from nckemu.catalogue.table import VariableSpec, machine_table
+from nckemu.catalogue.table import VariableSpec, machine_table, row_lines
 from nckemu.errors import NckConfigError
 
 from .plc.memory import AREA_BYTES
@@ -55,6 +57,57 @@ class Sensor:
         return max(-32768, min(32767, raw))
 
 
+# The cutting edge parameters a machine file may name, by parameter number (the line within one edge of
+# module TO): 1 tool type, 2 cutting edge position, 3..5 geometry lengths 1..3, 6 radius, 12..14 wear of
+# lengths 1..3, 15 wear of the radius (the order of an 840D sl 4.7 edge in OPCTD; single source). The
+# other parameters of an edge exist and read 0.
+EDGE_PARAMETERS: dict[str, int] = {
+    "type": 1, "edge_position": 2, "length1_mm": 3, "length2_mm": 4, "length3_mm": 5, "radius_mm": 6,
+    "wear_length1_mm": 12, "wear_length2_mm": 13, "wear_length3_mm": 14, "wear_radius_mm": 15,
+}
+# numCuttEdgeParams: "currently 25 parameters are reserved for each tool edge" (A2, 802D sl); LSC reads
+# 35 lines of one 840D sl edge at once, so a machine may configure up to that.
+STANDARD_EDGE_PARAMS = 25
+MAX_EDGE_PARAMS = 35
+# D numbers per tool: MD18105's default maximum is 9 (Siemens W1); T numbers 1..32000 (A2).
+MAX_EDGES_PER_TOOL = 9
+MAX_T_NUMBER = 32000
+TOOL_IDENT_BYTES = 32   # actToolIdent's field length (NCVS)
+
+# Settable frames by name and index (the line block of module FU): G500 is frame 0, G54..G57 are 1..4,
+# G505..G599 are 5..99 (index order inferred from the G-code order; docs/assumptions.md).
+SETTABLE_FRAMES: dict[str, int] = {"G500": 0, "G54": 1, "G55": 2, "G56": 3, "G57": 4,
+                                   **{f"G{code}": code - 500 for code in range(505, 600)}}
+DEFAULT_SETTABLE_FRAMES = 5   # G500, G54..G57
+
+
+@dataclass(frozen=True)
+class Tool:
+    """One tool of the TO unit: its T number, its name and its cutting edges (D1, D2, ...), each the
+    values of parameters 1..n (n = the machine's ``cutting_edge_params``)."""
+
+    number: int
+    ident: str = ""
+    edges: tuple[tuple[float, ...], ...] = ()
+
+
+@dataclass(frozen=True)
+class ToolSettings:
+    cutting_edge_params: int = STANDARD_EDGE_PARAMS
+    # The tool and cutting edge active in channel 1 at start (actTNumber, actDNumber); 0: none.
+    active_t: int = 0
+    active_d: int = 0
+
+
+@dataclass(frozen=True)
+class WorkOffsets:
+    """The settable frames of channel 1 (translations only): frame index -> machine axis -> shift."""
+
+    active: int = 0
+    count: int = DEFAULT_SETTABLE_FRAMES
+    shifts_mm: dict[int, dict[int, float]] = field(default_factory=dict)
+
+
 @dataclass(frozen=True)
 class Settings:
     compensation_sign: int = -1
@@ -94,6 +147,15 @@ class Machine:
     # The NCK variable table with the file's [[var]] rows (added, or overriding built-in rows by name);
     # empty: the built-in catalogue.
     variables: tuple[VariableSpec, ...] = ()
+    tools: tuple[Tool, ...] = ()
+    tool_settings: ToolSettings = field(default_factory=ToolSettings)
+    work_offsets: WorkOffsets = field(default_factory=WorkOffsets)
+
+    def tool(self, number: int) -> Tool | None:
+        for tool in self.tools:
+            if tool.number == number:
+                return tool
+        return None
 
     def axis(self, number: int) -> Axis | None:
         for axis in self.axes:
@@ -119,24 +181,134 @@ def _get(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: 
 
 _KNOWN_KEYS: dict[str, frozenset[str]] = {
     "": frozenset({"name", "ipo_cycle_s", "pdu_size_max", "max_amq", "channels", "connection_access_level",
-                   "passwords", "settings", "axis", "sensor", "plc", "initial", "var"}),
+                   "passwords", "settings", "axis", "sensor", "plc", "initial", "var", "tools", "tool",
+                   "work_offsets"}),
     # every setting the dataclass has (a new setting needs no second list)
     "settings.": frozenset(setting.name for setting in fields(Settings)),
     "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
                        "tool_temp_comp_component", "recording"}),
     "sensor": frozenset({"name", "temperature_C", "plc_input", "raw_offset", "raw_per_C", "profile"}),
     "plc.": frozenset({"data_blocks"}),
+    "tools.": frozenset({"cutting_edge_params", "active_t", "active_d"}),
+    "tool": frozenset({"number", "ident", "edges"}),
+    "edge": frozenset(EDGE_PARAMETERS),
 }
 
 
-def _check_keys(table: Any, kind: str, where: str, source: str) -> None:
+def _check_keys(table: Any, kind: str, where: str, source: str, line: int | None = None) -> None:
     """A mistyped key would silently fall back to its default: refuse it, naming the known ones."""
     if not isinstance(table, dict):
-        raise NckConfigError("expected a table", path=source, field=where.rstrip(".") or "(top level)")
+        raise NckConfigError("expected a table", path=source, line=line, field=where.rstrip(".") or "(top level)")
     unknown = sorted(set(table) - _KNOWN_KEYS[kind])
     if unknown:
         raise NckConfigError(f"unknown key (known: {', '.join(sorted(_KNOWN_KEYS[kind]))})", path=source,
-                             field=f"{where}{unknown[0]}")
+                             line=line, field=f"{where}{unknown[0]}")
+
+
+def _header_line(text: str, header: str) -> int | None:
+    """The line of a table header (``[work_offsets]``), so an error in the table can name it."""
+    lines = row_lines(text, header)
+    return lines[0] if lines else None
+
+
+def _whole(value: object, low: int, high: int, what: str, source: str, line: int | None, where: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise NckConfigError(f"expected {what} {low}..{high}, got {value!r}", path=source, line=line, field=where)
+    return value
+
+
+def _tool(table: Any, index: int, params: int, source: str, line: int | None) -> Tool:
+    where = f"tool[{index}]."
+    _check_keys(table, "tool", where, source, line)
+    if "number" not in table:
+        raise NckConfigError("missing (the T number)", path=source, line=line, field=f"{where}number")
+    number = _whole(table["number"], 1, MAX_T_NUMBER, "a T number", source, line, f"{where}number")
+    ident = table.get("ident", "")
+    if not isinstance(ident, str) or len(ident.encode("ascii", "replace")) > TOOL_IDENT_BYTES:
+        raise NckConfigError(f"expected a tool name of up to {TOOL_IDENT_BYTES} characters, got {ident!r}",
+                             path=source, line=line, field=f"{where}ident")
+    edges_raw = table.get("edges", [])
+    if not isinstance(edges_raw, list) or len(edges_raw) > MAX_EDGES_PER_TOOL:
+        raise NckConfigError(f"expected a list of up to {MAX_EDGES_PER_TOOL} cutting edges (D1, D2, ...)",
+                             path=source, line=line, field=f"{where}edges")
+    edges: list[tuple[float, ...]] = []
+    for number_d, edge in enumerate(edges_raw, 1):
+        edge_where = f"{where}edges[{number_d - 1}]."
+        _check_keys(edge, "edge", edge_where, source, line)
+        values = [0.0] * params
+        for key, value in edge.items():
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise NckConfigError(f"expected a number, got {value!r}", path=source, line=line,
+                                     field=f"{edge_where}{key}")
+            values[EDGE_PARAMETERS[key] - 1] = float(value)
+        edges.append(tuple(values))
+    return Tool(number=number, ident=ident, edges=tuple(edges))
+
+
+def _tools(data: dict[str, Any], text: str, source: str) -> tuple[ToolSettings, tuple[Tool, ...]]:
+    settings_table = data.get("tools", {})
+    line = _header_line(text, "[tools]")
+    _check_keys(settings_table, "tools.", "tools.", source, line)
+    params = _whole(settings_table.get("cutting_edge_params", STANDARD_EDGE_PARAMS), STANDARD_EDGE_PARAMS,
+                    MAX_EDGE_PARAMS, "a number of cutting edge parameters", source, line, "tools.cutting_edge_params")
+    tool_rows = data.get("tool", [])
+    if not isinstance(tool_rows, list):
+        raise NckConfigError("expected [[tool]] tables", path=source, field="tool")
+    tool_lines = row_lines(text, "[[tool]]")
+    tools: list[Tool] = []
+    for index, row in enumerate(tool_rows):
+        row_line = tool_lines[index] if index < len(tool_lines) else None
+        tool = _tool(row, index, params, source, row_line)
+        if any(other.number == tool.number for other in tools):
+            raise NckConfigError(f"T{tool.number} is declared twice", path=source, line=row_line,
+                                 field=f"tool[{index}].number")
+        tools.append(tool)
+    active_t = _whole(settings_table.get("active_t", 0), 0, MAX_T_NUMBER, "a T number (0: none)", source, line,
+                      "tools.active_t")
+    active_d = _whole(settings_table.get("active_d", 0), 0, MAX_EDGES_PER_TOOL, "a D number (0: none)", source,
+                      line, "tools.active_d")
+    active = next((tool for tool in tools if tool.number == active_t), None)
+    if active_t and active is None:
+        raise NckConfigError(f"no [[tool]] with number {active_t}", path=source, line=line, field="tools.active_t")
+    if active_d and (active is None or active_d > len(active.edges)):
+        edges = 0 if active is None else len(active.edges)
+        raise NckConfigError(f"T{active_t} has {edges} cutting edge(s), so no D{active_d}", path=source, line=line,
+                             field="tools.active_d")
+    return ToolSettings(params, active_t, active_d), tuple(tools)
+
+
+def _work_offsets(table: Any, axes: tuple[Axis, ...], text: str, source: str) -> WorkOffsets:
+    line = _header_line(text, "[work_offsets]")
+    if not isinstance(table, dict):
+        raise NckConfigError("expected a table", path=source, line=line, field="work_offsets")
+    names = {axis.name.upper(): axis.number for axis in axes}
+    active_name = table.get("active", "G500")
+    if not isinstance(active_name, str) or active_name.upper() not in SETTABLE_FRAMES:
+        raise NckConfigError(f"expected a settable frame G500, G54..G57 or G505..G599, got {active_name!r}",
+                             path=source, line=line, field="work_offsets.active")
+    shifts: dict[int, dict[int, float]] = {}
+    for frame_name, per_axis in table.items():
+        if frame_name == "active":
+            continue
+        if frame_name.upper() not in SETTABLE_FRAMES:
+            raise NckConfigError("unknown key (known: active, G500, G54..G57, G505..G599)", path=source,
+                                 line=line, field=f"work_offsets.{frame_name}")
+        if not isinstance(per_axis, dict):
+            raise NckConfigError("expected { <machine axis name> = <shift in mm> }", path=source, line=line,
+                                 field=f"work_offsets.{frame_name}")
+        frame: dict[int, float] = {}
+        for axis_name, value in per_axis.items():
+            where = f"work_offsets.{frame_name}.{axis_name}"
+            if axis_name.upper() not in names:
+                raise NckConfigError(f"no machine axis {axis_name!r} (axes: {', '.join(a.name for a in axes)})",
+                                     path=source, line=line, field=where)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise NckConfigError(f"expected a shift in mm, got {value!r}", path=source, line=line, field=where)
+            frame[names[axis_name.upper()]] = float(value)
+        shifts[SETTABLE_FRAMES[frame_name.upper()]] = frame
+    count = max([DEFAULT_SETTABLE_FRAMES, SETTABLE_FRAMES[active_name.upper()] + 1,
+                 *(index + 1 for index in shifts)])
+    return WorkOffsets(active=SETTABLE_FRAMES[active_name.upper()], count=count, shifts_mm=shifts)
 
 
 def _axis(table: dict[str, Any], index: int, source: str) -> Axis:
@@ -246,6 +418,8 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         if not isinstance(per_unit, dict):
             raise NckConfigError("expected { unit = value }", path=source, field=f"initial.{name}")
         initial[name.upper()] = {int(unit): value for unit, value in per_unit.items()}
+    tool_settings, tools = _tools(data, text, source)
+    work_offsets = _work_offsets(data.get("work_offsets", {}), axes, text, source)
     passwords = data.get("passwords", {})
     if not all(isinstance(v, int) and 0 <= v <= 7 for v in passwords.values()):
         raise NckConfigError("each password maps to an access level 0..7", path=source, field="passwords")
@@ -259,6 +433,7 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         passwords=dict(passwords), settings=settings, axes=axes, sensors=sensors,
         data_blocks=data_blocks, initial=initial,
         variables=machine_table(data["var"], source, text) if "var" in data else (),
+        tools=tools, tool_settings=tool_settings, work_offsets=work_offsets,
     )
 
 

@@ -33,10 +33,12 @@ from .compensation import (  # noqa: F401 (old import path)
     Compensation,
     Tc840c,
 )
+from .frames import Frames
 from .programs import Programs
 from .sensors import Sensors
 from .sources import SOURCES
 from .store import VariableStore
+from .tools import Tools
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +55,10 @@ def check_sources(specs: Sequence[VariableSpec], source: str) -> None:
         if bound is None:
             raise NckConfigError(f"{spec.name}: unknown value source {spec.source!r} (known: "
                                  f"{', '.join(sorted(SOURCES))})", path=source, field="source")
+        if (spec.columns > 1) != bound.by_column:
+            raise NckConfigError(f"{spec.name}: value source {spec.source!r} "
+                                 f"{'takes' if bound.by_column else 'does not take'} the column, but the "
+                                 f"variable has {spec.columns} column(s)", path=source, field="columns")
         if not spec.read_only and bound.write is None:
             raise NckConfigError(f"{spec.name}: value source {spec.source!r} cannot be written, but "
                                  f"write_level is {spec.write_level}", path=source, field="write_level")
@@ -79,6 +85,10 @@ class NckModel:
         spindles = sum(axis.spindle for axis in machine.axes)
         self.channels = {number: Channel(number, clock, spindles if number == 1 else 0)
                          for number in range(1, machine.channels + 1)}
+        self.tools = Tools(machine)
+        self.frames = Frames(machine, machine.channels)
+        if machine.tool_settings.active_t:
+            self.select_tool(machine.tool_settings.active_t, machine.tool_settings.active_d)
         self._power_on_hooks: list[Callable[[], None]] = []
 
     @staticmethod
@@ -124,7 +134,12 @@ class NckModel:
         if not ctx.may(spec.read_level):
             raise NckAccessDenied(f"{spec.number} needs access level {spec.read_level}")
         if spec.source is not None:
-            read = SOURCES[spec.source].read
+            bound = SOURCES[spec.source]
+            if bound.by_column:
+                read_at = bound.read_column
+                return [read_at(self, unit, address.column, line)  # type: ignore[misc]
+                        for line in range(address.line, address.line + address.line_count)]
+            read = bound.read
             return [read(self, unit, line) for line in range(address.line, address.line + address.line_count)]
         return self.store.read_lines(spec, unit, address.line, address.line_count)
 
@@ -140,11 +155,14 @@ class NckModel:
             raise NckTypeInconsistent(f"{len(values)} values for {address.line_count} lines")
         checked = [self.store.checked_value(spec, value) for value in values]
         if spec.source is not None:
-            write = SOURCES[spec.source].write
-            if write is None:
+            bound = SOURCES[spec.source]
+            if bound.write is None:
                 raise NckAccessDenied(f"{spec.name} is read only")
             for offset, value in enumerate(checked):
-                write(self, unit, address.line + offset, value)
+                if bound.by_column:
+                    bound.write(self, unit, address.column, address.line + offset, value)  # type: ignore[call-arg]
+                else:
+                    bound.write(self, unit, address.line + offset, value)  # type: ignore[call-arg]
             return False
         self.compensation.advance_all()
         self.store.write_lines(spec, unit, address.line, checked)
@@ -190,6 +208,26 @@ class NckModel:
     def set_spindle_speed(self, spindle: int, rpm: float | None, channel: int = 1) -> None:
         """The measured actual speed of a channel's spindle (actSpeed); None: the commanded one again."""
         self.channels[channel].set_measured_speed(spindle, rpm)
+
+    def select_tool(self, t_number: int, d_number: int, channel: int = 1) -> None:
+        """A tool change (T, M6) and offset selection (D) in a channel: actTNumber, actDNumber,
+        actToolIdent and the active lengths and radius follow. T0 / D0: no tool, no offset."""
+        if t_number and t_number not in self.tools.edges:
+            raise NckConfigError(f"no tool T{t_number}", field="t_number")
+        if d_number and not self.tools.has_edge(t_number, d_number):
+            raise NckConfigError(f"T{t_number} has no cutting edge D{d_number}", field="d_number")
+        state = self.channels[channel].state
+        state.t_number, state.d_number = t_number, d_number
+        state.tool_ident = self.tools.idents.get(t_number, "")
+
+    def select_frame(self, index: int, channel: int = 1) -> None:
+        """G500 (0), G54 (1), G55 (2) ...: the settable frame the channel's work position uses."""
+        self.frames.select(channel, index)
+
+    def work_position_mm(self, axis: int, channel: int = 1) -> float:
+        """The actual position in the settable zero system: machine position less the active work
+        offset's translation (no other frame is emulated)."""
+        return self.actual_position_mm(axis) - self.frames.active_shift_mm(channel, axis)
 
     def add_program(self, path: str) -> None:
         self.programs.add(path)

@@ -22,12 +22,26 @@ if TYPE_CHECKING:
 
 Reader = Callable[["NckModel", int, int], object]           # (model, unit, line) -> value
 Writer = Callable[["NckModel", int, int, object], None]     # (model, unit, line, value)
+# Sources of variables over several columns (catalogue ``columns``) also get the column.
+ColumnReader = Callable[["NckModel", int, int, int], object]          # (model, unit, column, line)
+ColumnWriter = Callable[["NckModel", int, int, int, object], None]    # (model, unit, column, line, value)
 
 
 @dataclass(frozen=True)
 class Source:
     read: Reader
-    write: Writer | None = None
+    write: Writer | ColumnWriter | None = None
+    read_column: ColumnReader | None = None
+
+    @property
+    def by_column(self) -> bool:
+        return self.read_column is not None
+
+
+def _by_column(read: ColumnReader, write: ColumnWriter | None = None) -> Source:
+    def unaddressed(_model: NckModel, _unit: int, _line: int) -> object:
+        raise NckAddressOutOfRange("this variable is read by column")
+    return Source(unaddressed, write, read)
 
 
 def _sensor_name(model: NckModel, line: int) -> str:
@@ -103,6 +117,31 @@ def _state(attribute: str) -> Source:
                   _set_state(attribute, float))
 
 
+def _work_position(model: NckModel, unit: int, line: int) -> object:
+    _axis_line(model, line)
+    return model.work_position_mm(line, unit)
+
+
+def _set_edge_param(model: NckModel, _unit: int, column: int, line: int, value: object) -> None:
+    model.tools.set_edge_param(column, line, float(value))  # type: ignore[arg-type]
+
+
+def _active_length(component: int) -> Source:
+    def read(model: NckModel, unit: int, _line: int) -> object:
+        state = _channel(model, unit).state
+        return model.tools.active_length_mm(state.t_number, state.d_number, component)
+    return Source(read)
+
+
+def _active_radius(model: NckModel, unit: int, _line: int) -> object:
+    state = _channel(model, unit).state
+    return model.tools.active_radius_mm(state.t_number, state.d_number)
+
+
+def _set_settable_shift(model: NckModel, unit: int, line: int, value: object) -> None:
+    model.frames.set_settable_shift(unit, line, float(value))  # type: ignore[arg-type]
+
+
 def _set_channel_command(model: NckModel, unit: int, _line: int, value: object) -> None:
     _channel(model, unit).command(int(value))  # type: ignore[call-overload]
 
@@ -117,8 +156,8 @@ SOURCES: dict[str, Source] = {
     "axes.remaining_by_line": Source(_distance_to_go),
     "axes.feed_override_by_line": Source(_axis_feed_override),
     "clock.milliseconds": Source(lambda model, _unit, _line: int(model.clock.now_s() * 1000.0) % 2**32),
-    # no frames are emulated: the work (WCS) position is the machine position (assumed)
-    "axes.work_position_by_line": Source(_machine_axis_position),
+    # SEGA actToolBasPosEN: the machine position less the active settable frame's translation
+    "axes.work_position_by_line": Source(_work_position),
     "axes.name_by_line": Source(_axis_name),
     "axes.count": Source(lambda model, _unit, _line: len(model.machine.axes)),
     "axes.spindle_count": Source(lambda model, _unit, _line: sum(a.spindle for a in model.machine.axes)),
@@ -151,6 +190,23 @@ SOURCES: dict[str, Source] = {
         lambda model, unit, line: _spindle(model, unit, line).override_pct,
         lambda model, unit, line, value: setattr(_spindle(model, unit, line), "override_pct", float(value))),  # type: ignore[arg-type]
     "channel.spindle_turn_state": Source(lambda model, unit, line: _spindle(model, unit, line).direction),
+    # tool offsets (module TO: column = T number) and the active tool's compensation values
+    "tools.edge_param": _by_column(lambda model, _unit, column, line: model.tools.edge_param(column, line),
+                                   _set_edge_param),
+    "tools.edge_param_count": Source(lambda model, _unit, _line: model.tools.params_per_edge),
+    "tools.active_length1": _active_length(1),
+    "tools.active_length2": _active_length(2),
+    "tools.active_length3": _active_length(3),
+    "tools.active_radius": Source(_active_radius),
+    # work offsets: settable frames (FU), active frames (FA), the active settable frame's index
+    "frames.settable_shift": Source(lambda model, unit, line: model.frames.settable_shift_mm(unit, line),
+                                    _set_settable_shift),
+    "frames.actual_shift": Source(lambda model, unit, line: model.frames.actual_frame_shift_mm(unit, line)),
+    "frames.active_index": Source(lambda model, unit, _line: model.frames.active[unit]),
+    "frames.count": Source(lambda model, _unit, _line: model.frames.count),
+    # NCK configuration counts
+    "nck.channel_count": Source(lambda model, _unit, _line: len(model.channels)),
+    "axes.highest_number": Source(lambda model, _unit, _line: max((a.number for a in model.machine.axes), default=0)),
     "programs.selected_name": Source(_program_name),
     "programs.selected": Source(lambda model, _unit, _line: model.programs.selected),
     "compensation.tc_value": Source(lambda model, unit, _line: model.compensation.tc_value_mm(unit)),
