@@ -21,7 +21,7 @@ together, and, for loads with more client processes than cores, the throughput t
 that CPU cost: it shows when the clients, not the server, set the pace.
 
 Usage: .venv/bin/python bench/bench_server.py [--seconds 3] [--clients 1 8] [--drivers snap7 raw]
-                                              [--loads nck db piw] [--idle 256]
+                                              [--loads nck db piw] [--idle 256] [--floor]
 """
 
 from __future__ import annotations
@@ -66,6 +66,48 @@ server.RegisterArea(server.srvAreaDB, 130, Buffer.alloc(64));
 server.RegisterArea(server.srvAreaPE, Buffer.alloc(2048));
 if (server.StartTo("127.0.0.1") === false) { console.error(server.ErrorText(server.LastError())); process.exit(1); }
 setInterval(() => {}, 1 << 30);
+"""
+# The floor of a Python server on uvloop: each read job seen before is answered with the bytes
+# answered to it the first time, its PDU reference put in; the first sight of a job and the
+# connection's handshake go through nckemu's session. What is left is the event loop, the
+# protocol callback and the socket calls: what no pure-Python server can go below.
+FLOOR_SCRIPT = """
+import asyncio, sys, uvloop
+from nckemu.emulator.core import Emulator
+from nckemu.emulator.session import ServerSession
+emulator = Emulator()
+
+class Floor(asyncio.BufferedProtocol):
+    def __init__(self):
+        self.buffer = bytearray(4096)
+        self.view = memoryview(self.buffer)
+        self.session = ServerSession(emulator.dispatcher)
+        self.answers = {}
+
+    def connection_made(self, transport):
+        self.transport = transport
+
+    def get_buffer(self, sizehint):
+        return self.buffer
+
+    def buffer_updated(self, nbytes):
+        data = bytes(self.view[:nbytes])
+        known = self.answers.get(data[13:])
+        if known is not None and data.startswith(known[0]):
+            self.transport.write(known[1] + data[11:13] + known[2])
+            return
+        out = self.session.receive(data)
+        if len(out) == 1 and len(data) > 17 and data[7] == 0x32 and data[8] == 1 and data[17] == 4:
+            self.answers[data[13:]] = (data[:11], out[0][:11], out[0][13:])
+        for frame in out:
+            self.transport.write(frame)
+
+async def main():
+    server = await asyncio.get_running_loop().create_server(Floor, "127.0.0.1", int(sys.argv[1]))
+    print("ready", flush=True)
+    await server.serve_forever()
+
+uvloop.run(main())
 """
 DEFAULT_CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "nckemu-bench"
 
@@ -117,6 +159,11 @@ def start_nckemu(port: int) -> subprocess.Popen[bytes]:
 def start_anchor(port: int) -> subprocess.Popen[bytes]:
     return subprocess.Popen([sys.executable, "-c", ANCHOR_SCRIPT, str(port)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def start_floor(port: int) -> subprocess.Popen[bytes]:
+    return subprocess.Popen([sys.executable, "-c", FLOOR_SCRIPT, str(port)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=REPO)
 
 
 def start_native(package: Path, port: int) -> subprocess.Popen[bytes]:
@@ -284,6 +331,8 @@ def main() -> int:
     parser.add_argument("--idle", type=int, default=256,
                         help="idle connections held open for the extra rows at the largest client count (0: none)")
     parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="where npm installs node-snap7")
+    parser.add_argument("--floor", action="store_true",
+                        help="also measure the floor of a Python server on uvloop (canned answers)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     package, why = native_snap7(args.cache)
@@ -293,6 +342,8 @@ def main() -> int:
     if package is not None:
         servers.append(("native snap7", lambda port: start_native(package, port), 130))
     servers.append(("nckemu", start_nckemu, 130))
+    if args.floor:
+        servers.append(("uvloop floor", start_floor, 130))
     results = []
     for name, starter, db in servers:
         port = free_port()
