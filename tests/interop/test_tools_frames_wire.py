@@ -5,7 +5,6 @@ count; IOT reads three lines of FU column 1 as three items). Values agree with t
 
 from __future__ import annotations
 
-import logging
 import struct
 from collections.abc import Iterator
 
@@ -24,17 +23,6 @@ PARAMS, AXES = 25, 4    # the default machine: numCuttEdgeParams, machine axes X
 def nck(emulator: EmulatorThread) -> Iterator[NckClient]:
     with NckClient("127.0.0.1", emulator.port, timeout_s=3.0) as client:
         yield client
-
-
-@pytest.fixture
-def client(emulator: EmulatorThread) -> Iterator[snap7.Client]:
-    logging.getLogger("snap7").setLevel(logging.WARNING)
-    c = snap7.Client()
-    c.local_tsap = 0x0400
-    c.connection_type = 0x0D
-    c.connect("127.0.0.1", 0, 4, emulator.port)
-    yield c
-    c.disconnect()
 
 
 def test_client_reads_the_active_tool_s_edge_by_t_and_d(nck: NckClient) -> None:
@@ -62,16 +50,16 @@ def test_client_reads_the_nck_counts(nck: NckClient) -> None:
                    "numMachAxes", "numUserFrames") == [1, 1, AXES, AXES, AXES, 5]
 
 
-def test_snap7_reads_an_edge_in_one_item_and_three_frame_lines_as_three_items(client: snap7.Client) -> None:
+def test_snap7_reads_an_edge_in_one_item_and_three_frame_lines_as_three_items(collector: snap7.Client) -> None:
     (t,), (d,), (length1,) = (struct.unpack("<H", data) if len(data) == 2 else struct.unpack("<d", data)
-                              for _rc, data in read(client, item(0x41, 23, 1, 0x7F), item(0x41, 24, 1, 0x7F),
+                              for _rc, data in read(collector, item(0x41, 23, 1, 0x7F), item(0x41, 24, 1, 0x7F),
                                                     item(0x41, 28, 1, 0x7F)))
-    ((rc, edge),) = read(client, item(0x81, t, (d - 1) * PARAMS + 1, 0x14, PARAMS))
+    ((rc, edge),) = read(collector, item(0x81, t, (d - 1) * PARAMS + 1, 0x14, PARAMS))
     assert rc == 0xFF and len(edge) == 8 * PARAMS
     values = struct.unpack(f"<{PARAMS}d", edge)
     assert length1 == values[2] + values[11]
     # IOT's read of FU column 1: three single-line items (here G54 of X1, Y1, SP1), 8 bytes each
-    answers = read(client, *(item(0x41, 1, AXES + axis, 0x12) for axis in (1, 2, 3)))
+    answers = read(collector, *(item(0x41, 1, AXES + axis, 0x12) for axis in (1, 2, 3)))
     assert [struct.unpack("<d", data)[0] for _rc, data in answers] == [400.0, 250.0, 0.0]
-    ((rc, counts),) = read(client, item(0x01, 5, 1, 0x10))
+    ((rc, counts),) = read(collector, item(0x01, 5, 1, 0x10))
     assert (rc, counts) == (0xFF, b"\x01\x00")
