@@ -15,9 +15,9 @@ Method (docs/thermal.md):
    nothing passes. Equivalence is judged (admission is not) on held-out RMS without the share that
    the sensors' own white noise adds through the features (errors in variables): a gradient of two
    raw readings carries that noise, a lag filters it away, and a quiet lag of a correlated sensor must
-   not win on that alone. Removing the noise may bring a candidate into the band of equivalence, not
-   across more than the band is wide: one whose features carry more noise than that (a large
-   coefficient on raw readings, standing in for a lag) predicts worse with the machine's sensors.
+   not win on that alone. Removing the noise may make up for it within the margin of equivalence, not
+   beyond: a candidate that predicts worse as measured and carries more noise than the margin (a large
+   coefficient on raw readings, standing in for a lag) is set aside.
 3. Gross outliers (far beyond the robust noise scale) are set aside and reported as data quality.
 """
 
@@ -524,26 +524,22 @@ class Discoverer:
         """The best candidate on held-out RMS without the sensors' noise, its margin, and the candidates
         within that margin of it.
 
-        Removing the noise may bring a candidate into the band, not across more than the band is wide.
-        Near-collinear effects (a gradient of two sensors and a lag of a third all follow the spindle's
-        load) tie once it is removed, and then the sensors' noise is all the record tells them apart
-        by: a candidate whose features carry so much of it (a large coefficient on raw readings) that
-        it costs more held-out RMS than the margin of a pair in the band predicts the gauge measurably
-        worse with the machine's own sensors, and is set aside for the quieter one. The candidate of
-        the band that carries least always stays."""
-        def carried(e: Evaluation) -> float:  # held-out RMS with the sensors' noise / without it
+        Removing the noise may make up for it within the margin of equivalence, not beyond. Near-collinear
+        effects (a gradient of two sensors and a lag of a third all follow the spindle's load) fit the
+        shape alike, and then the sensors' noise is all the record tells them apart by. A candidate
+        that predicts the gauge worse than another as measured, and whose features carry more of the
+        noise than the pair's margin (a large coefficient on raw readings: held-out RMS with / without
+        the noise), ranks where it does on the correction, not on the record: it is set aside. The
+        best as measured always stays."""
+        def carried(e: Evaluation) -> float:
             return e.cv.rms_um / e.ranked_rms_um if e.ranked_rms_um > 0 else math.inf
 
-        pool = list(passing)
-        while True:
-            best = min(pool, key=lambda e: e.ranked_rms_um)
-            margin = self._margin(best)
-            band = [e for e in pool if e.ranked_rms_um <= best.ranked_rms_um * (1 + margin)]
-            noisy = [e for e in band if any(carried(e) > (1 + self._margin(e, other)) * carried(other)
-                                            for other in band)]
-            if not noisy:
-                return best, margin, band
-            pool = [e for e in pool if e not in noisy]
+        pool = [e for e in passing
+                if not any(other.cv.rms_um < e.cv.rms_um
+                           and carried(e) > (1 + self._margin(e, other)) * carried(other) for other in passing)]
+        best = min(pool, key=lambda e: e.ranked_rms_um)
+        margin = self._margin(best)
+        return best, margin, [e for e in pool if e.ranked_rms_um <= best.ranked_rms_um * (1 + margin)]
 
     def _parsimonious(self, chosen: Evaluation, passing: list[Evaluation]) -> Evaluation:
         """An effect that extends a simpler one of the same sensor by a time constant (a lag extends a
