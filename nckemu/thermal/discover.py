@@ -335,21 +335,12 @@ class Discoverer:
         return Recording(recording.source, recording.t_s, noisy, recording.spindle_rpm, recording.positions_mm,
                          recording.errors_um, recording.simulated_um)
 
-    def _feature_noise(self, term: Term) -> np.ndarray:
-        """The sensor noise ``term``'s feature carries, on the gauge samples (lags as the search builds them)."""
+    def _feature_noise(self, term: Term, clean: np.ndarray | None = None) -> np.ndarray:
+        """The sensor noise ``term``'s feature carries, on the gauge samples (``clean``: its feature there)."""
         problem = self.problem
-        p = term.parameters
-        if term.effect == "thermal_lag":
-            clean = self._lag_feature(self._decimated_signal(p["sensor"]), float(p["tau_s"]))
-            drawn = self._lag_feature(self._decimated_signal(p["sensor"], self.noisy_recording), float(p["tau_s"]))
-            return drawn - clean
-        if term.effect == "heating_cooling_hysteresis":
-            taus = float(p["tau_heat_s"]), float(p["tau_cool_s"])
-            clean = self._asymmetric_feature(self._decimated_signal(p["sensor"]), *taus)
-            drawn = self._asymmetric_feature(self._decimated_signal(p["sensor"], self.noisy_recording), *taus)
-            return drawn - clean
-        return problem.column(term.feature(self.noisy_recording, problem.axis)
-                              - term.feature(self.recording, problem.axis))
+        if clean is None:
+            clean = problem.column(term.feature(self.recording, problem.axis))
+        return problem.column(term.feature(self.noisy_recording, problem.axis)) - clean
 
     def _model_noise(self) -> np.ndarray:
         """The sensor noise carried by the model as given (none for a ``sim_`` column)."""
@@ -388,7 +379,7 @@ class Discoverer:
             feature = problem.column(term.feature(recording, problem.axis))
             if np.ptp(feature) == 0 and term.effect != "offset":
                 return
-            out.append(Candidate(term, feature, self._feature_noise(term), grid_points=grid_points))
+            out.append(Candidate(term, feature, self._feature_noise(term, feature), grid_points=grid_points))
 
         modelled = {(t.effect, t.parameters.get("sensor")) for t in problem.base_terms}
         if "offset" not in present and not any(t.effect == "offset" for t in problem.base_terms):
@@ -472,11 +463,10 @@ class Discoverer:
                                                         "coeff_um_per_K": 0.0}), tried)
         return out
 
-    def _decimated_signal(self, sensor: str, recording: Recording | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def _decimated_signal(self, sensor: str) -> tuple[np.ndarray, np.ndarray]:
         """The asymmetric lag runs in Python: compute it on a coarser grid (>= 30 s) and interpolate."""
-        recording = recording or self.recording
-        t = recording.t_s
-        signal = recording.sensor(sensor)
+        t = self.recording.t_s
+        signal = self.recording.sensor(sensor)
         step = max(1, int(30.0 / max(float(np.median(np.diff(t))), 1e-9)))
         return t[::step], signal[::step]
 
