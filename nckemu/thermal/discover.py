@@ -12,7 +12,12 @@ Method (docs/thermal.md):
    constant included), and its parameters are physical. Candidates whose held-out RMS is within
    ``equivalence`` of the best are equivalent explanations: the simplest wins, the others are
    reported with it; a time constant must earn its place over the effect it extends. Repeat until
-   nothing passes.
+   nothing passes. Equivalence is judged (admission is not) on held-out RMS without the share that
+   the sensors' own white noise adds through the features (errors in variables): a gradient of two
+   raw readings carries that noise, a lag filters it away, and a quiet lag of a correlated sensor must
+   not win on that alone. Removing the noise may make up for it within the margin of equivalence, not
+   beyond: a candidate that predicts worse as measured and carries more noise than the margin (a large
+   coefficient on raw readings, standing in for a lag) is set aside.
 3. Gross outliers (far beyond the robust noise scale) are set aside and reported as data quality.
 """
 
@@ -54,6 +59,9 @@ class Settings:
     # structure does not follow a sensor's white noise, and a difference of two sensors (a gradient)
     # carries the noise of both against a small signal (errors in variables).
     sensor_smoothing_s: float = 300.0
+    # The fixed draw of sensor noise that measures how much of it each feature passes on (the
+    # errors-in-variables share of a candidate's held-out RMS): fixed, so a run is repeatable.
+    noise_draw_seed: int = 0
     lag_grid_s: tuple[float, ...] = tuple(float(v) for v in np.geomspace(300.0, 6 * 3600.0, 18))
     hysteresis_grid_s: tuple[float, ...] = tuple(float(v) for v in np.geomspace(600.0, 4 * 3600.0, 8))
 
@@ -62,6 +70,8 @@ class Settings:
 class Candidate:
     term: Term
     feature: np.ndarray
+    # What the sensors' white noise contributes to the feature (one draw of it), gauge samples only.
+    noise: np.ndarray
     in_sample_rms_um: float = math.nan
     # Values of a time constant tried to find this one: each was a hypothesis tested on the data.
     grid_points: int = 1
@@ -80,6 +90,9 @@ class Evaluation:
     t_value: float
     coefficient: float
     fold_wins: int
+    # Held-out RMS without the sensors' noise carried by the fitted model's features: what candidates
+    # are ranked on (held-out RMS itself still decides whether one is admitted at all).
+    ranked_rms_um: float
 
 
 @dataclass
@@ -123,6 +136,8 @@ class _Setup:
     given_cv: stats.CrossValidation
     recal_cv: stats.CrossValidation
     calibrated_here: bool
+    base_noise: np.ndarray          # sensor noise carried by base_design's columns
+    given_noise: np.ndarray         # ... and by the model as given
     gain: tuple[float, float, stats.CrossValidation] = (math.nan, math.nan, stats.CrossValidation(math.nan, ()))
 
 
@@ -132,6 +147,7 @@ class _Path:
     gain_mode: bool
     design: np.ndarray
     base_cv: stats.CrossValidation
+    noise: np.ndarray               # sensor noise carried by each column of design
     discovered: list[dict[str, Any]] = field(default_factory=list)
     added: list[Term] = field(default_factory=list)
     present: set[str] = field(default_factory=set)
@@ -264,9 +280,11 @@ class Discoverer:
         self.settings = settings or Settings()
         self.data_quality: list[str] = []
         self.raw_recording = recording
+        self.sensor_noise_C: dict[str, float] = {}
         recording = self._repair_glitches(recording)
         self.problem = _Problem(recording, axis, model)
         self.recording = recording
+        self.noisy_recording = self._with_noise_draw(recording)
 
     def _smooth_sensor(self, t_s: np.ndarray, values: np.ndarray) -> np.ndarray:
         if len(t_s) < 3 or self.settings.sensor_smoothing_s <= 0:
@@ -291,9 +309,50 @@ class Discoverer:
                 f"{name}: {glitches.bursts} glitch burst(s), {int(glitches.samples.sum())} sample(s), up to "
                 f"{glitches.peak_K:.2f} K off the sensor's running median (first at t = {glitches.first_t_s:.0f} s "
                 f"= {glitches.first_t_s / 3600:.2f} h): bridged by interpolation before fitting")
+        self.sensor_noise_C = {name: self._white_noise_C(values) for name, values in repaired.items()}
         repaired = {name: self._smooth_sensor(recording.t_s, values) for name, values in repaired.items()}
         return Recording(recording.source, recording.t_s, repaired, recording.spindle_rpm, recording.positions_mm,
                          recording.errors_um, recording.simulated_um)
+
+    @staticmethod
+    def _white_noise_C(values: np.ndarray) -> float:
+        """A sensor's white noise: second differences cancel a slowly curving temperature and leave
+        6 sigma^2 of white noise; the robust scale ignores the few samples where heating starts."""
+        if len(values) < 8:
+            return 0.0
+        sigma = stats.robust_sigma(np.diff(values, 2)) / math.sqrt(6.0)
+        return sigma if math.isfinite(sigma) else 0.0
+
+    def _with_noise_draw(self, recording: Recording) -> Recording:
+        """The (averaged) readings plus one more draw of each sensor's white noise, averaged alike: a
+        feature computed on it minus the same feature on the readings is what the feature passes on of
+        the sensors' noise, whatever the feature does (a difference, a lag, a square)."""
+        rng = np.random.default_rng(self.settings.noise_draw_seed)
+        noisy = {}
+        for name, values in recording.temperatures_C.items():
+            draw = rng.normal(0.0, self.sensor_noise_C.get(name, 0.0), len(values))
+            noisy[name] = values + self._smooth_sensor(recording.t_s, draw)  # the averaging is linear
+        return Recording(recording.source, recording.t_s, noisy, recording.spindle_rpm, recording.positions_mm,
+                         recording.errors_um, recording.simulated_um)
+
+    def _feature_noise(self, term: Term, clean: np.ndarray | None = None) -> np.ndarray:
+        """The sensor noise ``term``'s feature carries, on the gauge samples (``clean``: its feature there)."""
+        problem = self.problem
+        if clean is None:
+            clean = problem.column(term.feature(self.recording, problem.axis))
+        return problem.column(term.feature(self.noisy_recording, problem.axis)) - clean
+
+    def _model_noise(self) -> np.ndarray:
+        """The sensor noise carried by the model as given (none for a ``sim_`` column)."""
+        problem = self.problem
+        if not problem.base_terms:
+            return np.zeros(len(problem.y))
+        return problem.column(problem.model.predict_um(self.noisy_recording) - problem.model.predict_um(self.recording))
+
+    def _base_noise(self) -> np.ndarray:
+        if not self.problem.base_terms:  # a sim_ column, or no columns at all
+            return np.zeros((len(self.problem.y), len(self.problem.base_columns)))
+        return np.column_stack([self._feature_noise(term) for term in self.problem.base_terms])
 
     # ------------------------------------------------------------------ candidates
     def _sensors(self) -> list[str]:
@@ -320,7 +379,7 @@ class Discoverer:
             feature = problem.column(term.feature(recording, problem.axis))
             if np.ptp(feature) == 0 and term.effect != "offset":
                 return
-            out.append(Candidate(term, feature, grid_points=grid_points))
+            out.append(Candidate(term, feature, self._feature_noise(term, feature), grid_points=grid_points))
 
         modelled = {(t.effect, t.parameters.get("sensor")) for t in problem.base_terms}
         if "offset" not in present and not any(t.effect == "offset" for t in problem.base_terms):
@@ -422,13 +481,18 @@ class Discoverer:
         return np.interp(self.problem.t_s, t_coarse, lagged)
 
     # ------------------------------------------------------------------ evaluation
-    def _evaluate(self, design: np.ndarray, candidate: Candidate, folds: list[np.ndarray],
+    def _evaluate(self, design: np.ndarray, noise: np.ndarray, candidate: Candidate, folds: list[np.ndarray],
                   base_cv: stats.CrossValidation) -> Evaluation:
         full = np.column_stack([design, candidate.feature])
         cv = stats.cross_validate(full, self.y, folds)
         result = stats.fit(full, self.y)
         wins = sum(after < before for after, before in zip(cv.fold_rms_um, base_cv.fold_rms_um, strict=True))
-        return Evaluation(candidate, cv, result.t_value(full.shape[1] - 1), float(result.coefficients[-1]), wins)
+        # Errors in variables: noise n in the features adds mean((n @ b)^2) to the squared error of
+        # the fitted model's prediction, independent of the gauge's noise and of the physics.
+        carried = float(np.mean(np.square(np.column_stack([noise, candidate.noise]) @ result.coefficients)))
+        ranked = math.sqrt(max(cv.rms_um ** 2 - carried, 0.0))
+        return Evaluation(candidate, cv, result.t_value(full.shape[1] - 1), float(result.coefficients[-1]), wins,
+                          ranked)
 
     def _passes(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_critical: float) -> bool:
         s = self.settings
@@ -441,16 +505,42 @@ class Discoverer:
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         return improved and consistent and significant and _bounded(term)
 
+    def _margin(self, *evaluations: Evaluation) -> float:
+        """Held-out RMS within this share is "as good": a time constant is picked on the whole record,
+        so the held-out RMS of an effect that has one is optimistic; one more share per time constant."""
+        return self.settings.equivalence * (1 + max(_time_constants(e.candidate.term) for e in evaluations))
+
+    def _equivalent(self, passing: list[Evaluation]) -> tuple[Evaluation, float, list[Evaluation]]:
+        """The best candidate on held-out RMS without the sensors' noise, its margin, and the candidates
+        within that margin of it.
+
+        Removing the noise may make up for it within the margin of equivalence, not beyond. Near-collinear
+        effects (a gradient of two sensors and a lag of a third all follow the spindle's load) fit the
+        shape alike, and then the sensors' noise is all the record tells them apart by. A candidate
+        that predicts the gauge worse than another as measured, and whose features carry more of the
+        noise than the pair's margin (a large coefficient on raw readings: held-out RMS with / without
+        the noise), ranks where it does on the correction, not on the record: it is set aside. The
+        best as measured always stays."""
+        def carried(e: Evaluation) -> float:
+            return e.cv.rms_um / e.ranked_rms_um if e.ranked_rms_um > 0 else math.inf
+
+        pool = [e for e in passing
+                if not any(other.cv.rms_um < e.cv.rms_um
+                           and carried(e) > (1 + self._margin(e, other)) * carried(other) for other in passing)]
+        best = min(pool, key=lambda e: e.ranked_rms_um)
+        margin = self._margin(best)
+        return best, margin, [e for e in pool if e.ranked_rms_um <= best.ranked_rms_um * (1 + margin)]
+
     def _parsimonious(self, chosen: Evaluation, passing: list[Evaluation]) -> Evaluation:
         """An effect that extends a simpler one of the same sensor by a time constant (a lag extends a
         plain temperature term, an asymmetric lag a lag) must earn that parameter as an effect earns
         its place: by ``min_improvement`` of held-out RMS over the simpler one, or the simpler wins."""
         while True:
             simpler = [e for e in passing if _extends(chosen.candidate.term, e.candidate.term)
-                       and chosen.cv.rms_um > (1 - self.settings.min_improvement) * e.cv.rms_um]
+                       and chosen.ranked_rms_um > (1 - self.settings.min_improvement) * e.ranked_rms_um]
             if not simpler:
                 return chosen
-            chosen = min(simpler, key=lambda e: e.cv.rms_um)
+            chosen = min(simpler, key=lambda e: e.ranked_rms_um)
 
     @staticmethod
     def _t_critical(alpha: float, tests: int, dof: int) -> float:
@@ -507,7 +597,7 @@ class Discoverer:
         calibrated_here = recalibrated is not None and self._calibrated_on_record()
         self._given_heldout_um = math.inf if calibrated_here else baseline_rms
         return _Setup(base_design, given, folds, baseline_rms, recalibrated, recalibrated_rms, given_cv, recal_cv,
-                      calibrated_here)
+                      calibrated_here, self._base_noise(), self._model_noise())
 
     def _calibrated_on_record(self) -> bool:
         """Were the given coefficients fitted by least squares on this record? Judged on the readings
@@ -555,7 +645,7 @@ class Discoverer:
         s = self.settings
         if gain_mode:
             gain, gain_se, gain_cv = setup.gain
-            path = _Path(True, setup.given[:, None], gain_cv)
+            path = _Path(True, setup.given[:, None], gain_cv, setup.given_noise[:, None])
             path.present.add("gain_error")
             path.discovered.append({"effect": "gain_error", "parameters": {"gain": round(gain, 5)},
                                     "evidence": {"heldout_rms_before_um": round(setup.baseline_rms, 4),
@@ -564,7 +654,7 @@ class Discoverer:
                                                  "gain_se": round(gain_se, 5), "equivalent": [],
                                                  "why": "one common factor on the whole model explains the mismatch"}})
         else:
-            path = _Path(False, setup.base_design, setup.recal_cv)
+            path = _Path(False, setup.base_design, setup.recal_cv, setup.base_noise)
         for _round in range(s.max_effects):
             if not self._round(setup, path):
                 break
@@ -580,26 +670,24 @@ class Discoverer:
         # Bonferroni over every hypothesis of the round, each time constant tried included.
         tests = sum(c.grid_points for c in candidates)
         t_critical = self._t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1)
-        evaluations = [self._evaluate(design, c, folds, path.base_cv) for c in candidates]
+        evaluations = [self._evaluate(design, path.noise, c, folds, path.base_cv) for c in candidates]
         passing = [e for e in evaluations if self._passes(e, path.base_cv, t_critical)]
         if not passing:
             return False
-        best = min(passing, key=lambda e: e.cv.rms_um)
-        # A time constant is picked on the whole record, so the held-out RMS of an effect that has
-        # one is optimistic: widen the equivalence margin by one share per searched time constant.
-        margin = s.equivalence * (1 + _time_constants(best.candidate.term))
-        equivalent = [e for e in passing if e.cv.rms_um <= best.cv.rms_um * (1 + margin)]
-        chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.cv.rms_um))
+        best, margin, equivalent = self._equivalent(passing)
+        chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um))
         chosen = self._parsimonious(chosen, passing)
         term = chosen.candidate.term.with_coefficient(chosen.coefficient)
         window = _locate(self.problem.t_s, chosen.coefficient * (chosen.candidate.feature
                                                                  - np.median(chosen.candidate.feature)))
         evidence: dict[str, Any] = {
             "heldout_rms_before_um": round(path.base_cv.rms_um, 4), "heldout_rms_after_um": round(chosen.cv.rms_um, 4),
+            "heldout_rms_without_sensor_noise_um": round(chosen.ranked_rms_um, 4),
             "t_value_ar1_corrected": _finite(chosen.t_value), "t_critical": round(t_critical, 3),
             "folds_improved": f"{chosen.fold_wins}/{len(folds)}",
             "window": {"t_start_s": window[0][0], "t_end_s": window[0][1]} if window else None,
-            "equivalent": [{"effect": e.candidate.label, "heldout_rms_um": round(e.cv.rms_um, 4)}
+            "equivalent": [{"effect": e.candidate.label, "heldout_rms_um": round(e.cv.rms_um, 4),
+                            "heldout_rms_without_sensor_noise_um": round(e.ranked_rms_um, 4)}
                            for e in equivalent if e is not chosen],
             "why": EFFECTS[term.effect].description,
         }
@@ -612,6 +700,7 @@ class Discoverer:
         path.present.add(term.effect if term.effect in ("offset", "time_drift", "centrifugal_growth")
                          else f"{term.effect}:{term.parameters.get('sensor') or '-'.join(term.parameters.get('sensors', []))}")
         path.design = np.column_stack([design, chosen.candidate.feature])
+        path.noise = np.column_stack([path.noise, chosen.candidate.noise])
         path.base_cv = chosen.cv
         return True
 
@@ -627,7 +716,7 @@ class Discoverer:
         if chosen is best:
             return f"{label}: best held-out RMS and simplest; {', '.join(others)} explain the data almost as well"
         return (f"{label} preferred as the simplest of equivalent explanations (held-out RMS within {margin:.0%} "
-                f"of the best, {best.cv.rms_um:.3f} um): "
+                f"of the best, {best.ranked_rms_um:.3f} um without the sensors' noise): "
                 f"{', '.join(others)}")
 
     def _prefer(self, setup: _Setup, recalibrate: _Path, with_gain: _Path) -> tuple[_Path, str]:

@@ -10,9 +10,9 @@ import pytest
 
 from nckemu.cli import main
 from nckemu.errors import NckConfigError
-from nckemu.thermal.discover import discover
+from nckemu.thermal.discover import Discoverer, discover
 from nckemu.thermal.recording import load_recording, write_recording
-from nckemu.thermal.scenarios import SCENARIOS, make_scenario
+from nckemu.thermal.scenarios import SCENARIOS, make_scenario, make_variant
 from nckemu.thermal.terms import load_model, parse_model
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
@@ -154,8 +154,34 @@ def test_fl_thermal_recording_claims_no_centrifugal_growth(shared_dir: Path) -> 
     ("null_ar1", 4, None),            # AR(1) plus white noise: once an unfounded quadratic term
     ("null_ar1", 7, None),            # once an unfounded hysteresis picked from its grid
     ("temperature", 5, "temperature"),  # once a lag of 240 s, a temperature term in all but name
+    ("thermal_gradient", 7, "thermal_gradient"),  # once a lag of the spindle: it won on its quiet sensor
+    ("thermal_lag", 26, "thermal_lag"),  # once front - rear x 19 um/K, best only once its noise was removed
 ])
 def test_seeds_that_once_fooled_discovery(name: str, seed: int, expected: str | None) -> None:
     scenario = make_scenario(name, seed=seed)
     found = [m["effect"] for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
     assert found[:1] == ([expected] if expected else [])
+
+
+def test_the_sensors_noise_is_measured_and_judged_apart_from_the_physics() -> None:
+    """front - rear carries the white noise of two readings (0.03 K each) times 6 um/K; the lag of the
+    spindle that fits the same shape filters its own away. Equivalence is judged without it."""
+    scenario = make_scenario("thermal_gradient", 7)
+    discoverer = Discoverer(scenario.recording, model=scenario.baseline)
+    for name in ("temp_front_C", "temp_rear_C", "temp_spindle_C"):
+        assert discoverer.sensor_noise_C[name] == pytest.approx(0.03, rel=0.15), name
+    top = discoverer.run().missing_physics[0]
+    assert top["effect"] == "thermal_gradient"
+    evidence = top["evidence"]
+    assert evidence["heldout_rms_without_sensor_noise_um"] < 0.98 * evidence["heldout_rms_after_um"]
+    lag = next(e for e in evidence["equivalent"] if e["effect"] == "thermal_lag(spindle)")
+    assert lag["heldout_rms_um"] < evidence["heldout_rms_after_um"]  # better as measured, by its quiet sensor
+
+
+def test_a_gradient_standing_in_for_a_lag_is_not_named_for_its_tie_without_noise() -> None:
+    """A half-size spindle lag: front - rear at ~9 um/K ties with it once the sensors' noise is
+    removed, but predicts worse as measured, and that noise costs it more held-out RMS than the
+    equivalence margin of the pair."""
+    scenario = make_variant("thermal_lag_small", 19)
+    found = [m["effect"] for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
+    assert found[:1] == ["thermal_lag"]

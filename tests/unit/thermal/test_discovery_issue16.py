@@ -155,9 +155,10 @@ def test_thermal_never_imports_the_wire_layers() -> None:
         assert not found, (source.name, found)
 
 
-# Half-size effects that sit at the detection limit (docs/thermal.md, sensitivity table): measured
-# 16/20 (quadratic: nothing found on 4 seeds) and 17/20 (lag: a gradient named on 3 seeds).
-NEAR_LIMIT_MISSES = {"quadratic_temperature_small", "thermal_lag_small"}
+# The half-size quadratic sits at its detection limit (docs/thermal.md, sensitivity table): measured
+# 16/20, nothing found on 4 seeds. (The half-size lag, 16/20 while a gradient won on its sensors'
+# noise, is 20/20 since equivalence is judged without that noise, and is held to the target again.)
+NEAR_LIMIT_MISSES = {"quadratic_temperature_small"}
 
 
 @pytest.mark.slow
