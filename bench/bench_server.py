@@ -22,6 +22,7 @@ that CPU cost: it shows when the clients, not the server, set the pace.
 
 Usage: .venv/bin/python bench/bench_server.py [--seconds 3] [--clients 1 8] [--drivers snap7 raw]
                                               [--loads nck db piw] [--idle 256] [--floor]
+                                              [--rounds 3]
 """
 
 from __future__ import annotations
@@ -331,6 +332,8 @@ def main() -> int:
     parser.add_argument("--idle", type=int, default=256,
                         help="idle connections held open for the extra rows at the largest client count (0: none)")
     parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="where npm installs node-snap7")
+    parser.add_argument("--rounds", type=int, default=3,
+                        help="measure every point this many times, the servers in turn (medians reported)")
     parser.add_argument("--floor", action="store_true",
                         help="also measure the floor of a Python server on uvloop (canned answers)")
     parser.add_argument("--json", action="store_true")
@@ -344,57 +347,95 @@ def main() -> int:
     servers.append(("nckemu", start_nckemu, 130))
     if args.floor:
         servers.append(("uvloop floor", start_floor, 130))
-    results = []
-    for name, starter, db in servers:
-        port = free_port()
-        process = starter(port)
-        try:
+    # Every server runs for the whole bench and each point measures them one after the other, in an
+    # order that turns each round: the speed of a small shared machine drifts over minutes, and
+    # measuring one server after another would put that drift into the ratios.
+    running: list[tuple[str, int, subprocess.Popen[bytes], int]] = []
+    try:
+        for name, starter, db in servers:
+            port = free_port()
+            running.append((name, port, starter(port), db))
+        for _name, port, _process, _db in running:
             wait_port(port)
+        rounds: list[list[dict[str, Any]]] = []
+        for round_index in range(args.rounds):
+            turn = round_index % len(running)
+            order_this_round = running[turn:] + running[:turn]
+            results: list[dict[str, Any]] = []
             for driver in args.drivers:
                 for load in args.loads:
-                    if load == "nck" and name == "native snap7":
-                        continue  # it does not serve NCK items
-                    for clients in args.clients:
-                        figures = measure(port, load, clients, args.seconds, db, driver, process.pid)
-                        results.append({"server": name, "driver": driver, "load": load, "clients": clients,
-                                        "idle": 0, **figures})
+                    points = [(clients, 0) for clients in args.clients]
                     if args.idle:
-                        clients = max(args.clients)
-                        idle = open_idle(port, args.idle, db)
-                        try:
-                            figures = measure(port, load, clients, args.seconds, db, driver, process.pid)
-                        finally:
-                            for sock in idle:
-                                sock.close()
-                        results.append({"server": name, "driver": driver, "load": load, "clients": clients,
-                                        "idle": args.idle, **figures})
-        finally:
+                        points.append((max(args.clients), args.idle))
+                    for clients, idle_count in points:
+                        for name, port, process, db in order_this_round:
+                            if load == "nck" and name == "native snap7":
+                                continue  # it does not serve NCK items
+                            idle = open_idle(port, idle_count, db) if idle_count else []
+                            try:
+                                figures = measure(port, load, clients, args.seconds, db, driver, process.pid)
+                            finally:
+                                for sock in idle:
+                                    sock.close()
+                            results.append({"server": name, "driver": driver, "load": load, "clients": clients,
+                                            "idle": idle_count, **figures})
+            rounds.append(results)
+    finally:
+        for _name, _port, process, _db in running:
             process.terminate()
             process.wait(timeout=10)
     if args.json:
-        print(json.dumps(results, indent=2))
+        print(json.dumps(rounds, indent=2))
         return 0
 
-    def anchor(server: str, r: dict[str, Any]) -> str:
-        for a in results:
-            if a["server"] == server and all(a[k] == r[k] for k in ("driver", "load", "clients", "idle")):
-                return f"{r['requests_per_s'] / a['requests_per_s']:>8.2f}"
-        return f"{'-':>8}"
+    point_keys = ("driver", "load", "clients", "idle")
+
+    def same_point(a: dict[str, Any], b: dict[str, Any]) -> bool:
+        return all(a[k] == b[k] for k in point_keys)
+
+    def ratios(server: str, anchor_name: str, r: dict[str, Any]) -> list[float]:
+        """Per round: the server's throughput over the anchor's at the same point."""
+        out = []
+        for results in rounds:
+            mine = [a for a in results if a["server"] == server and same_point(a, r)]
+            theirs = [a for a in results if a["server"] == anchor_name and same_point(a, r)]
+            if mine and theirs:
+                out.append(mine[0]["requests_per_s"] / theirs[0]["requests_per_s"])
+        return out
+
+    def median_of(server: str, r: dict[str, Any], key: str) -> float | None:
+        values = [a[key] for results in rounds for a in results
+                  if a["server"] == server and same_point(a, r) and key in a]
+        return statistics.median(values) if values else None
+
+    def ratio_text(server: str, anchor_name: str, r: dict[str, Any]) -> str:
+        values = ratios(server, anchor_name, r)
+        if not values:
+            return f"{'-':>16}"
+        spread = f"({min(values):.2f}-{max(values):.2f})" if len(values) > 1 else ""
+        return f"{statistics.median(values):>5.2f} {spread:>10}"
 
     cores = os.cpu_count() or 1
-    print(f"machine: {cores} cores; {args.seconds:.0f} s per point; CPU in microseconds per request "
-          "(server process; all client processes together); x py / x nat: throughput over python-snap7's "
-          "Server / the native snap7 server at the same point")
+    print(f"machine: {cores} cores; {args.seconds:g} s per point, {args.rounds} rounds, servers in turn at each "
+          "point; medians over the rounds; CPU in microseconds per request (server process; all client "
+          "processes together); x py / x nat: throughput over python-snap7's Server / the native snap7 "
+          "server at the same point and round, median (least-most)")
     print(f"{'server':20} {'driver':6} {'load':5} {'clients':>7} {'idle':>5} {'req/s':>9} {'p50 ms':>8} "
-          f"{'p99 ms':>8} {'x py':>8} {'x nat':>8} {'srv CPU':>8} {'cli CPU':>8}")
+          f"{'p99 ms':>8} {'x py':>16} {'x nat':>16} {'srv CPU':>8} {'cli CPU':>8}")
     order = {name: index for index, (name, _s, _d) in enumerate(servers)}
-    for r in sorted(results, key=lambda r: (r["driver"], r["load"], r["clients"], r["idle"], order[r["server"]])):
-        server_cpu = f"{r['server_cpu_us']:8.1f}" if "server_cpu_us" in r else f"{'?':>8}"
-        print(f"{r['server']:20} {r['driver']:6} {r['load']:5} {r['clients']:>7} {r['idle']:>5} "
-              f"{r['requests_per_s']:>9.0f} {r['p50_ms']:>8.3f} {r['p99_ms']:>8.3f} "
-              f"{anchor('python-snap7 Server', r)} {anchor('native snap7', r)} {server_cpu} {r['client_cpu_us']:8.1f}")
-    for r in results:
-        if r["server"] == "nckemu" and r["clients"] > cores and "server_cpu_us" in r:
+    summary: list[dict[str, Any]] = []
+    for r in sorted(rounds[0], key=lambda r: (r["driver"], r["load"], r["clients"], r["idle"], order[r["server"]])):
+        name = r["server"]
+        figures = {key: median_of(name, r, key)
+                   for key in ("requests_per_s", "p50_ms", "p99_ms", "server_cpu_us", "client_cpu_us")}
+        summary.append({**{k: r[k] for k in ("server", *point_keys)}, **figures})
+        server_cpu = f"{figures['server_cpu_us']:8.1f}" if figures["server_cpu_us"] is not None else f"{'?':>8}"
+        print(f"{name:20} {r['driver']:6} {r['load']:5} {r['clients']:>7} {r['idle']:>5} "
+              f"{figures['requests_per_s']:>9.0f} {figures['p50_ms']:>8.3f} {figures['p99_ms']:>8.3f} "
+              f"{ratio_text(name, 'python-snap7 Server', r)} {ratio_text(name, 'native snap7', r)} "
+              f"{server_cpu} {figures['client_cpu_us']:8.1f}")
+    for r in summary:
+        if r["server"] == "nckemu" and r["clients"] > cores and r["server_cpu_us"] is not None:
             bound = cores * 1e6 / (r["server_cpu_us"] + r["client_cpu_us"])
             print(f"{r['driver']} {r['load']} x{r['clients']} idle {r['idle']}: {cores} cores allow at most "
                   f"{bound:,.0f} req/s at this CPU per request (nckemu {r['server_cpu_us']:.1f} us + clients "
