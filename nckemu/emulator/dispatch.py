@@ -77,7 +77,7 @@ FramedAnswer = Callable[[bytes, AccessContext], bytes]
 # A frame holding one read job, known by its bytes from 13 on: with bytes 0..10 they fix every byte
 # but the PDU reference (11 and 12). Bytes 0..10 and the job's answer.
 FramedRead = tuple[bytes, FramedAnswer]
-FRAME_PDU_OFFSET = 7
+FRAME_PDU_OFFSET = cotp.DATA_FRAME_PDU_OFFSET
 FRAME_PDU_REF_END = FRAME_PDU_OFFSET + 6
 _FRAME_HEAD_BYTES = FRAME_PDU_OFFSET + 4
 

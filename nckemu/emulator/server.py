@@ -77,10 +77,10 @@ class _Connection(asyncio.BufferedProtocol):
     def buffer_updated(self, nbytes: int) -> None:
         data = bytes(self._read_view[:nbytes])
         session, transport = self.session, self.transport
-        if session is not None and transport is not None and self.server.recorder is None \
-                and self.partial_since_s is None:
+        if session is not None and transport is not None and self.server.recorder is None:
             # A polled read job, alone in its segment: answered without the general bookkeeping
-            # below (nothing was or is half-received, the connection stays open).
+            # below (the session answers only with nothing half-received before or after, so there
+            # is no partial frame to watch; the connection stays open).
             answer = session.answer_polled_read(data)
             if answer is not None:
                 self.last_activity_s = time.monotonic()

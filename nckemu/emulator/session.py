@@ -46,7 +46,7 @@ MIN_PDU_SIZE = 240
 _ACK_DATA_FUNCTIONS = frozenset({s7.Function.READ_VAR, s7.Function.WRITE_VAR, s7.Function.PI_SERVICE,
                                  s7.Function.PLC_STOP, s7.Function.SETUP_COMMUNICATION})
 # Where the S7 PDU starts in a frame with one whole PDU in one DT: TPKT (4) + COTP DT (3).
-_PDU_OFFSET = 7
+_PDU_OFFSET = cotp.DATA_FRAME_PDU_OFFSET
 
 
 class SessionState(enum.Enum):
@@ -220,9 +220,9 @@ class ServerSession:
                 jobs_in_flight += 1
                 over_amq = jobs_in_flight > self.info.amq
                 if not over_amq:
-                    read_answer = self._fast_read(frame)
-                    if read_answer is not None:
-                        out.extend(self._data_frames(read_answer))
+                    answer_frame = self._framed_answer(frame)
+                    if answer_frame is not None:
+                        out.append(answer_frame)
                         continue
                 answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=over_amq)
                 if answer is not None:
@@ -258,6 +258,12 @@ class ServerSession:
         without parsing: what ``receive`` would answer, byte for byte (tests/property/test_fast_read.py)."""
         if self.state is not _READY or self._buffer or self._fragments:
             return None
+        return self._framed_answer(data)
+
+    def _framed_answer(self, data: bytes) -> bytes | None:
+        """The answer frame to ``data`` when it is one read job in one DT whose answer fits one DT,
+        from the dispatcher's plan for the frame; None leaves it to ``_handle_pdu``, which also gives
+        every error its answer."""
         entry = self._framed_reads.get(data[FRAME_PDU_REF_END:])
         if entry is None:
             entry = self.dispatcher.framed_read(data)
@@ -321,21 +327,6 @@ class ServerSession:
         return [cotp.build_frame(confirm)]
 
     # ------------------------------------------------------------------ S7
-    def _fast_read(self, frame: bytes) -> bytes | None:
-        """The answer PDU to a well-formed read-var job within the limits, straight from the header;
-        None leaves the job to ``_handle_pdu``, which also gives every error its answer."""
-        job = s7.peek_read_var_job(frame, _PDU_OFFSET)
-        if job is None or len(frame) - _PDU_OFFSET > self.info.pdu_size:
-            return None
-        try:
-            answer = self.dispatcher.read_answer(job[0], job[1], self.access)
-        except Exception:  # noqa: BLE001 - the general path answers (or logs) the same job properly
-            return None
-        if len(answer) > self.info.pdu_size:
-            return None
-        self.info.jobs += 1
-        return answer
-
     def _handle_pdu(self, raw: bytes, *, over_amq: bool) -> bytes | None:
         try:
             pdu = s7.parse_pdu(raw)

@@ -218,12 +218,13 @@ def build_cotp(tpdu: Cotp) -> bytes:
 
 # TPKT header and DT header in one pack: every answer goes through here.
 _DATA_FRAME_HEAD = struct.Struct(">BBHBBB")
-_DATA_FRAME_OVERHEAD = TPKT_HEADER_BYTES + len(DT_HEADER_EOT)
+# Where the S7 PDU starts in a frame of one DT: after the TPKT and DT headers.
+DATA_FRAME_PDU_OFFSET = TPKT_HEADER_BYTES + len(DT_HEADER_EOT)
 
 
 def build_data_frame(payload: bytes) -> bytes:
     """TPKT + COTP DT (EOT) around one S7 PDU: what every answer is."""
-    length = len(payload) + _DATA_FRAME_OVERHEAD
+    length = len(payload) + DATA_FRAME_PDU_OFFSET
     if length > 0xFFFF:
         return build_tpkt(DT_HEADER_EOT + payload)  # raises the TPKT layer's error
     return _DATA_FRAME_HEAD.pack(TPKT_VERSION, 0, length, 2, CODE_DT, DT_EOT) + payload

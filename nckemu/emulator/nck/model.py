@@ -59,7 +59,7 @@ def check_sources(specs: Sequence[VariableSpec], source: str) -> None:
             raise NckConfigError(f"{spec.name}: value source {spec.source!r} "
                                  f"{'takes' if bound.by_column else 'does not take'} the column, but the "
                                  f"variable has {spec.columns} column(s)", path=source, field="columns")
-        if not spec.read_only and bound.write is None:
+        if not spec.read_only and not bound.writable:
             raise NckConfigError(f"{spec.name}: value source {spec.source!r} cannot be written, but "
                                  f"write_level is {spec.write_level}", path=source, field="write_level")
 
@@ -134,13 +134,7 @@ class NckModel:
         if not ctx.may(spec.read_level):
             raise NckAccessDenied(f"{spec.number} needs access level {spec.read_level}")
         if spec.source is not None:
-            bound = SOURCES[spec.source]
-            if bound.by_column:
-                read_at = bound.read_column
-                return [read_at(self, unit, address.column, line)  # type: ignore[misc]
-                        for line in range(address.line, address.line + address.line_count)]
-            read = bound.read
-            return [read(self, unit, line) for line in range(address.line, address.line + address.line_count)]
+            return SOURCES[spec.source].read_lines(self, unit, address.column, address.line, address.line_count)
         return self.store.read_lines(spec, unit, address.line, address.line_count)
 
     def write(self, address: NckAddress, values: Sequence[object], ctx: AccessContext) -> bool:
@@ -156,13 +150,9 @@ class NckModel:
         checked = [self.store.checked_value(spec, value) for value in values]
         if spec.source is not None:
             bound = SOURCES[spec.source]
-            if bound.write is None:
+            if not bound.writable:
                 raise NckAccessDenied(f"{spec.name} is read only")
-            for offset, value in enumerate(checked):
-                if bound.by_column:
-                    bound.write(self, unit, address.column, address.line + offset, value)  # type: ignore[call-arg]
-                else:
-                    bound.write(self, unit, address.line + offset, value)  # type: ignore[call-arg]
+            bound.write_lines(self, unit, address.column, address.line, checked)
             return False
         self.compensation.advance_all()
         self.store.write_lines(spec, unit, address.line, checked)

@@ -36,12 +36,7 @@ class Sensors:
         raise NckObjectDoesNotExist(f"no sensor {name!r}")
 
     def temperature_C(self, name: str) -> float:
-        sensor = self._sensor(name)
-        if name in self._override_C:
-            return self._override_C[name]
-        if not sensor.profile:
-            return sensor.temperature_C
-        return profile_value_C(sensor.profile, self._times_s[name], self.clock.now_s())
+        return self.temperature_reader(name)()
 
     def temperature_reader(self, name: str) -> Callable[[], float]:
         """A function of no arguments giving what ``temperature_C(name)`` gives at the time of the

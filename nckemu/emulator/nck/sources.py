@@ -8,11 +8,11 @@ silently dead variable.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from nckemu.errors import NckAddressOutOfRange
+from nckemu.errors import NckAccessDenied, NckAddressOutOfRange
 
 from .alarms import alarm_number
 
@@ -29,19 +29,43 @@ ColumnWriter = Callable[["NckModel", int, int, int, object], None]    # (model, 
 
 @dataclass(frozen=True)
 class Source:
-    read: Reader
-    write: Writer | ColumnWriter | None = None
+    """How a computed variable is read and written: by (unit, line), or, for a variable over several
+    columns, by (unit, column, line)."""
+
+    read: Reader | None = None
+    write: Writer | None = None
     read_column: ColumnReader | None = None
+    write_column: ColumnWriter | None = None
 
     @property
     def by_column(self) -> bool:
         return self.read_column is not None
 
+    @property
+    def writable(self) -> bool:
+        return self.write is not None or self.write_column is not None
+
+    def read_lines(self, model: NckModel, unit: int, column: int, first: int, count: int) -> list[object]:
+        if self.read_column is not None:
+            read_at = self.read_column
+            return [read_at(model, unit, column, line) for line in range(first, first + count)]
+        if self.read is None:
+            raise NckAddressOutOfRange("no value source to read")
+        read = self.read
+        return [read(model, unit, line) for line in range(first, first + count)]
+
+    def write_lines(self, model: NckModel, unit: int, column: int, first: int, values: Sequence[object]) -> None:
+        for offset, value in enumerate(values):
+            if self.write_column is not None:
+                self.write_column(model, unit, column, first + offset, value)
+            elif self.write is not None:
+                self.write(model, unit, first + offset, value)
+            else:
+                raise NckAccessDenied("read only")
+
 
 def _by_column(read: ColumnReader, write: ColumnWriter | None = None) -> Source:
-    def unaddressed(_model: NckModel, _unit: int, _line: int) -> object:
-        raise NckAddressOutOfRange("this variable is read by column")
-    return Source(unaddressed, write, read)
+    return Source(read_column=read, write_column=write)
 
 
 def _sensor_name(model: NckModel, line: int) -> str:
