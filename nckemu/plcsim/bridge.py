@@ -17,6 +17,7 @@ import concurrent.futures
 import logging
 import re
 import struct
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -458,7 +459,7 @@ class PlcRunner:
     """An awlsim CPU with the FB stubs and the bridge; its clock is ``clock_s``."""
 
     def __init__(self, program: Path, client: Any, read_peripheral: Callable[[int, int], bytes],
-                 clock_s: Callable[[], float]) -> None:
+                 clock_s: Callable[[], float], watchdog_wall_s: float | None = None) -> None:
         self.sim = AwlSim()
         self.sim.reset()
         self.clock_s = clock_s
@@ -476,10 +477,23 @@ class PlcRunner:
         cpu = self.sim.getCPU()
         # The CPU's clock is the caller's: timers such as S5T#1M run in simulated time.
         original = type(cpu).updateTimestamp
-        cpu.updateTimestamp = lambda: original(cpu, _getTime=clock_s)
+        self._cycle_wall_s = time.monotonic()
+        if watchdog_wall_s is None:
+            cpu.updateTimestamp = lambda: original(cpu, _getTime=clock_s)
+        else:
+            # Simulated time stands still within a cycle, so awlsim's own cycle-time watchdog would
+            # never see an endless loop: past watchdog_wall_s of wall time in one cycle its clock
+            # jumps, and awlsim stops the program with its "cycle time exceeded" error.
+            def watched_s() -> float:
+                if time.monotonic() - self._cycle_wall_s > watchdog_wall_s:
+                    return clock_s() + 1e6
+                return clock_s()
+
+            cpu.updateTimestamp = lambda: original(cpu, _getTime=watched_s)
         self.sim.startup()
 
     def run_cycle(self) -> None:
+        self._cycle_wall_s = time.monotonic()
         self.sim.runCycle()
 
     def pending(self) -> list[concurrent.futures.Future[Any]]:
