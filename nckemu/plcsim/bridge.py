@@ -441,6 +441,20 @@ class NckBridgeHardware(AbstractHardwareInterface):  # type: ignore[misc]
         return self.bridge.write_output(accessWidth, accessOffset, bytes(data))
 
 
+_AWLSIM_LINE = re.compile(r"at line (?P<line>\d+):\s*(?P<rest>.*)", re.DOTALL)
+
+
+def awlsim_error_text(exc: BaseException) -> str:
+    """awlsim's error text on one line: its message spans lines (source hash, the statement, a CPU
+    dump); keep the line number, the statement and what is wrong with it."""
+    text = str(exc)
+    found = _AWLSIM_LINE.search(text)
+    if found is None:
+        return " ".join(text.split())[:300]
+    rest = found["rest"].split("[S7-CPU]", 1)[0]
+    return f"line {found['line']}: " + " ".join(rest.split())[:300]
+
+
 def parse_sources(paths: list[Path]) -> list[Any]:
     trees = []
     for path in paths:
@@ -450,7 +464,7 @@ def parse_sources(paths: list[Path]) -> list[Any]:
         except OSError as exc:
             raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
         except Exception as exc:  # awlsim's parser errors carry the line
-            raise NckConfigError(f"awlsim cannot parse it: {exc}", path=str(path)) from None
+            raise NckConfigError(f"awlsim cannot parse it: {awlsim_error_text(exc)}", path=str(path)) from None
         trees.append(parser.getParseTree())
     return trees
 
@@ -473,7 +487,7 @@ class PlcRunner:
         except NckConfigError:
             raise
         except Exception as exc:  # awlsim's translator errors name the block and the statement
-            raise NckConfigError(f"awlsim cannot load it: {exc}", path=str(program)) from None
+            raise NckConfigError(f"awlsim cannot load it: {awlsim_error_text(exc)}", path=str(program)) from None
         cpu = self.sim.getCPU()
         # The CPU's clock is the caller's: timers such as S5T#1M run in simulated time.
         original = type(cpu).updateTimestamp

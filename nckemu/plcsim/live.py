@@ -32,7 +32,7 @@ from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area
 from nckemu.thermal.recording import Recording, load_recording
 
-from .bridge import PlcRunner, check_program
+from .bridge import PlcRunner, awlsim_error_text, check_program
 from .drive import CycleInputs, RecordingDrive
 
 log = logging.getLogger(__name__)
@@ -181,7 +181,9 @@ class LiveMachine:
             self._minute(t_s)
 
     def _fault(self, exc: Exception, t_s: float) -> None:
-        text = " ".join(str(exc).split()) or type(exc).__name__
+        text = awlsim_error_text(exc) or type(exc).__name__
+        if text.startswith("line "):
+            text = f"{self.program.name if self.program else 'program'} {text}"
         self.status.fault = f"at {_clock_text(t_s)}: {text}"
         self.status.plc = "STOP"
         log.error("the PLC program faulted at simulated %s and is in STOP (the machine serves on): %s",
