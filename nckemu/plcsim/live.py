@@ -136,6 +136,7 @@ class LiveMachine:
         self._next_line_s = MINUTE_S * max(1, int(-(-speed // MINUTE_S)))
         self._next_line_wall_s = 0.0
         self._last_inputs: CycleInputs | None = None
+        self.plc_peer: str | None = None
         emulator.status_sections["live"] = self.snapshot
 
     @property
@@ -152,7 +153,11 @@ class LiveMachine:
             assert self.server is not None
             host = self.server.host if self.server.host not in ("0.0.0.0", "", "::") else "127.0.0.1"
             self._client.host, self._client.port = host, self.server.port
+            before = {id(connection) for connection in self.server.connections}
             await self._client.connect()
+            # The program's own connection, so the page can tell it from the outside clients.
+            mine = [c for c in self.server.connections if id(c) not in before]
+            self.plc_peer = mine[0].peer if len(mine) == 1 else None
         await self.pacer.start()
         return self
 
@@ -224,7 +229,7 @@ class LiveMachine:
                 "recording_end": status.recording_end, "plc": status.plc, "program": status.program,
                 "fault": status.fault, "cycles": status.cycles, "jobs": status.jobs,
                 "job_errors": status.job_errors, "last_error": status.last_error, "lag_s": status.lag_s,
-                "slips": status.slips, "step_wall_ms": status.step_wall_ms}
+                "slips": status.slips, "step_wall_ms": status.step_wall_ms, "plc_peer": self.plc_peer}
 
     def minute_line(self) -> str:
         """One line about the machine now: time, recording, sensors, compensation, PLC, clients."""

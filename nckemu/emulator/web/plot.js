@@ -58,8 +58,9 @@ function drawPlot(canvas, series, options) {
   const xFormat = options.xFormat || (x => x.toFixed(0));
   for (let x = Math.ceil(xMin / xStep) * xStep; x <= xMax; x += xStep) {
     ctx.beginPath(); ctx.moveTo(px(x), top); ctx.lineTo(px(x), top + plotH); ctx.stroke();
-    const text = xFormat(x);
-    ctx.fillText(text, px(x) - ctx.measureText(text).width / 2, top + plotH + 14);
+    const text = xFormat(x), textW = ctx.measureText(text).width;
+    const at = Math.min(px(x) - textW / 2, width - right - textW);  // the last label stays inside
+    ctx.fillText(text, at, top + plotH + 14);
   }
   if (options.xLabel) ctx.fillText(options.xLabel, left + plotW - ctx.measureText(options.xLabel).width, height - 4);
   if (options.yLabel) ctx.fillText(options.yLabel, 4, 12);
@@ -82,8 +83,11 @@ function drawPlot(canvas, series, options) {
   // legend
   let lx = left + 8;
   for (const s of series) {
-    ctx.fillStyle = s.color;
-    ctx.fillRect(lx, 6, 14, 3);
+    ctx.strokeStyle = s.color;
+    ctx.lineWidth = 3;
+    ctx.setLineDash(s.dash || []);
+    ctx.beginPath(); ctx.moveTo(lx, 8); ctx.lineTo(lx + 14, 8); ctx.stroke();
+    ctx.setLineDash([]);
     ctx.fillStyle = "#222";
     ctx.fillText(s.label, lx + 18, 12);
     lx += 26 + ctx.measureText(s.label).width;
