@@ -127,7 +127,8 @@ def main() -> int:
         if r["keeps_up"]:
             best = max(best, speed)
     load = os.getloadavg()[0]
-    print(f"largest speed that keeps up: {best:g}x ({best / cycles_per_s:.2f} of the offline anchor's pace); "
+    print(f"largest speed that keeps up: {best:g}x ({best / cycles_per_s:.2f} of the offline anchor's wall pace, "
+          f"{best * anchor_cpu / 3600.0:.2f} of its CPU pace); "
           f"load average {load:.1f} on {os.cpu_count()} cores (other work shares the machine)")
     return 0 if best >= 600 else 1
 

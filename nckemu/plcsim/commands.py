@@ -360,10 +360,8 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
 
 
 LIVE_EXAMPLE = """\
-a living machine (a recording plays at 600 times real time, the PLC program runs on the same clock):
-  nckemu serve --port 1102 --machine fixtures/machines/loop_mill.toml \\
-      --inputs fixtures/thermal/loop_bed_program_spindle_lag.csv --speed 600x --loop \\
-      --plc fixtures/plc/bed_only_z.awl --http 8080 -v
+a living machine (a recording at 600 times real time, the PLC program on the same clock, a live page):
+  nckemu serve --port 1102 --machine fixtures/machines/loop_mill.toml --inputs fixtures/thermal/loop_bed_program_spindle_lag.csv --speed 600x --loop --plc fixtures/plc/bed_only_z.awl --http 0 -v
 """
 
 
