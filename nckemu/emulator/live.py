@@ -26,7 +26,9 @@ Step = Callable[[int, float], Awaitable[None]]
 
 class Face(Protocol):
     """Something a served machine starts and stops on the running loop with its S7 face (the live
-    machine, the HTTP page, an OPC UA face)."""
+    machine, the HTTP page, an OPC UA face). ``serve`` also reads, where a face has them: ``ready`` (a
+    dict added to the --json ready line), ``ready_line`` (a line after the ready text), and ``what``
+    and ``port`` (to name it when its port cannot be bound)."""
 
     async def start(self) -> object: ...
 

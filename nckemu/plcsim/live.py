@@ -224,7 +224,7 @@ class LiveMachine:
             status.job_errors = len(self.runner.log.errors)
             status.last_error = self.runner.log.errors[-1] if self.runner.log.errors else None
         return {"speed": status.speed, "cycle_s": status.cycle_s, "t_s": self.clock.now_s(),
-                "t_rec_s": None if inputs is None else self.t0_s + self.clock.now_s(),
+                "t_rec_s": None if inputs is None else inputs.t_rec_s,   # of the last cycle run
                 "recording": status.recording, "recording_pass": status.recording_pass,
                 "recording_end": status.recording_end, "plc": status.plc, "program": status.program,
                 "fault": status.fault, "cycles": status.cycles, "jobs": status.jobs,

@@ -170,3 +170,28 @@ def test_serve_bad_input_one_line(case: str, tmp_path: Path, capsys: pytest.Capt
     lines = [line for line in err if not line.startswith("20")]  # the server's own log lines have a date
     assert len(lines) == 1 and expected in lines[0], err
     assert "Traceback" not in "\n".join(err)
+
+
+async def test_channel_times_and_parts_run_on_the_live_clock(tmp_path: Path) -> None:
+    """No recording, no program: --speed alone. The channel's net time runs at the speed; a part
+    counted at a simulated time is counted for every client."""
+    emulator = Emulator(MACHINE, clock=LiveClock())
+    server = EmulatorServer(emulator, port=0)
+    await server.start()
+    live = LiveMachine(emulator, speed=600.0, server=server)
+    try:
+        await live.start()
+        async with AsyncNckClient("127.0.0.1", server.port) as client:
+            before_s = (await client.get("sysTimeUdword"))[0] / 1000.0
+            await client.put({"NCKEMU_CHAN_COMMAND[C1]": 1})        # start
+            start_s = (await client.get("sysTimeUdword"))[0] / 1000.0   # at 600x a job takes simulated seconds
+            await asyncio.sleep(1.0)
+            net_s, now_ms = await client.get("actProgNetTime[C1]", "sysTimeUdword")
+            await client.put({"NCKEMU_CHAN_COMMAND[C1]": 3})        # end of program: a part
+            parts = (await client.get("actParts[C1]"))[0]
+    finally:
+        await live.stop()
+        await server.stop()
+    assert 400.0 < now_ms / 1000.0 - start_s < 800.0, "one wall second is ten simulated minutes"
+    assert now_ms / 1000.0 - start_s - 1.0 <= net_s <= now_ms / 1000.0 - before_s + 1.0
+    assert parts == 1.0
