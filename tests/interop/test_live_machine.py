@@ -99,3 +99,17 @@ def test_snap7_polls_follow_the_recording_and_the_program_as_offline(tmp_path: P
     assert len({p.piw420 for p in polls}) > 20, "PIW 420 follows the warming bed"
     assert len({p.sd43900_mm for p in polls}) > 10, "SD43900 follows the program's writes"
     assert max(p.sd43900_mm for p in polls) > 0.05
+
+
+def test_verbose_prints_one_line_per_simulated_minute_never_floods(tmp_path: Path) -> None:
+    """-v at 60x: a line a simulated minute (one a wall second); stderr does not get the PLC client's frames."""
+    recording = write_recording(tmp_path / "rec.csv", hours=1.0)
+    with serve("--machine", str(MACHINE), "--inputs", str(recording), "--plc", str(PROGRAM), "--speed", "60x",
+               "-v") as served:
+        time.sleep(5.0)
+    out, err = served.process.communicate(timeout=20)
+    lines = [line for line in out.splitlines() if line.startswith('{"live"')]
+    assert 3 <= len(lines) <= 7, out
+    assert '"live: t 00:01:00, rec -00:01:00, bed 25.00' in lines[0]
+    assert "PLC RUN" in lines[-1]
+    assert len(err.splitlines()) < 40 and "DEBUG snap7" not in err, err[-2000:]
