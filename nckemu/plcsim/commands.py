@@ -399,7 +399,6 @@ def serve_live(plain_serve: Any, args: argparse.Namespace) -> int:
     verbose = getattr(args, "verbose", 0) > 0
     # The program's own client (FB2/FB3/FB4 jobs, up to hundreds a second at high speed) logs every
     # frame at debug: -v is for the minute lines, not for that.
-    logging.getLogger("snap7").setLevel(max(logging.INFO, logging.getLogger().level))
 
     def minute(line: str) -> None:
         print(json.dumps({"live": line}) if args.json else line, file=sys.stdout, flush=True)
@@ -408,4 +407,10 @@ def serve_live(plain_serve: Any, args: argparse.Namespace) -> int:
         return LiveMachine(emulator, inputs=args.inputs, plc=args.plc, speed=speed, loop=args.loop, cycle_s=cycle_s,
                            server=server, on_minute=minute if verbose else None)
 
-    return int(plain_serve(args, clock=LiveClock(speed), faces=[make]) or 0)
+    snap7_log = logging.getLogger("snap7")
+    level = snap7_log.level
+    snap7_log.setLevel(max(logging.INFO, logging.getLogger().level))
+    try:
+        return int(plain_serve(args, clock=LiveClock(speed), faces=[make]) or 0)
+    finally:
+        snap7_log.setLevel(level)  # the level is the process's: give it back (main() may run again)
