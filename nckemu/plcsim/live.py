@@ -42,6 +42,8 @@ JOB_WAIT_S = 10.0
 # A PLC cycle that takes this much wall time is taken for a hanging program (an endless loop).
 CYCLE_WATCHDOG_WALL_S = 1.0
 MINUTE_S = 60.0
+# Jobs and errors kept in the bridge's log (the older ones are counted, then dropped).
+LOG_KEEP = 500
 
 
 def parse_speed(text: str) -> float:
@@ -106,6 +108,8 @@ class LiveMachine:
             raise NckConfigError("a live machine needs an emulator built with clock=LiveClock()")
         if not cycle_s > 0:
             raise NckConfigError("--cycle must be positive")
+        if not speed > 0 or speed == float("inf"):
+            raise NckConfigError(f"--speed {speed}: simulated time must run forward (a factor above 0, e.g. 1x)")
         if plc is not None and server is None:
             raise NckConfigError("the PLC program reaches the NCK through the machine's S7 face: pass server=")
         self.emulator = emulator
@@ -137,6 +141,9 @@ class LiveMachine:
         self._next_line_wall_s = 0.0
         self._last_inputs: CycleInputs | None = None
         self.plc_peer: str | None = None
+        # Jobs and errors folded out of the bridge's log (a server runs for days: the log must not grow).
+        self._jobs_folded = {"PUT": 0, "GET": 0, "PI": 0}
+        self._errors_folded = 0
         emulator.status_sections["live"] = self.snapshot
 
     @property
@@ -180,10 +187,22 @@ class LiveMachine:
             pending = runner.pending()
             if pending:  # simulated time waits for the network, as offline
                 await asyncio.wait(pending, timeout=JOB_WAIT_S)
+            if len(runner.log.jobs) > LOG_KEEP * 2 or len(runner.log.errors) > LOG_KEEP * 2:
+                self._fold_log()
         self.status.cycles = k + 1
         self.status.t_s = t_s
         if t_s >= self._next_line_s:
             self._minute(t_s)
+
+    def _fold_log(self) -> None:
+        """Count the older jobs and errors and drop them, keeping the last ``LOG_KEEP`` of each."""
+        assert self.runner is not None
+        log_ = self.runner.log
+        for job in log_.jobs[:-LOG_KEEP]:
+            self._jobs_folded[job.block] = self._jobs_folded.get(job.block, 0) + 1
+        del log_.jobs[:-LOG_KEEP]
+        self._errors_folded += max(0, len(log_.errors) - LOG_KEEP)
+        del log_.errors[:-LOG_KEEP]
 
     def _fault(self, exc: Exception, t_s: float) -> None:
         text = awlsim_error_text(exc) or type(exc).__name__
@@ -220,8 +239,9 @@ class LiveMachine:
         status.step_wall_ms = 1000.0 * stats.step_wall_s / stats.cycles if stats.cycles else 0.0
         if self.runner is not None:
             jobs = self.runner.log.jobs
-            status.jobs = {kind: sum(1 for job in jobs if job.block == kind) for kind in ("PUT", "GET", "PI")}
-            status.job_errors = len(self.runner.log.errors)
+            status.jobs = {kind: self._jobs_folded.get(kind, 0) + sum(1 for job in jobs if job.block == kind)
+                           for kind in ("PUT", "GET", "PI")}
+            status.job_errors = self._errors_folded + len(self.runner.log.errors)
             status.last_error = self.runner.log.errors[-1] if self.runner.log.errors else None
         return {"speed": status.speed, "cycle_s": status.cycle_s, "t_s": self.clock.now_s(),
                 "t_rec_s": None if inputs is None else inputs.t_rec_s,   # of the last cycle run

@@ -195,3 +195,13 @@ async def test_channel_times_and_parts_run_on_the_live_clock(tmp_path: Path) -> 
     assert 400.0 < now_ms / 1000.0 - start_s < 800.0, "one wall second is ten simulated minutes"
     assert now_ms / 1000.0 - start_s - 1.0 <= net_s <= now_ms / 1000.0 - before_s + 1.0
     assert parts == 1.0
+
+
+async def test_the_job_log_stays_bounded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import nckemu.plcsim.live as live_module
+
+    monkeypatch.setattr(live_module, "LOG_KEEP", 5)
+    live, _sd, _t = await _live(tmp_path, PROGRAM, 6000.0, 1.5)
+    snapshot = live.snapshot()
+    assert live.runner is not None and len(live.runner.log.jobs) <= 10
+    assert snapshot["jobs"]["PUT"] >= snapshot["cycles"] // 65 > 20, "the folded jobs are still counted"
