@@ -29,15 +29,17 @@ TRANSPORT_WORD = 0x04
 
 
 def write_recording(path: Path, hours: float = 3.0, step_s: float = 60.0) -> Path:
-    """Bed 25 -> 45 degC with a wiggle, spindle warming, Z travelling: PIW 420, SD43900 and Z move."""
-    lines = ["t_s,temp_bed_C,temp_spindle_C,pos_Z_mm,err_Z_um"]
+    """Bed 25 -> 45 degC with a wiggle, spindle warming and turning, Z travelling: PIW 420, SD43900, the
+    spindle speed and Z move."""
+    lines = ["t_s,temp_bed_C,temp_spindle_C,spindle_rpm,pos_Z_mm,err_Z_um"]
     rows = int(hours * 3600 / step_s) + 1
     for i in range(rows):
         t = i * step_s
         bed = 25.0 + 20.0 * t / (hours * 3600) + 0.5 * math.sin(t / 600.0)
         spindle = 20.0 + 3.0 * t / (hours * 3600)
         z = -500.0 + 300.0 * math.sin(t / 900.0)
-        lines.append(f"{t:g},{bed:.4f},{spindle:.4f},{z:.3f},{10.0 * (bed - 30.0):.3f}")
+        rpm = 0.0 if (t // 1200) % 2 == 0 else 6000.0   # twenty minutes at rest, twenty at 6000 rpm
+        lines.append(f"{t:g},{bed:.4f},{spindle:.4f},{rpm:g},{z:.3f},{10.0 * (bed - 30.0):.3f}")
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
 

@@ -79,17 +79,21 @@ async def _live(tmp_path: Path, program: Path, speed: float, wall_s: float,
     live = LiveMachine(emulator, inputs=recording, plc=program, speed=speed, server=server,
                        on_minute=lines.append if lines is not None else None)
     sd, temperatures = [], []
+    speeds: set[int] = set()
     try:
         await live.start()
         async with AsyncNckClient("127.0.0.1", server.port) as client:
             for _ in range(int(wall_s / 0.1)):
                 await asyncio.sleep(0.1)
-                value, temperature = await client.get("SD43900[AX4]", "NCKEMU_SENSOR_TEMP[0]")
+                value, temperature, rpm = await client.get("SD43900[AX4]", "NCKEMU_SENSOR_TEMP[0]", "actSpeed[C1]")
                 sd.append(value)
                 temperatures.append(temperature)
+                speeds.add(round(rpm))
     finally:
         await live.stop()
         await server.stop()
+    if wall_s * speed > 3 * 2400:  # long enough for a spindle start and stop: actSpeed follows spindle_rpm
+        assert {0, 6000} <= speeds, speeds
     return live, sd, temperatures
 
 
