@@ -279,6 +279,8 @@ class LiveMachine:
             parts.append(f"{len(self.server.connections)} connections")
         if snap["lag_s"] > self.cycle_s:
             parts.append(f"behind {snap['lag_s']:.0f} s")
+        if snap["slips"]:
+            parts.append(f"slipped {snap['slips']} times")
         return "live: " + ", ".join(parts)
 
 
