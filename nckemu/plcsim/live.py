@@ -141,6 +141,7 @@ class LiveMachine:
         self._next_line_wall_s = 0.0
         self._last_inputs: CycleInputs | None = None
         self.plc_peer: str | None = None
+        self._plc_connection: Any = None
         # Jobs and errors folded out of the bridge's log (a server runs for days: the log must not grow).
         self._jobs_folded = {"PUT": 0, "GET": 0, "PI": 0}
         self._errors_folded = 0
@@ -165,6 +166,9 @@ class LiveMachine:
             # The program's own connection, so the page can tell it from the outside clients.
             mine = [c for c in self.server.connections if id(c) not in before]
             self.plc_peer = mine[0].peer if len(mine) == 1 else None
+            # A real PLC's path to its NCK is never idle: the program's connection is kept alive
+            # however long it goes without a job (the server closes idle clients after 300 s).
+            self._plc_connection = mine[0] if len(mine) == 1 else None
         await self.pacer.start()
         return self
 
@@ -179,6 +183,8 @@ class LiveMachine:
         if self.drive is not None:
             self._last_inputs = self.drive.apply(self.emulator.nck, k)
         runner = self.runner
+        if self._plc_connection is not None:
+            self._plc_connection.last_activity_s = time.monotonic()
         if runner is not None and self.status.fault is None:
             try:
                 runner.run_cycle()

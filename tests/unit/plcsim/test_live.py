@@ -209,3 +209,24 @@ async def test_the_job_log_stays_bounded(tmp_path: Path, monkeypatch: pytest.Mon
     snapshot = live.snapshot()
     assert live.runner is not None and len(live.runner.log.jobs) <= 10
     assert snapshot["jobs"]["PUT"] >= snapshot["cycles"] // 65 > 20, "the folded jobs are still counted"
+
+
+async def test_the_programs_connection_is_never_idle(tmp_path: Path) -> None:
+    """A program that writes rarely keeps its connection; an outside client idle as long is closed."""
+    from nckemu.emulator.server import ServerLimits
+
+    emulator = Emulator(MACHINE, clock=LiveClock())
+    server = EmulatorServer(emulator, port=0, limits=ServerLimits(idle_timeout_s=0.5))
+    await server.start()
+    live = LiveMachine(emulator, plc=PROGRAM, speed=10.0, server=server)  # a cycle every 0.1 s
+    try:
+        await live.start()
+        idle = AsyncNckClient("127.0.0.1", server.port)
+        await idle.connect()
+        await asyncio.sleep(1.6)   # no job of the program yet (its first is six wall seconds away)
+        peers = {c.peer for c in server.connections}
+        await idle.disconnect()
+    finally:
+        await live.stop()
+        await server.stop()
+    assert live.plc_peer in peers and len(peers) == 1, peers
