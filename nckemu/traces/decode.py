@@ -14,7 +14,7 @@ from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
 from nckemu.protocol.values import decode_nck_values, nck_value_format, nck_value_reader
 
-from .reader import Capture, TracePdu, collector_paused
+from .reader import Capture, Gap, TracePdu, collector_paused
 
 FUNCTION_NAMES = {0x04: "read", 0x05: "write", 0x28: "PI", 0x29: "PLC stop", 0xF0: "setup", 0x00: "CPU services",
                   0x1A: "request download", 0x1B: "download block", 0x1C: "download ended", 0x1D: "start upload",
@@ -507,3 +507,8 @@ def format_exchange(exchange: Exchange, start_s: float) -> list[str]:
                 text += f"  -> {RETURN_CODE_TEXTS.get(item.return_code, hex(item.return_code))}"
         lines.append(text)
     return lines
+
+
+def format_gap(gap: Gap, start_s: float) -> str:
+    """The ``trace show`` line of bytes the capture lost, at the frame after them."""
+    return f"{gap.time_s - start_s:10.3f}s  c{gap.connection}  #{gap.frame:<6} gap      {gap.describe()}"
