@@ -96,7 +96,7 @@ class UserdataParameter:
 
 
 def parse_userdata_parameter(parameter: bytes) -> UserdataParameter:
-    if len(parameter) == 8 and parameter[:3] == MODE_TRANSITION_HEAD:
+    if len(parameter) == 8 and parameter[:3] == MODE_TRANSITION_HEAD and parameter[3] == _MODE_TRANSITION_LENGTH:
         method, type_group, subfunction, sequence = parameter[4:8]
         return UserdataParameter(method, type_group >> 4, type_group & 0x0F, subfunction, sequence,
                                  head=MODE_TRANSITION_HEAD)
