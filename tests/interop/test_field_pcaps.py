@@ -1,0 +1,75 @@
+"""The public S7comm captures in ../shared/field/pcaps (40 files: STEP 7, TIA Portal, WinCC, snap7,
+libnodave, HMIs and an attacker against S7-300/400/1200/1500; several with lost segments), read in
+place, never copied: no traceback, no S7comm answer left undecoded, every answer tshark pairs with its
+job paired by us too, and every push shown as a push. Skips when the captures are absent."""
+
+from __future__ import annotations
+
+import collections
+from pathlib import Path
+
+import pytest
+
+from nckemu.traces.decode import PUSH, decode
+from nckemu.traces.reader import read_capture
+from tests.conftest import SHARED
+from tests.interop.tshark_tools import requires_tshark, tshark_fields
+
+PCAPS = SHARED / "field" / "pcaps"
+CAPTURES = sorted(p for p in PCAPS.glob("*/*") if p.suffix in (".pcap", ".pcapng")) if PCAPS.is_dir() else []
+UNDECODED = ("not decoded", "not an S7 PDU")
+
+
+def _ids(path: Path) -> str:
+    return f"{path.parent.name}/{path.name}"
+
+
+pytestmark = pytest.mark.skipif(not CAPTURES, reason=f"{PCAPS} is absent (../shared/field/pcaps)")
+
+
+@pytest.mark.parametrize("path", CAPTURES, ids=_ids)
+def test_decodes_without_undecoded_answers(path: Path) -> None:
+    capture = read_capture(path)
+    exchanges = decode(capture)
+    assert exchanges
+    answered_problems = [p for p in capture.problems if any(text in p for text in UNDECODED)]
+    assert not answered_problems
+    assert not [p for p in capture.problems if "answer without a job" in p]
+
+
+def _tshark_view(path: Path) -> tuple[set[int], set[int]]:
+    """The answers tshark can pair with a job (same TCP stream, the other side, same PDU reference; a job
+    takes one answer) and the frames with a push (userdata type 0), by frame number."""
+    fields = ["frame.number", "tcp.stream", "tcp.srcport", "tcp.dstport", "s7comm.header.rosctr",
+              "s7comm.header.pduref", "s7comm.param.userdata.type"]
+    jobs: set[tuple[str, str, str]] = set()
+    paired: set[int] = set()
+    pushes: set[int] = set()
+    for row in tshark_fields(path, fields):
+        rosctrs = row["s7comm.header.rosctr"].split(",")
+        refs = row["s7comm.header.pduref"].split(",")
+        types = collections.deque(row["s7comm.param.userdata.type"].split(","))
+        frame = int(row["frame.number"])
+        for rosctr, ref in zip(rosctrs, refs, strict=False):
+            kind = types.popleft() if rosctr == "7" and types else ""
+            if rosctr == "1" or (rosctr == "7" and kind == "4"):
+                jobs.add((row["tcp.stream"], row["tcp.srcport"], ref))
+            elif rosctr in ("2", "3") or (rosctr == "7" and kind == "8"):
+                key = (row["tcp.stream"], row["tcp.dstport"], ref)
+                if key in jobs:
+                    jobs.discard(key)
+                    paired.add(frame)
+            elif rosctr == "7" and kind == "0":
+                pushes.add(frame)
+    return paired, pushes
+
+
+@requires_tshark
+@pytest.mark.parametrize("path", CAPTURES, ids=_ids)
+def test_pairs_what_tshark_pairs_and_shows_pushes(path: Path) -> None:
+    exchanges = decode(read_capture(path))
+    answered = {e.answer.frame for e in exchanges if e.answer is not None}
+    shown = {e.job.frame for e in exchanges if e.function == PUSH or e.answer is not None}
+    paired, pushes = _tshark_view(path)
+    assert paired <= answered, sorted(paired - answered)[:10]
+    assert pushes <= shown, sorted(pushes - shown)[:10]
