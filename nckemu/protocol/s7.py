@@ -233,6 +233,12 @@ def _parse_item(parameter: bytes, offset: int) -> tuple[Address, int]:
     return UnsupportedAddress(var_spec, syntax_id, parameter[offset + 2:end]), end
 
 
+def parse_item_at(data: bytes, offset: int) -> tuple[Address, int]:
+    """One item address (``12 <length> <syntax id> ...``) from ``offset`` on, and where it ends: read
+    jobs, and the items of cyclic subscriptions."""
+    return _parse_item(data, offset)
+
+
 def build_item(address: Address) -> bytes:
     if isinstance(address, NckAddress):
         return _NCK.pack(VAR_SPEC, 8, address.syntax_id, address.area_unit, address.column,
@@ -289,8 +295,17 @@ def data_item_length_field(item: DataItem) -> int:
 
 
 def _parse_data_items(data: bytes, count: int) -> tuple[DataItem, ...]:
+    items, offset = parse_data_items_at(data, 0, count)
+    if offset != len(data):
+        raise NckProtocolError(f"{len(data) - offset} bytes after the last of {count} data items")
+    return items
+
+
+def parse_data_items_at(data: bytes, offset: int, count: int) -> tuple[tuple[DataItem, ...], int]:
+    """``count`` data items from ``offset`` on (fill bytes between them, none after the last) and where
+    they end: read answers, and the associated values of alarm messages and cyclic data, which more
+    fields may follow."""
     items: list[DataItem] = []
-    offset = 0
     for index in range(count):
         if offset + 4 > len(data):
             raise NckTruncatedError(f"data item {index + 1} of {count} cut short")
@@ -310,9 +325,7 @@ def _parse_data_items(data: bytes, count: int) -> tuple[DataItem, ...]:
             if offset >= len(data):
                 raise NckTruncatedError(f"fill byte after data item {index + 1} missing")
             offset += 1
-    if offset != len(data):
-        raise NckProtocolError(f"{len(data) - offset} bytes after the last of {count} data items")
-    return tuple(items)
+    return tuple(items), offset
 
 
 def build_data_items(items: tuple[DataItem, ...]) -> bytes:
