@@ -6,6 +6,7 @@ installed."""
 from __future__ import annotations
 
 import collections
+import json
 from pathlib import Path
 
 import dpkt
@@ -13,6 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from nckemu.cli import main
 from nckemu.traces.decode import decode
 from nckemu.traces.reader import Capture, read_capture
 from tests.interop.tshark_tools import requires_tshark, tshark_fields
@@ -140,8 +142,10 @@ def test_every_answer_after_a_gap_is_paired(session_path: Path, tmp_path_factory
     assert not missing
 
 
-def test_a_lost_segment_in_the_middle_of_a_frame(session_path: Path, tmp_path: Path) -> None:
-    """A gap in a segment: the frame it cut is skipped (counted), the next frame decodes."""
+def test_a_lost_segment_in_the_middle_of_a_frame(session_path: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """A gap in a segment: the frame it cut is skipped (counted), the next frame decodes; trace show
+    prints a gap line there, --json lists the gap, stderr counts it once."""
     packets = _packets(session_path)
     client = next(d for d in sorted(_streams(packets)) if d[1] == 102)
     path = tmp_path / "cut.pcap"
@@ -149,6 +153,13 @@ def test_a_lost_segment_in_the_middle_of_a_frame(session_path: Path, tmp_path: P
     (gap,) = read_capture(path).gaps
     assert gap.missing_bytes == 10 and gap.skipped_bytes > 0
     assert "10 bytes from the client not captured" in gap.describe()
+    assert main(["trace", "show", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert [line for line in out.splitlines() if f"#{gap.frame}" in line and " gap " in line]
+    assert err.count("1 gap in the TCP streams (10 bytes not captured)") == 1
+    assert main(["trace", "show", str(path), "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert [(g["frame"], g["sender"], g["missing_bytes"]) for g in document["gaps"]] == [(gap.frame, "client", 10)]
 
 
 @requires_tshark
