@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import shutil
+import statistics
 import struct
 import subprocess
 import sys
@@ -102,15 +103,40 @@ print(time.perf_counter() - started, len(exchanges), sum(e.answer is not None fo
 """
 
 
-def measure_baseline(baseline: Path, path: Path, frames: int) -> float:
-    """Seconds for another nckemu tree's reader and decoder on the same file (a fresh interpreter)."""
-    result = subprocess.run([sys.executable, "-c", _BASELINE_SCRIPT, str(baseline), str(path)],
-                            capture_output=True, text=True, check=True)
+def _time_tree(tree: Path, path: Path, timeout_s: float) -> tuple[float, int, int] | None:
+    """Seconds, exchanges and answered exchanges of one tree's reader and decoder on ``path``, in a fresh
+    interpreter; None when it takes longer than ``timeout_s``."""
+    try:
+        result = subprocess.run([sys.executable, "-c", _BASELINE_SCRIPT, str(tree), str(path)],
+                                capture_output=True, text=True, check=True, timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return None
     seconds_text, exchanges, answered = result.stdout.split()
-    seconds = float(seconds_text)
-    print(f"  baseline ({baseline}): {int(exchanges):,} exchanges, {int(answered):,} answered, {seconds:.1f} s, "
-          f"{frames / seconds:,.0f} frames/s")
-    return seconds
+    return float(seconds_text), int(exchanges), int(answered)
+
+
+def measure_baseline(baseline: Path, path: Path, frames: int, rounds: int, timeout_s: float = 300.0) -> None:
+    """This tree and ``baseline`` on the same file, in turn (the machine's speed drifts: one after the
+    other would put the drift into the ratio), ``rounds`` times each; medians."""
+    here = Path(__file__).resolve().parent.parent
+    times: dict[str, list[float]] = {"this tree": [], "baseline": []}
+    counts: dict[str, tuple[int, int]] = {}
+    for round_number in range(rounds):
+        order = [("this tree", here), ("baseline", baseline)]
+        for name, tree in order if round_number % 2 == 0 else order[::-1]:
+            timed = _time_tree(tree, path, timeout_s)
+            if timed is None:
+                print(f"  {name}: more than {timeout_s:.0f} s, given up")
+                return
+            times[name].append(timed[0])
+            counts[name] = timed[1:]
+    for name, values in times.items():
+        median = statistics.median(values)
+        exchanges, answered = counts[name]
+        print(f"  {name}{'' if name == 'this tree' else f' ({baseline})'}: {exchanges:,} exchanges, {answered:,} "
+              f"answered, median {median:.2f} s of {rounds} (range {min(values):.2f}..{max(values):.2f}), "
+              f"{frames / median:,.0f} frames/s")
+    print(f"  this tree / baseline speed: {statistics.median(times['baseline']) / statistics.median(times['this tree']):.2f}x")
 
 
 def drop_answers(path: Path, every: int) -> int:
@@ -159,6 +185,7 @@ def main() -> int:
     parser.add_argument("--frames", type=int, default=1_000_000)
     parser.add_argument("--format", choices=("pcap", "pcapng", "both"), default="both")
     parser.add_argument("--baseline", type=Path, metavar="DIR", help="another nckemu tree to time on the same files")
+    parser.add_argument("--rounds", type=int, default=3, help="runs of each tree with --baseline (3)")
     parser.add_argument("--lost-every", type=int, default=0, metavar="N",
                         help="also a classic pcap without every Nth answer segment (lost segments)")
     args = parser.parse_args()
@@ -172,7 +199,7 @@ def main() -> int:
                   f"{time.perf_counter() - started:.1f} s")
             measure(path, args.frames)
             if args.baseline is not None:
-                measure_baseline(args.baseline, path, args.frames)
+                measure_baseline(args.baseline, path, args.frames, args.rounds)
             path.unlink()
         if args.lost_every:
             path = Path(scratch) / "lost.pcap"
@@ -182,7 +209,7 @@ def main() -> int:
             print(f"pcap with lost segments: {dropped:,} of {args.frames // 2:,} answers not captured")
             measure(path, frames)
             if args.baseline is not None:
-                measure_baseline(args.baseline, path, frames)
+                measure_baseline(args.baseline, path, frames, args.rounds)
     return 0
 
 

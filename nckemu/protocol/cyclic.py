@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from .addresses import Address, UnsupportedAddress
 from .errors import NckProtocolError, NckTruncatedError
-from .s7 import DataItem, build_data_items, build_item, parse_data_items_at, parse_item_at
+from .s7 import DataItem, build_data_items, build_items, parse_data_items_at, parse_items_to_end
 
 SUBFUNCTION_CYCLIC_TRANSFER = 0x01
 SUBFUNCTION_UNSUBSCRIBE = 0x04
@@ -44,27 +44,12 @@ def parse_subscription(data: bytes) -> CyclicSubscription:
     if len(data) < 4:
         raise NckTruncatedError("cyclic subscription shorter than 4 bytes")
     count, timebase, factor = struct.unpack_from(">HBB", data)
-    items: list[Address] = []
-    offset = 4
-    for index in range(count):
-        start = offset
-        item, offset = parse_item_at(data, offset)
-        items.append(item)
-        if index < count - 1 and (offset - start) % 2:
-            offset += 1
-    if offset != len(data):
-        raise NckProtocolError(f"{len(data) - offset} bytes after the cyclic subscription's {count} items")
-    return CyclicSubscription(timebase, factor, tuple(items))
+    return CyclicSubscription(timebase, factor, parse_items_to_end(data, 4, count))
 
 
 def build_subscription(subscription: CyclicSubscription) -> bytes:
-    parts = [struct.pack(">HBB", len(subscription.items), subscription.timebase, subscription.factor)]
-    for index, item in enumerate(subscription.items):
-        encoded = build_item(item)
-        parts.append(encoded)
-        if index < len(subscription.items) - 1 and len(encoded) % 2:
-            parts.append(b"\x00")
-    return b"".join(parts)
+    return struct.pack(">HBB", len(subscription.items), subscription.timebase, subscription.factor) \
+        + build_items(subscription.items)
 
 
 def parse_cyclic_data(data: bytes) -> tuple[DataItem, ...]:

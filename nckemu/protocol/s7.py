@@ -233,12 +233,6 @@ def _parse_item(parameter: bytes, offset: int) -> tuple[Address, int]:
     return UnsupportedAddress(var_spec, syntax_id, parameter[offset + 2:end]), end
 
 
-def parse_item_at(data: bytes, offset: int) -> tuple[Address, int]:
-    """One item address (``12 <length> <syntax id> ...``) from ``offset`` on, and where it ends: read
-    jobs, and the items of cyclic subscriptions."""
-    return _parse_item(data, offset)
-
-
 def build_item(address: Address) -> bytes:
     if isinstance(address, NckAddress):
         return _NCK.pack(VAR_SPEC, 8, address.syntax_id, address.area_unit, address.column,
@@ -260,23 +254,33 @@ def _parse_items(parameter: bytes, function: int) -> tuple[Address, ...]:
     count = parameter[1]
     if count == 0:
         raise NckProtocolError("a read/write job with no items")
+    return parse_items_to_end(parameter, 2, count)
+
+
+def parse_items_to_end(data: bytes, offset: int, count: int) -> tuple[Address, ...]:
+    """``count`` item addresses from ``offset`` to the end of ``data`` (a fill byte after each odd-length
+    item but the last): read and write jobs, cyclic subscriptions."""
     items: list[Address] = []
-    offset = 2
     for index in range(count):
         start = offset
-        item, offset = _parse_item(parameter, offset)
+        item, offset = _parse_item(data, offset)
         items.append(item)
         if index < count - 1 and (offset - start) % 2:
             offset += 1  # fill byte after an odd-length item
-    if offset != len(parameter):
-        raise NckProtocolError(f"{len(parameter) - offset} bytes after the last of {count} items")
+    if offset != len(data):
+        raise NckProtocolError(f"{len(data) - offset} bytes after the last of {count} items")
     return tuple(items)
 
 
 def _build_items(function: int, items: tuple[Address, ...]) -> bytes:
     if not 1 <= len(items) <= 255:
         raise NckProtocolError(f"{len(items)} items: a job carries 1..255")
-    parts = [bytes([function, len(items)])]
+    return bytes([function, len(items)]) + build_items(items)
+
+
+def build_items(items: tuple[Address, ...]) -> bytes:
+    """Item addresses one after the other, a fill byte after each odd-length one but the last."""
+    parts = []
     last = len(items) - 1
     for index, item in enumerate(items):
         encoded = build_item(item)

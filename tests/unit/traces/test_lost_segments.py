@@ -123,14 +123,21 @@ def cuts(draw: st.DrawFn, packets: list[Packet]) -> tuple[tuple[int, int], int, 
     return direction, start, end
 
 
-@settings(max_examples=60, deadline=None)
-@given(data=st.data())
-def test_every_answer_after_a_gap_is_paired(session_path: Path, tmp_path_factory: pytest.TempPathFactory,
-                                            data: st.DataObject) -> None:
+def _cut_at_random(session_path: Path, tmp_path_factory: pytest.TempPathFactory, data: st.DataObject
+                   ) -> tuple[list[Packet], tuple[int, int], int, int, Path]:
+    """The recorded session with a random cut, written to a new file: packets, direction, cut, path."""
     packets = _packets(session_path)
     direction, start, end = data.draw(cuts(packets))
     path = tmp_path_factory.mktemp("cut") / "cut.pcap"
     _write(path, cut(packets, direction, start, end))
+    return packets, direction, start, end, path
+
+
+@settings(max_examples=60, deadline=None)
+@given(data=st.data())
+def test_every_answer_after_a_gap_is_paired(session_path: Path, tmp_path_factory: pytest.TempPathFactory,
+                                            data: st.DataObject) -> None:
+    packets, direction, start, end, path = _cut_at_random(session_path, tmp_path_factory, data)
     original = read_capture(session_path)
     damaged = read_capture(path)
     assert len(damaged.gaps) == 1, damaged.gaps  # reported once
@@ -167,10 +174,7 @@ def test_a_lost_segment_in_the_middle_of_a_frame(session_path: Path, tmp_path: P
 @given(data=st.data())
 def test_pairs_every_answer_tshark_pairs(session_path: Path, tmp_path_factory: pytest.TempPathFactory,
                                         data: st.DataObject) -> None:
-    packets = _packets(session_path)
-    direction, start, end = data.draw(cuts(packets))
-    path = tmp_path_factory.mktemp("cut") / "cut.pcap"
-    _write(path, cut(packets, direction, start, end))
+    packets, direction, start, end, path = _cut_at_random(session_path, tmp_path_factory, data)
     answered = {e.answer.frame for e in decode(read_capture(path)) if e.answer is not None}
     jobs: set[tuple[str, str]] = set()
     tshark_paired = set()
