@@ -36,11 +36,12 @@ SUBFUNCTION_ALARMACK_IND = 0x0C
 SUBFUNCTION_ALARMSQ_IND = 0x11
 SUBFUNCTION_ALARMS_IND = 0x12
 SUBFUNCTION_NOTIFY8_IND = 0x16
+SUBFUNCTION_ALARM_QUERY = 0x13
 # Subfunctions whose alarm message starts with the time the message came.
 TIMESTAMPED = frozenset({SUBFUNCTION_ALARM8_IND, SUBFUNCTION_NOTIFY_IND, SUBFUNCTION_ALARMACK_IND,
                          SUBFUNCTION_ALARMSQ_IND, SUBFUNCTION_ALARMS_IND, SUBFUNCTION_NOTIFY8_IND})
 # Subfunctions that carry an alarm message at all (indications, lock/unlock, ack, query).
-ALARM_SUBFUNCTIONS = TIMESTAMPED | {SUBFUNCTION_SCAN_IND, 0x07, 0x08, 0x0B, 0x0D, 0x0E, 0x13}
+ALARM_SUBFUNCTIONS = TIMESTAMPED | {SUBFUNCTION_SCAN_IND, 0x07, 0x08, 0x0B, 0x0D, 0x0E, SUBFUNCTION_ALARM_QUERY}
 
 SYNTAX_ALARM_LOCKFREE = 0x15
 SYNTAX_ALARM_IND = 0x16
@@ -258,8 +259,10 @@ def describe_alarm_message(message: AlarmMessage) -> str:
         if item.syntax_id == SYNTAX_ALARM_QUERYREQ:
             if item.query_type == QUERY_BY_ALARM_TYPE:
                 parts.append(f"query by alarm type {ALARM_TYPE_NAMES.get(item.event_id, item.event_id)}")
-            else:
-                parts.append(f"query type {item.query_type} EventID=0x{item.event_id:08x}")
+            elif item.query_type == QUERY_BY_EVENT_ID:
+                parts.append(f"query by EventID=0x{item.event_id:08x}")
+            else:  # a query type tshark does not name either: its argument as it stands
+                parts.append(f"query type {item.query_type} (0x{item.event_id:08x})")
             continue
         if item.raw:
             parts.append(f"{item.syntax_name} {item.raw.hex()}")
@@ -342,3 +345,99 @@ def describe_message_service(data: bytes, request: bool) -> str:
     if len(data) > 2:
         text += f" AlmType={MESSAGE_ALARM_TYPES.get(data[2], f'0x{data[2]:02x}')}"
     return text
+
+
+ALARM_TYPE_ALARM_S = 4
+
+
+@dataclass(frozen=True, slots=True)
+class QueryEntry:
+    """One alarm of an alarm query's answer. ALARM_S entries add the time and associated value the
+    message came with and went with (an all-zero time: still active)."""
+
+    alarm_type: int
+    event_id: int
+    event_state: int = 0
+    ack_going: int = 0
+    ack_coming: int = 0
+    dataset_length: int = 0
+    unknown: bytes = b"\x00\x00\x00"   # two bytes before the alarm type, one after the event ID
+    coming: tuple[datetime | None, DataItem] | None = None
+    going: tuple[datetime | None, DataItem] | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class AlarmQueryResponse:
+    function: int
+    object_count: int
+    return_code: int
+    transport_size: int
+    complete_length: int       # 0xFFFF: entries until a zero byte
+    entries: tuple[QueryEntry, ...]
+    rest: bytes = b""          # what follows the entries
+
+
+_QUERY_ENTRY = struct.Struct(">B2sBIBBBB")
+
+
+def _parse_stamped_value(data: bytes, offset: int) -> tuple[tuple[datetime | None, DataItem], int]:
+    moment = parse_timestamp(data[offset:offset + TIMESTAMP_LENGTH])
+    (value,), offset = parse_data_items_at(data, offset + TIMESTAMP_LENGTH, 1)
+    return (moment, value), offset
+
+
+def parse_alarm_query_response(data: bytes) -> AlarmQueryResponse:
+    """The answer to an alarm query (subfunction 0x13): function, object count, return code, transport
+    size, the complete length, then the alarms (Wireshark's ``s7comm_decode_ud_cpu_alarm_query_response``)."""
+    if len(data) < 6:
+        raise NckTruncatedError("alarm query answer shorter than 6 bytes")
+    function, object_count, return_code, transport_size, complete_length = struct.unpack_from(">BBBBH", data)
+    offset = 6
+    entries = []
+    remaining = complete_length
+    while return_code == 0xFF and offset < len(data) and (
+            data[offset] if complete_length == 0xFFFF else remaining > 0):
+        start = offset
+        if offset + _QUERY_ENTRY.size > len(data):
+            raise NckTruncatedError("alarm query answer entry cut short")
+        length, unknown1, alarm_type, event_id, unknown2, state, going, coming = _QUERY_ENTRY.unpack_from(data, offset)
+        offset += _QUERY_ENTRY.size
+        came = went = None
+        if alarm_type == ALARM_TYPE_ALARM_S:
+            came, offset = _parse_stamped_value(data, offset)
+            went, offset = _parse_stamped_value(data, offset)
+        entries.append(QueryEntry(alarm_type, event_id, state, going, coming, length, unknown1 + bytes([unknown2]),
+                                  came, went))
+        remaining -= offset - start
+    return AlarmQueryResponse(function, object_count, return_code, transport_size, complete_length, tuple(entries),
+                              data[offset:])
+
+
+def build_alarm_query_response(response: AlarmQueryResponse) -> bytes:
+    parts = [struct.pack(">BBBBH", response.function, response.object_count, response.return_code,
+                         response.transport_size, response.complete_length)]
+    for entry in response.entries:
+        parts.append(_QUERY_ENTRY.pack(entry.dataset_length, entry.unknown[:2], entry.alarm_type, entry.event_id,
+                                       entry.unknown[2], entry.event_state, entry.ack_going, entry.ack_coming))
+        for stamped in (entry.coming, entry.going):
+            if stamped is not None:
+                parts.append(build_timestamp(stamped[0]) + build_data_items((stamped[1],)))
+    parts.append(response.rest)
+    return b"".join(parts)
+
+
+def describe_alarm_query_response(response: AlarmQueryResponse) -> str:
+    if response.return_code != 0xFF:
+        return f"return code 0x{response.return_code:02X}"
+    parts = []
+    for entry in response.entries:
+        kind = ALARM_TYPE_NAMES.get(entry.alarm_type, f"alarm type {entry.alarm_type}")
+        text = f"{kind} EventID=0x{entry.event_id:08x}"
+        on = signals(entry.event_state)
+        text += f" On=[{','.join(on)}]" if on else " off"
+        for label, stamped in (("came", entry.coming), ("went", entry.going)):
+            if stamped is not None and stamped[0] is not None:
+                text += f" {label} {stamped[0].isoformat(sep=' ', timespec='milliseconds')} ({stamped[1].data.hex()})"
+        parts.append(text)
+    count = len(parts)
+    return f"{count} alarm{'s' if count != 1 else ''}" + (": " + "; ".join(parts) if parts else "")

@@ -56,7 +56,9 @@ def _contents(header: userdata.UserdataParameter, data: bytes, body: bytes, stag
             return Contents(alarms.describe_diagnostic_message(alarms.parse_diagnostic_message(body)))
         if subfunction == 0x02:  # message service
             return Contents(alarms.describe_message_service(body, stage != RESPONSE))
-        if subfunction in alarms.ALARM_SUBFUNCTIONS and not (subfunction == 0x13 and stage == RESPONSE):
+        if subfunction == alarms.SUBFUNCTION_ALARM_QUERY and stage == RESPONSE:
+            return Contents(alarms.describe_alarm_query_response(alarms.parse_alarm_query_response(body)))
+        if subfunction in alarms.ALARM_SUBFUNCTIONS:
             message = alarms.parse_alarm_message(body, subfunction, response=stage == RESPONSE)
             return Contents(alarms.describe_alarm_message(message))
         return None

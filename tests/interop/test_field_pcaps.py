@@ -6,6 +6,7 @@ job paired by us too, and every push shown as a push. Skips when the captures ar
 from __future__ import annotations
 
 import collections
+import re
 from pathlib import Path
 
 import pytest
@@ -73,3 +74,37 @@ def test_pairs_what_tshark_pairs_and_shows_pushes(path: Path) -> None:
     paired, pushes = _tshark_view(path)
     assert paired <= answered, sorted(paired - answered)[:10]
     assert pushes <= shown, sorted(pushes - shown)[:10]
+
+
+def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
+    """Alarm event IDs, diagnostic event IDs and block counts as our lines name them, by frame (the
+    request's part of an exchange's text at the job's frame, the answer's part at the answer's)."""
+    found: dict[str, dict[int, list[str]]] = {"alarm": {}, "diagnostic": {}, "blocks": {}}
+    for exchange in decode(read_capture(path)):
+        head, _, tail = (" " + exchange.detail).partition(" -> ")
+        parts = [(exchange.job.frame, head)]
+        if exchange.answer is not None:
+            parts.append((exchange.answer.frame, tail))
+        for frame, text in parts:
+            alarm = re.findall(r"EventID=0x([0-9a-f]{8})", text)
+            diagnostic = re.findall(r"EventID=0x([0-9a-f]{4}) OB", text)
+            blocks = re.findall(r"(?:^|, )(?:OB|DB|SDB|FC|SFC|FB|SFB) (\d+)", text) if "List blocks" in \
+                exchange.service_name and "of type" not in exchange.service_name else []
+            for kind, values in (("alarm", alarm), ("diagnostic", diagnostic), ("blocks", blocks)):
+                if values:
+                    found[kind].setdefault(frame, []).extend(int(v, 16) if kind != "blocks" else int(v)
+                                                             for v in values)
+    return found
+
+
+@requires_tshark
+@pytest.mark.parametrize("path", CAPTURES, ids=_ids)
+def test_contents_as_tshark_reads_them(path: Path) -> None:
+    """Alarm event IDs, diagnostic event IDs and block counts, frame by frame, as tshark gives them."""
+    fields = {"alarm": "s7comm.alarm.event_id", "diagnostic": "s7comm.cpu.diag_msg.eventid",
+              "blocks": "s7comm.blockinfo.block_count"}
+    ours = _ours_by_frame(path)
+    rows = tshark_fields(path, ["frame.number", *fields.values()])
+    for kind, name in fields.items():
+        theirs = {int(row["frame.number"]): [int(v, 0) for v in row[name].split(",")] for row in rows if row[name]}
+        assert {f: sorted(v) for f, v in ours[kind].items()} == {f: sorted(v) for f, v in theirs.items()}, kind
