@@ -233,10 +233,11 @@ SZL_NAMES = {0x0000: "all SZL IDs", 0x0011: "module identification", 0x0111: "mo
              0x001C: "component identification", 0x011C: "component identification (one record)",
              0x0131: "communication capability", 0x0132: "communication status", 0x0232: "protection level",
              0x0424: "current mode", 0x00A0: "diagnostic buffer"}
-# SZL 0x0424 "bzu_id": the CPU's mode (Siemens' S7-300/400 system software manual, SZL-ID W#16#xy24).
-CPU_MODES = {0x01: "STOP (update)", 0x02: "STOP (memory reset)", 0x03: "STOP", 0x04: "STOP (internal)",
-             0x05: "STARTUP (cold restart)", 0x06: "STARTUP (warm restart)", 0x07: "STARTUP (hot restart)",
-             0x08: "RUN", 0x09: "RUN (redundant)", 0x0A: "HOLD"}
+# SZL 0x0424 "bzu_id": the requested mode in the low nibble, the previous one in the high nibble; the
+# names tshark 4.0.17 gives them (read off its decoding of every value).
+CPU_MODES = {0x1: "STOP (update)", 0x2: "STOP (memory reset)", 0x3: "STOP (self initialization)",
+             0x4: "STOP (internal)", 0x5: "Startup (complete restart)", 0x7: "Restart", 0x8: "RUN", 0xA: "HOLD",
+             0xD: "DEFECT"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -294,9 +295,10 @@ def describe_szl_record(szl_id: int, record: bytes) -> str:
         if kind == 0x1C and len(record) == 34:
             return f"index {int.from_bytes(record[:2], 'big')}: {_ascii(record[2:])!r}"
         if kind == 0x24 and len(record) == 20:
-            event_id, _ae, mode = struct.unpack_from(">HBB", record)
-            # the last 8 bytes: the time of the last mode change (S7 DATE_AND_TIME)
-            return f"event 0x{event_id:04X} mode {CPU_MODES.get(mode, f'0x{mode:02X}')}"
+            event_id, _ae, modes = struct.unpack_from(">HBB", record)
+            requested, previous = modes & 0x0F, modes >> 4
+            return (f"event 0x{event_id:04X} mode {CPU_MODES.get(requested, f'unknown (0x{requested:X})')}, "
+                    f"previously {CPU_MODES.get(previous, f'unknown (0x{previous:X})')}")
         if kind == 0xA0 and len(record) == alarms.DIAGNOSTIC_LENGTH:
             return alarms.describe_diagnostic_message(alarms.parse_diagnostic_message(record))
         if szl_id == 0x0131 and len(record) == 40 and record[:2] == b"\x00\x01":

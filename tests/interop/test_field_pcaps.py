@@ -79,7 +79,7 @@ def test_pairs_what_tshark_pairs_and_shows_pushes(path: Path) -> None:
 def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
     """Alarm event IDs, diagnostic event IDs and block counts as our lines name them, by frame (the
     request's part of an exchange's text at the job's frame, the answer's part at the answer's)."""
-    found: dict[str, dict[int, list[str]]] = {"alarm": {}, "diagnostic": {}, "blocks": {}}
+    found: dict[str, dict[int, list[str]]] = {"alarm": {}, "diagnostic": {}, "blocks": {}, "szl": {}}
     for exchange in decode(read_capture(path)):
         head, _, tail = (" " + exchange.detail).partition(" -> ")
         parts = [(exchange.job.frame, head)]
@@ -90,7 +90,8 @@ def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
             diagnostic = re.findall(r"EventID=0x([0-9a-f]{4}) OB", text)
             blocks = re.findall(r"(?:^|, )(?:OB|DB|SDB|FC|SFC|FB|SFB) (\d+)", text) if "List blocks" in \
                 exchange.service_name and "of type" not in exchange.service_name else []
-            for kind, values in (("alarm", alarm), ("diagnostic", diagnostic), ("blocks", blocks)):
+            szl_ids = re.findall(r"SZL 0x([0-9A-F]{4}) index", text)
+            for kind, values in (("alarm", alarm), ("diagnostic", diagnostic), ("blocks", blocks), ("szl", szl_ids)):
                 if values:
                     found[kind].setdefault(frame, []).extend(int(v, 16) if kind != "blocks" else int(v)
                                                              for v in values)
@@ -100,11 +101,16 @@ def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
 @requires_tshark
 @pytest.mark.parametrize("path", CAPTURES, ids=_ids)
 def test_contents_as_tshark_reads_them(path: Path) -> None:
-    """Alarm event IDs, diagnostic event IDs and block counts, frame by frame, as tshark gives them."""
+    """Alarm event IDs, diagnostic event IDs and block counts, frame by frame, and the SZL IDs of requests
+    and answers, as tshark gives them."""
     fields = {"alarm": "s7comm.alarm.event_id", "diagnostic": "s7comm.cpu.diag_msg.eventid",
-              "blocks": "s7comm.blockinfo.block_count"}
+              "blocks": "s7comm.blockinfo.block_count", "szl": "s7comm.data.userdata.szl_id"}
     ours = _ours_by_frame(path)
     rows = tshark_fields(path, ["frame.number", *fields.values()])
     for kind, name in fields.items():
         theirs = {int(row["frame.number"]): [int(v, 0) for v in row[name].split(",")] for row in rows if row[name]}
+        if kind == "szl":  # an answer in parts: tshark names the SZL at the last part, we at the first
+            assert sorted(v for values in ours[kind].values() for v in values) \
+                == sorted(v for values in theirs.values() for v in values)
+            continue
         assert {f: sorted(v) for f, v in ours[kind].items()} == {f: sorted(v) for f, v in theirs.items()}, kind
