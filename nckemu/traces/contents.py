@@ -85,11 +85,17 @@ def _contents(header: userdata.UserdataParameter, data: bytes, body: bytes, stag
 def _cyclic(header: userdata.UserdataParameter, body: bytes, stage: str, connection: int,
             subscriptions: Subscriptions, request: userdata.UserdataParameter | None,
             request_data: bytes) -> Contents | None:
+    if header.subfunction == cyclic.SUBFUNCTION_UNSUBSCRIBE and stage == REQUEST and len(body) == 2:
+        return Contents(f"JobID={body[1]} (function {body[0]})")  # function, then the job to end
     if header.subfunction not in cyclic.SUBSCRIBING:
         return None
     if stage == REQUEST:
         subscription = cyclic.parse_subscription(body)
-        return Contents(f"every {subscription.interval}", [(address, None) for address in subscription.items])
+        detail = f"every {subscription.interval}"
+        if header.subfunction == cyclic.SUBFUNCTION_CHANGE_DRIVEN_MODIFY:
+            # a change of a running job: the request names it (its sequence number), as tshark shows
+            detail = f"JobID={header.sequence}, {detail}"
+        return Contents(detail, [(address, None) for address in subscription.items])
     values = cyclic.parse_cyclic_data(body)
     job_id = header.sequence
     if stage == RESPONSE and request is not None:

@@ -79,7 +79,7 @@ def test_pairs_what_tshark_pairs_and_shows_pushes(path: Path) -> None:
 def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
     """Alarm event IDs, diagnostic event IDs and block counts as our lines name them, by frame (the
     request's part of an exchange's text at the job's frame, the answer's part at the answer's)."""
-    found: dict[str, dict[int, list[str]]] = {"alarm": {}, "diagnostic": {}, "blocks": {}, "szl": {}}
+    found: dict[str, dict[int, list[str]]] = {"alarm": {}, "diagnostic": {}, "blocks": {}, "szl": {}, "job": {}}
     for exchange in decode(read_capture(path)):
         head, _, tail = (" " + exchange.detail).partition(" -> ")
         parts = [(exchange.job.frame, head)]
@@ -91,9 +91,11 @@ def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
             blocks = re.findall(r"(?:^|, )(?:OB|DB|SDB|FC|SFC|FB|SFB) (\d+)", text) if "List blocks" in \
                 exchange.service_name and "of type" not in exchange.service_name else []
             szl_ids = re.findall(r"SZL 0x([0-9A-F]{4}) index", text)
-            for kind, values in (("alarm", alarm), ("diagnostic", diagnostic), ("blocks", blocks), ("szl", szl_ids)):
+            jobs = re.findall(r"JobID=(\d+)", text)
+            for kind, values in (("alarm", alarm), ("diagnostic", diagnostic), ("blocks", blocks), ("szl", szl_ids),
+                                 ("job", jobs)):
                 if values:
-                    found[kind].setdefault(frame, []).extend(int(v, 16) if kind != "blocks" else int(v)
+                    found[kind].setdefault(frame, []).extend(int(v) if kind in ("blocks", "job") else int(v, 16)
                                                              for v in values)
     return found
 
@@ -101,14 +103,19 @@ def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
 @requires_tshark
 @pytest.mark.parametrize("path", CAPTURES, ids=_ids)
 def test_contents_as_tshark_reads_them(path: Path) -> None:
-    """Alarm event IDs, diagnostic event IDs and block counts, frame by frame, and the SZL IDs of requests
-    and answers, as tshark gives them."""
+    """Alarm event IDs, diagnostic event IDs, block counts and cyclic job IDs, frame by frame, and the
+    SZL IDs of requests and answers, as tshark gives them."""
     fields = {"alarm": "s7comm.alarm.event_id", "diagnostic": "s7comm.cpu.diag_msg.eventid",
-              "blocks": "s7comm.blockinfo.block_count", "szl": "s7comm.data.userdata.szl_id"}
+              "blocks": "s7comm.blockinfo.block_count", "szl": "s7comm.data.userdata.szl_id",
+              "job": "_ws.col.Info"}
     ours = _ours_by_frame(path)
     rows = tshark_fields(path, ["frame.number", *fields.values()])
     for kind, name in fields.items():
-        theirs = {int(row["frame.number"]): [int(v, 0) for v in row[name].split(",")] for row in rows if row[name]}
+        if kind == "job":  # tshark gives a cyclic job's ID in the Info column only (JobID=N)
+            theirs = {int(row["frame.number"]): [int(v) for v in re.findall(r"JobID=(\d+)", row[name])]
+                      for row in rows if "JobID=" in row[name]}
+        else:
+            theirs = {int(row["frame.number"]): [int(v, 0) for v in row[name].split(",")] for row in rows if row[name]}
         if kind == "szl":  # an answer in parts: tshark names the SZL at the last part, we at the first
             assert sorted(v for values in ours[kind].values() for v in values) \
                 == sorted(v for values in theirs.values() for v in values)
