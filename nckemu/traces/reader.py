@@ -467,19 +467,19 @@ def _feed(capture: Capture, connection: _Connection, from_client: bool, segment:
             _skip_gap(capture, connection, from_client, direction)
         return
     stream = payload
-    direction.next_seq = (seq + len(payload)) & _SEQ_MASK
-    while direction.next_seq in direction.pending:
-        more = direction.pending.pop(direction.next_seq)[0]
+    next_seq = (seq + len(payload)) & _SEQ_MASK
+    while next_seq in direction.pending:
+        more = direction.pending.pop(next_seq)[0]
         stream += more
-        direction.next_seq = (direction.next_seq + len(more)) & _SEQ_MASK
-    _drop_stale(direction)
+        next_seq = (next_seq + len(more)) & _SEQ_MASK
+    direction.next_seq = next_seq
+    _drop_stale(direction, next_seq)
     _frames(capture, connection, from_client, direction, stream, number, ts)
 
 
-def _drop_stale(direction: _Direction) -> None:
-    """Segments that the stream has overtaken are duplicates."""
-    next_seq = direction.next_seq
-    for stale in [s for s in direction.pending if ((s - next_seq) & _SEQ_MASK) >= _HALF_SEQ]:  # type: ignore[operator]
+def _drop_stale(direction: _Direction, next_seq: int) -> None:
+    """Segments that the stream (now at ``next_seq``) has overtaken are duplicates."""
+    for stale in [s for s in direction.pending if ((s - next_seq) & _SEQ_MASK) >= _HALF_SEQ]:
         direction.pending.pop(stale)
 
 
@@ -498,14 +498,14 @@ def _skip_gap(capture: Capture, connection: _Connection, from_client: bool, dire
     direction.fragments.clear()
     direction.broken = True
     while True:
-        direction.next_seq = (first + len(payload)) & _SEQ_MASK
+        next_seq = direction.next_seq = (first + len(payload)) & _SEQ_MASK
         _frames(capture, connection, from_client, direction, payload, number, ts)
-        following = direction.pending.pop(direction.next_seq, None)
+        following = direction.pending.pop(next_seq, None)
         if following is None:
             break
-        first = direction.next_seq
+        first = next_seq
         payload, number, ts = following
-    _drop_stale(direction)
+    _drop_stale(direction, next_seq)
     if direction.pending:
         direction.pending_since_s = min(p[2] for p in direction.pending.values())
 
