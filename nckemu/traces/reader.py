@@ -2,7 +2,7 @@
 
 Out-of-order and duplicate segments are put right by sequence number; a capture that starts in
 the middle of a connection is taken from its first segment. Segments the capture lost (a port mirror,
-a filtered export: tshark's "previous segment not captured") leave a gap: once the peer acknowledges
+a filtered export: tshark's "previous segment not captured") leave a gap: once the peer has acknowledged
 bytes the capture never showed, or the stream has waited too long, the gap is recorded (``Gap``) and
 the stream resyncs on the next TPKT header, as tshark does. What cannot be parsed is reported with
 its frame number and skipped; only a file from which nothing can be read is an error.
@@ -30,8 +30,11 @@ from nckemu.protocol.errors import NckProtocolError
 
 S7_PORT = 102
 _MAX_PENDING_BYTES = 4 * 1024 * 1024
-# A hole in a stream is a lost segment, not a late one, once the peer acknowledges past it, or when
-# this many segments or seconds of capture wait behind it (a retransmission comes within a few RTOs).
+# A hole in a stream is a lost segment, not a late one, once this many of the peer's segments have
+# acknowledged bytes past it (one is not enough: a capture can see a segment after the peer's answer
+# to it, out of order), or when this many segments or seconds of capture wait behind it (a
+# retransmission comes within a few RTOs).
+_GAP_ACK_VOTES = 3
 _GAP_WAIT_SEGMENTS = 64
 _GAP_WAIT_S = 3.0
 _SEQ_MASK = 0xFFFFFFFF
@@ -101,6 +104,7 @@ class _Direction:
     # segments ahead of next_seq: sequence number -> (payload, frame number, time)
     pending: dict[int, tuple[bytes, int, float]] = field(default_factory=dict)
     pending_since_s: float = 0.0
+    ack_votes: int = 0  # the peer's segments that acknowledged past the hole before the waiting ones
     buffer: bytes = b""
     fragments: list[bytes] = field(default_factory=list)
     broken: bool = False
@@ -425,12 +429,17 @@ def _feed(capture: Capture, connection: _Connection, from_client: bool, segment:
           number: int, ts: float) -> None:
     direction = connection.directions[from_client]
     other = connection.directions[not from_client]
-    if other.pending and segment.flags & dpkt.tcp.TH_ACK:
-        # The peer acknowledges bytes of the other direction that the capture never showed: lost.
-        ack = segment.ack
-        while other.pending and other.next_seq is not None \
-                and 0 < ((ack - other.next_seq) & _SEQ_MASK) < _HALF_SEQ:
-            _skip_gap(capture, connection, not from_client, other)
+    if other.pending and segment.flags & dpkt.tcp.TH_ACK and other.next_seq is not None \
+            and 0 < ((segment.ack - other.next_seq) & _SEQ_MASK) < _HALF_SEQ:
+        # The peer acknowledges bytes of the other direction that the capture has not shown: lost, once
+        # it has done so a few times (or late: then they come and fill the hole).
+        other.ack_votes += 1
+        if other.ack_votes >= _GAP_ACK_VOTES:
+            ack = segment.ack
+            while other.pending and other.next_seq is not None \
+                    and 0 < ((ack - other.next_seq) & _SEQ_MASK) < _HALF_SEQ:
+                _skip_gap(capture, connection, not from_client, other)
+            other.ack_votes = 0
     seq = segment.seq
     payload = bytes(segment.data)
     if segment.flags & dpkt.tcp.TH_SYN:
@@ -473,6 +482,7 @@ def _feed(capture: Capture, connection: _Connection, from_client: bool, segment:
         stream += more
         next_seq = (next_seq + len(more)) & _SEQ_MASK
     direction.next_seq = next_seq
+    direction.ack_votes = 0  # the hole filled: it was late, not lost
     _drop_stale(direction, next_seq)
     _frames(capture, connection, from_client, direction, stream, number, ts)
 
