@@ -6,12 +6,19 @@ numbers, PDU references and values, then both decoders read it; ours gives every
 return code and value.
 
 Usage: .venv/bin/python bench/bench_trace_decode.py [--frames 1000000] [--format pcap|pcapng|both]
+       [--baseline DIR] [--lost-every N]
+
+``--baseline DIR`` also times the reader and decoder of another nckemu tree on the same file (e.g. the
+main branch: ``git archive main | tar -x -C DIR``), in a fresh interpreter: before/after in one run.
+``--lost-every N`` leaves out every Nth answer segment, as a capture with lost segments does (each
+loss a gap the reader resyncs after; the job stays unanswered).
 """
 
 from __future__ import annotations
 
 import argparse
 import shutil
+import statistics
 import struct
 import subprocess
 import sys
@@ -84,14 +91,80 @@ def write_big_capture(path: Path, frames: int, pcapng: bool = False) -> None:
             server_seq += len(ANSWER)
 
 
+_BASELINE_SCRIPT = """
+import sys, time
+sys.path.insert(0, sys.argv[1])
+from nckemu.traces.decode import decode
+from nckemu.traces.reader import read_capture
+started = time.perf_counter()
+capture = read_capture(sys.argv[2])
+exchanges = decode(capture)
+print(time.perf_counter() - started, len(exchanges), sum(e.answer is not None for e in exchanges))
+"""
+
+
+def _time_tree(tree: Path, path: Path, timeout_s: float) -> tuple[float, int, int] | None:
+    """Seconds, exchanges and answered exchanges of one tree's reader and decoder on ``path``, in a fresh
+    interpreter; None when it takes longer than ``timeout_s``."""
+    try:
+        result = subprocess.run([sys.executable, "-c", _BASELINE_SCRIPT, str(tree), str(path)],
+                                capture_output=True, text=True, check=True, timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return None
+    seconds_text, exchanges, answered = result.stdout.split()
+    return float(seconds_text), int(exchanges), int(answered)
+
+
+def measure_baseline(baseline: Path, path: Path, frames: int, rounds: int, timeout_s: float = 300.0) -> None:
+    """This tree and ``baseline`` on the same file, in turn (the machine's speed drifts: one after the
+    other would put the drift into the ratio), ``rounds`` times each; medians."""
+    here = Path(__file__).resolve().parent.parent
+    times: dict[str, list[float]] = {"this tree": [], "baseline": []}
+    counts: dict[str, tuple[int, int]] = {}
+    for round_number in range(rounds):
+        order = [("this tree", here), ("baseline", baseline)]
+        for name, tree in order if round_number % 2 == 0 else order[::-1]:
+            timed = _time_tree(tree, path, timeout_s)
+            if timed is None:
+                print(f"  {name}: more than {timeout_s:.0f} s, given up")
+                return
+            times[name].append(timed[0])
+            counts[name] = timed[1:]
+    for name, values in times.items():
+        median = statistics.median(values)
+        exchanges, answered = counts[name]
+        print(f"  {name}{'' if name == 'this tree' else f' ({baseline})'}: {exchanges:,} exchanges, {answered:,} "
+              f"answered, median {median:.2f} s of {rounds} (range {min(values):.2f}..{max(values):.2f}), "
+              f"{frames / median:,.0f} frames/s")
+    print(f"  this tree / baseline speed: {statistics.median(times['baseline']) / statistics.median(times['this tree']):.2f}x")
+
+
+def drop_answers(path: Path, every: int) -> int:
+    """Rewrite the (classic pcap) capture without every ``every``th answer; the number left out."""
+    data = path.read_bytes()
+    out = [data[:24]]
+    offset, index, dropped = 24, 0, 0
+    while offset < len(data):
+        length = struct.unpack_from("<I", data, offset + 8)[0]
+        end = offset + 16 + length
+        if index % 2 and (index // 2) % every == every - 1:
+            dropped += 1
+        else:
+            out.append(data[offset:end])
+        offset, index = end, index + 1
+    path.write_bytes(b"".join(out))
+    return dropped
+
+
 def measure(path: Path, frames: int) -> tuple[float, float | None]:
     """Seconds for ours and for tshark (None when tshark is not installed) on one file."""
     started = time.perf_counter()
     capture = read_capture(path)
     exchanges = decode(capture)
     ours_s = time.perf_counter() - started
-    print(f"  nckemu: {len(exchanges):,} exchanges, {len(capture.problems)} problems, {ours_s:.1f} s, "
-          f"{frames / ours_s:,.0f} frames/s")
+    answered = sum(e.answer is not None for e in exchanges)
+    print(f"  nckemu: {len(exchanges):,} exchanges, {answered:,} answered, {len(capture.problems)} problems, "
+          f"{len(capture.gaps)} gaps, {ours_s:.1f} s, {frames / ours_s:,.0f} frames/s")
     tshark = shutil.which("tshark")
     if tshark is None:
         print("  tshark not installed: no comparison")
@@ -111,6 +184,10 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=1_000_000)
     parser.add_argument("--format", choices=("pcap", "pcapng", "both"), default="both")
+    parser.add_argument("--baseline", type=Path, metavar="DIR", help="another nckemu tree to time on the same files")
+    parser.add_argument("--rounds", type=int, default=3, help="runs of each tree with --baseline (3)")
+    parser.add_argument("--lost-every", type=int, default=0, metavar="N",
+                        help="also a classic pcap without every Nth answer segment (lost segments)")
     args = parser.parse_args()
     formats = ("pcap", "pcapng") if args.format == "both" else (args.format,)
     with tempfile.TemporaryDirectory() as scratch:
@@ -121,7 +198,18 @@ def main() -> int:
             print(f"{kind}: generated {args.frames:,} frames ({path.stat().st_size / 1e6:.0f} MB) in "
                   f"{time.perf_counter() - started:.1f} s")
             measure(path, args.frames)
+            if args.baseline is not None:
+                measure_baseline(args.baseline, path, args.frames, args.rounds)
             path.unlink()
+        if args.lost_every:
+            path = Path(scratch) / "lost.pcap"
+            write_big_capture(path, args.frames)
+            dropped = drop_answers(path, args.lost_every)
+            frames = args.frames - dropped
+            print(f"pcap with lost segments: {dropped:,} of {args.frames // 2:,} answers not captured")
+            measure(path, frames)
+            if args.baseline is not None:
+                measure_baseline(args.baseline, path, frames, args.rounds)
     return 0
 
 

@@ -22,7 +22,24 @@ settings.register_profile(
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 REPO = Path(__file__).resolve().parent.parent
-SHARED = REPO.parent / "shared"
+
+
+def _shared_dir() -> Path:
+    """../shared beside the repository; in a git worktree elsewhere, beside the main checkout (the
+    worktree's .git file names its gitdir, whose commondir leads back to the main .git)."""
+    beside = REPO.parent / "shared"
+    dot_git = REPO / ".git"
+    if beside.is_dir() or not dot_git.is_file():
+        return beside
+    try:
+        gitdir = Path(dot_git.read_text().removeprefix("gitdir:").strip())
+        common = (gitdir / (gitdir / "commondir").read_text().strip()).resolve()
+    except OSError:
+        return beside
+    return common.parent.parent / "shared"
+
+
+SHARED = _shared_dir()
 FIXTURES = REPO / "fixtures"
 
 

@@ -254,23 +254,33 @@ def _parse_items(parameter: bytes, function: int) -> tuple[Address, ...]:
     count = parameter[1]
     if count == 0:
         raise NckProtocolError("a read/write job with no items")
+    return parse_items_to_end(parameter, 2, count)
+
+
+def parse_items_to_end(data: bytes, offset: int, count: int) -> tuple[Address, ...]:
+    """``count`` item addresses from ``offset`` to the end of ``data`` (a fill byte after each odd-length
+    item but the last): read and write jobs, cyclic subscriptions."""
     items: list[Address] = []
-    offset = 2
     for index in range(count):
         start = offset
-        item, offset = _parse_item(parameter, offset)
+        item, offset = _parse_item(data, offset)
         items.append(item)
         if index < count - 1 and (offset - start) % 2:
             offset += 1  # fill byte after an odd-length item
-    if offset != len(parameter):
-        raise NckProtocolError(f"{len(parameter) - offset} bytes after the last of {count} items")
+    if offset != len(data):
+        raise NckProtocolError(f"{len(data) - offset} bytes after the last of {count} items")
     return tuple(items)
 
 
 def _build_items(function: int, items: tuple[Address, ...]) -> bytes:
     if not 1 <= len(items) <= 255:
         raise NckProtocolError(f"{len(items)} items: a job carries 1..255")
-    parts = [bytes([function, len(items)])]
+    return bytes([function, len(items)]) + build_items(items)
+
+
+def build_items(items: tuple[Address, ...]) -> bytes:
+    """Item addresses one after the other, a fill byte after each odd-length one but the last."""
+    parts = []
     last = len(items) - 1
     for index, item in enumerate(items):
         encoded = build_item(item)
@@ -289,8 +299,17 @@ def data_item_length_field(item: DataItem) -> int:
 
 
 def _parse_data_items(data: bytes, count: int) -> tuple[DataItem, ...]:
+    items, offset = parse_data_items_at(data, 0, count)
+    if offset != len(data):
+        raise NckProtocolError(f"{len(data) - offset} bytes after the last of {count} data items")
+    return items
+
+
+def parse_data_items_at(data: bytes, offset: int, count: int) -> tuple[tuple[DataItem, ...], int]:
+    """``count`` data items from ``offset`` on (fill bytes between them, none after the last) and where
+    they end: read answers, and the associated values of alarm messages and cyclic data, which more
+    fields may follow."""
     items: list[DataItem] = []
-    offset = 0
     for index in range(count):
         if offset + 4 > len(data):
             raise NckTruncatedError(f"data item {index + 1} of {count} cut short")
@@ -310,9 +329,7 @@ def _parse_data_items(data: bytes, count: int) -> tuple[DataItem, ...]:
             if offset >= len(data):
                 raise NckTruncatedError(f"fill byte after data item {index + 1} missing")
             offset += 1
-    if offset != len(data):
-        raise NckProtocolError(f"{len(data) - offset} bytes after the last of {count} data items")
-    return tuple(items)
+    return tuple(items), offset
 
 
 def build_data_items(items: tuple[DataItem, ...]) -> bytes:

@@ -19,7 +19,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 
-from . import userdata
+from . import alarms, userdata
 from .errors import NckProtocolError, NckServiceError, NckTruncatedError
 from .userdata import METHOD_REQUEST, METHOD_RESPONSE, TYPE_PUSH, TYPE_REQUEST, TYPE_RESPONSE
 
@@ -226,3 +226,135 @@ def parse_szl_response(parameter: bytes, data: bytes) -> SzlReadResponse:
         return SzlReadResponse(0, 0, b"", error_code, parameter[7])
     szl_id, szl_index = struct.unpack_from(">HH", body)
     return SzlReadResponse(szl_id, szl_index, body[4:], 0, parameter[7])
+
+
+# ---------------------------------------------------------------- SZL records by name (trace show)
+SZL_NAMES = {0x0000: "all SZL IDs", 0x0011: "module identification", 0x0111: "module identification (one record)",
+             0x001C: "component identification", 0x011C: "component identification (one record)",
+             0x0131: "communication capability", 0x0132: "communication status", 0x0232: "protection level",
+             0x0424: "current mode", 0x00A0: "diagnostic buffer"}
+# SZL 0x0424 "bzu_id": the requested mode in the low nibble, the previous one in the high nibble; the
+# names tshark 4.0.17 gives them (read off its decoding of every value).
+CPU_MODES = {0x1: "STOP (update)", 0x2: "STOP (memory reset)", 0x3: "STOP (self initialization)",
+             0x4: "STOP (internal)", 0x5: "Startup (complete restart)", 0x7: "Restart", 0x8: "RUN", 0xA: "HOLD",
+             0xD: "DEFECT"}
+
+
+@dataclass(frozen=True, slots=True)
+class SzlList:
+    """An SZL as the answer carries it: ID, index, record length and the records."""
+
+    szl_id: int
+    szl_index: int
+    record_length: int
+    records: tuple[bytes, ...]
+
+    @property
+    def name(self) -> str:
+        return SZL_NAMES.get(self.szl_id, f"SZL 0x{self.szl_id:04X}")
+
+
+def parse_szl_list(body: bytes) -> SzlList:
+    """The body of an SZL answer (after return code, transport size, length): ID, index, record length,
+    record count, records. A list announced longer than carried (the first part of a long answer) keeps
+    the whole records there are."""
+    if len(body) < 8:
+        raise NckTruncatedError("SZL shorter than its 8-byte header")
+    szl_id, szl_index, record_length, count = struct.unpack_from(">HHHH", body)
+    if record_length == 0 and count:
+        raise NckProtocolError(f"SZL 0x{szl_id:04X} announces {count} records of 0 bytes")
+    whole = min(count, (len(body) - 8) // record_length) if record_length else 0
+    if whole == count and 8 + count * record_length != len(body):
+        raise NckProtocolError(f"SZL 0x{szl_id:04X}: {len(body) - 8} bytes for {count} records of {record_length}")
+    records = tuple(body[8 + i * record_length:8 + (i + 1) * record_length] for i in range(whole))
+    return SzlList(szl_id, szl_index, record_length, records)
+
+
+def build_szl_list(szl_list: SzlList) -> bytes:
+    if any(len(record) != szl_list.record_length for record in szl_list.records):
+        raise NckProtocolError("every SZL record has the list's record length")
+    return struct.pack(">HHHH", szl_list.szl_id, szl_list.szl_index, szl_list.record_length,
+                       len(szl_list.records)) + b"".join(szl_list.records)
+
+
+def _ascii(raw: bytes) -> str:
+    return raw.split(b"\x00", 1)[0].decode("ascii", "replace").strip()
+
+
+def describe_szl_record(szl_id: int, record: bytes) -> str:
+    """One record by name, for the SZL IDs the emulator serves (0x0011, 0x001C, 0x0131, 0x0232, 0x0424)
+    and the list of IDs (0x0000); other records as hex."""
+    kind = szl_id & 0x00FF
+    try:
+        if szl_id == 0x0000 and len(record) == 2:
+            return f"0x{int.from_bytes(record, 'big'):04X}"
+        if kind == 0x11 and len(record) == 28:
+            index, order = int.from_bytes(record[:2], "big"), _ascii(record[2:22])
+            module_type, version1, version2 = struct.unpack_from(">HHH", record, 22)
+            return f"index {index}: {order!r} type 0x{module_type:04X} versions 0x{version1:04X} 0x{version2:04X}"
+        if kind == 0x1C and len(record) == 34:
+            return f"index {int.from_bytes(record[:2], 'big')}: {_ascii(record[2:])!r}"
+        if kind == 0x24 and len(record) == 20:
+            event_id, _ae, modes = struct.unpack_from(">HBB", record)
+            requested, previous = modes & 0x0F, modes >> 4
+            return (f"event 0x{event_id:04X} mode {CPU_MODES.get(requested, f'unknown (0x{requested:X})')}, "
+                    f"previously {CPU_MODES.get(previous, f'unknown (0x{previous:X})')}")
+        if kind == 0xA0 and len(record) == alarms.DIAGNOSTIC_LENGTH:
+            return alarms.describe_diagnostic_message(alarms.parse_diagnostic_message(record))
+        if szl_id == 0x0131 and len(record) == 40 and record[:2] == b"\x00\x01":
+            pdu, connections, mpi_bps, bus_bps = struct.unpack_from(">HHII", record, 2)
+            return f"index 1: max PDU {pdu}, {connections} connections, MPI {mpi_bps} bit/s, K-bus {bus_bps} bit/s"
+        if szl_id == 0x0232 and len(record) == 40 and record[:2] == b"\x00\x04":
+            key, password, effective, switch = struct.unpack_from(">HHHH", record, 2)
+            return (f"index 4: protection key switch {key}, password {password}, effective {effective}, "
+                    f"mode switch {switch}")
+    except (struct.error, UnicodeDecodeError, NckProtocolError):
+        pass
+    return record.hex()
+
+
+def describe_szl_list(szl_list: SzlList, *, complete: bool = True) -> str:
+    """``module identification (SZL 0x0011 index 0x0000): 3 records: index 1: '6ES7 ...' ...``."""
+    head = f"{szl_list.name} (SZL 0x{szl_list.szl_id:04X} index 0x{szl_list.szl_index:04X})"
+    count = len(szl_list.records)
+    records = "; ".join(describe_szl_record(szl_list.szl_id, r) for r in szl_list.records)
+    text = f"{head}: {count} record{'s' if count != 1 else ''}"
+    if not complete:
+        text += " in this part"
+    return f"{text}: {records}" if records else text
+
+
+# ---------------------------------------------------------------- block lists by name
+BLOCK_TYPE_NAMES = {0x38: "OB", 0x41: "DB", 0x42: "SDB", 0x43: "FC", 0x44: "SFC", 0x45: "FB", 0x46: "SFB"}
+
+
+def describe_block_counts(counts: Mapping[int, int]) -> str:
+    """``OB 1, DB 2, SDB 0, ...`` from the "list blocks" answer."""
+    return ", ".join(f"{BLOCK_TYPE_NAMES.get(t, f'type 0x{t:02X}')} {n}" for t, n in counts.items())
+
+
+@dataclass(frozen=True, slots=True)
+class BlockEntry:
+    """One block of the "list blocks of type" answer: number, flags, language."""
+
+    number: int
+    flags: int
+    language: int
+
+
+def parse_blocks_of_type(body: bytes) -> tuple[BlockEntry, ...]:
+    """The body of a "list blocks of type" answer (after return code, transport size, length)."""
+    if len(body) % 4:
+        raise NckProtocolError(f"block list of {len(body)} bytes, not whole 4-byte entries")
+    return tuple(BlockEntry(*struct.unpack_from(">HBB", body, offset)) for offset in range(0, len(body), 4))
+
+
+def build_blocks_of_type(entries: tuple[BlockEntry, ...]) -> bytes:
+    return b"".join(struct.pack(">HBB", e.number, e.flags, e.language) for e in entries)
+
+
+def block_type_of_request(body: bytes) -> str | None:
+    """The block type a "list blocks of type" request asks for (``30 41`` = DB), by name."""
+    if len(body) != 2 or body[0] != 0x30:
+        return None
+    return BLOCK_TYPE_NAMES.get(body[1], f"type 0x{body[1]:02X}")

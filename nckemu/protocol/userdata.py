@@ -22,6 +22,11 @@ from dataclasses import dataclass
 from .errors import NckProtocolError, NckTruncatedError
 
 PARAMETER_HEAD = b"\x00\x01\x12"
+# The head of a STEP 7 CPU's mode-transition push (``01 00 10``, then 0x10 where the length would be,
+# method 0, type push, group 0, the new mode, sequence): tshark decodes it as the usual parameter
+# ("Parameter head: 0x010010"; iti step7_s300_stop.pcapng).
+MODE_TRANSITION_HEAD = b"\x01\x00\x10"
+_MODE_TRANSITION_LENGTH = 0x10
 METHOD_REQUEST = 0x11
 METHOD_RESPONSE = 0x12
 TYPE_PUSH = 0x0
@@ -87,9 +92,14 @@ class UserdataParameter:
     data_unit_ref: int = 0
     last_data_unit: int = 0
     error_code: int = 0
+    head: bytes = PARAMETER_HEAD
 
 
 def parse_userdata_parameter(parameter: bytes) -> UserdataParameter:
+    if len(parameter) == 8 and parameter[:3] == MODE_TRANSITION_HEAD and parameter[3] == _MODE_TRANSITION_LENGTH:
+        method, type_group, subfunction, sequence = parameter[4:8]
+        return UserdataParameter(method, type_group >> 4, type_group & 0x0F, subfunction, sequence,
+                                 head=MODE_TRANSITION_HEAD)
     if len(parameter) < 8 or parameter[:3] != PARAMETER_HEAD:
         raise NckTruncatedError("userdata parameter shorter than 8 bytes") if len(parameter) < 8 \
             else NckProtocolError("userdata parameter head is not 00 01 12")
@@ -105,6 +115,10 @@ def parse_userdata_parameter(parameter: bytes) -> UserdataParameter:
 
 
 def build_userdata_parameter(parameter: UserdataParameter) -> bytes:
+    if parameter.head == MODE_TRANSITION_HEAD:
+        return MODE_TRANSITION_HEAD + bytes([_MODE_TRANSITION_LENGTH, parameter.method,
+                                             (parameter.type << 4) | parameter.group, parameter.subfunction,
+                                             parameter.sequence])
     head = PARAMETER_HEAD + bytes([8 if parameter.long else 4, parameter.method,
                                    (parameter.type << 4) | parameter.group, parameter.subfunction,
                                    parameter.sequence])

@@ -10,7 +10,7 @@ from collections.abc import Callable
 from nckemu.cliutil import progress_bar
 from nckemu.errors import NckConfigError
 
-from .decode import decode, format_exchange
+from .decode import decode, format_exchange, format_gap
 from .reader import read_capture
 from .replay import replay, seed_values
 
@@ -42,6 +42,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                        help="first set the values the trace's first reads show, to reproduce the field state")
     again.add_argument("--timeout", type=float, default=5.0, metavar="SECONDS",
                        help="seconds to wait for each answer (5, as get)")
+    again.add_argument("--connect-timeout", type=float, default=2.0, metavar="SECONDS",
+                       help="seconds to wait for the answer to each connection request (2): a port that "
+                            "accepts TCP but stays silent is given up after it")
     again.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
     again.add_argument("--quiet", action="store_true", help="no progress bar (there is none when not a terminal)")
     again.set_defaults(func=run_replay)
@@ -57,17 +60,29 @@ def run_show(args: argparse.Namespace) -> int:
             raise NckConfigError(f"--connection {args.connection}: the capture has no such connection "
                                  f"(it has: {known})", path=args.capture)
         exchanges = [e for e in exchanges if e.connection == args.connection]
+    gaps = [g for g in capture.gaps if args.connection is None or g.connection == args.connection]
     if args.var:
         exchanges = [e for e in exchanges if any(args.var.upper() in i.name.upper() for i in e.items)]
     if args.json:
         print(json.dumps({"capture": args.capture, "frames": capture.frames, "connections": capture.connections,
-                          "exchanges": [e.to_json() for e in exchanges], "problems": capture.problems}))
+                          "exchanges": [e.to_json() for e in exchanges], "problems": capture.problems,
+                          "gaps": [g.to_json() for g in gaps]}))
     else:
         start = exchanges[0].job.time_s if exchanges else 0.0
         for number, label in capture.connections.items():
             print(f"connection c{number}: {label}")
+        # A gap line stands where the capture lost bytes, among the exchanges in frame order.
+        pending_gaps = sorted(gaps, key=lambda g: g.frame) if not args.var else []
         for exchange in exchanges:
+            while pending_gaps and pending_gaps[0].frame <= exchange.job.frame:
+                print(format_gap(pending_gaps.pop(0), start))
             print("\n".join(format_exchange(exchange, start)))
+        for gap in pending_gaps:
+            print(format_gap(gap, start))
+    if gaps:
+        missing = sum(g.missing_bytes for g in gaps)
+        print(f"nckemu trace: {args.capture}: {len(gaps)} gap{'s' if len(gaps) != 1 else ''} in the TCP streams "
+              f"({missing} bytes not captured); each resynced on the next TPKT header", file=sys.stderr)
     for problem in capture.problems:
         print(f"nckemu trace: {problem}", file=sys.stderr)
     if not capture.pdus:
@@ -99,6 +114,8 @@ def run_replay(args: argparse.Namespace) -> int:
         raise NckConfigError(f"no S7 traffic on port {args.port}", path=args.capture)
     if not args.timeout > 0:
         raise NckConfigError(f"--timeout {args.timeout}: expected a positive number of seconds")
+    if not args.connect_timeout > 0:
+        raise NckConfigError(f"--connect-timeout {args.connect_timeout}: expected a positive number of seconds")
     progress = progress_printer(not args.quiet)
     if args.emulator:
         host, _, port_text = args.emulator.rpartition(":")
@@ -107,7 +124,7 @@ def run_replay(args: argparse.Namespace) -> int:
         if args.seed_state:
             _seed_remote(host, int(port_text), capture)
         report = replay(capture, host, int(port_text), realtime=args.realtime, timeout_s=args.timeout,
-                        progress=progress)
+                        progress=progress, connect_timeout_s=args.connect_timeout)
     else:
         # The one place where a trace tool starts an emulator (``--spawn``): the command composes the
         # two; the trace library itself stays independent of the emulator (see .importlinter).
@@ -118,7 +135,7 @@ def run_replay(args: argparse.Namespace) -> int:
                 values = seed_values(decode(capture))
                 emulator.call(lambda: emulator.emulator.seed_nck(values))
             report = replay(capture, "127.0.0.1", emulator.port, realtime=args.realtime, timeout_s=args.timeout,
-                            progress=progress)
+                            progress=progress, connect_timeout_s=args.connect_timeout)
     if args.json:
         print(json.dumps(report.to_json()))
     else:

@@ -9,12 +9,14 @@ from typing import Any
 
 from nckemu.catalogue.table import display_name, spec_at
 from nckemu.errors import NckError, ReturnCode
-from nckemu.protocol import blocks, pi, s7, szl, userdata
+from nckemu.protocol import blocks, cyclic, pi, s7, szl, userdata
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
 from nckemu.protocol.values import decode_nck_values, nck_value_format, nck_value_reader
 
-from .reader import Capture, TracePdu, collector_paused
+from .contents import PUSH as PUSH_STAGE
+from .contents import REQUEST, RESPONSE, Contents, Subscriptions, userdata_contents
+from .reader import Capture, Gap, TracePdu, collector_paused
 
 FUNCTION_NAMES = {0x04: "read", 0x05: "write", 0x28: "PI", 0x29: "PLC stop", 0xF0: "setup", 0x00: "CPU services",
                   0x1A: "request download", 0x1B: "download block", 0x1C: "download ended", 0x1D: "start upload",
@@ -290,6 +292,7 @@ def _decode(capture: Capture) -> list[Exchange]:
     open_jobs: dict[tuple[int, int], Exchange] = {}
     exchanges: list[Exchange] = []
     s7comm_plus: dict[int, list[Any]] = {}  # connection -> [its exchange, frame count]
+    subscriptions: Subscriptions = {}
     for pdu in capture.pdus:
         if pdu.kind != "s7":
             continue
@@ -326,7 +329,7 @@ def _decode(capture: Capture) -> list[Exchange]:
         # negative: both sides number their own jobs.
         side = pdu.connection if pdu.from_client else -pdu.connection
         if parsed.rosctr == s7.Rosctr.USERDATA:
-            exchange, answered = _describe_userdata(pdu, parsed, capture)
+            exchange, answered = _describe_userdata(pdu, parsed, capture, subscriptions)
             if exchange is not None:
                 open_jobs[(side, parsed.pdu_ref)] = exchange
                 exchanges.append(exchange)
@@ -343,13 +346,13 @@ def _decode(capture: Capture) -> list[Exchange]:
             capture.problems.append(f"frame {pdu.frame}: answer without a job (PDU ref {parsed.pdu_ref})")
             continue
         waiting.answer = pdu
-        _describe_answer(waiting, parsed, capture)
+        _describe_answer(waiting, parsed, capture, subscriptions)
     for plus, count in s7comm_plus.values():
         plus.detail = f"protocol 0x72, not decoded ({count} frame{'s' if count != 1 else ''})"
     return exchanges
 
 
-def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture
+def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture, subscriptions: Subscriptions
                        ) -> tuple[Exchange | None, userdata.UserdataParameter | None]:
     """A userdata request or push as a new exchange, or (None, its parameter) for a response."""
     try:
@@ -373,7 +376,34 @@ def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture
         # The next part of a long answer (SZL lists over several PDUs): the answer's sequence number
         # in the 8-byte parameter form, data 0A 00 00 00 (python-snap7 reading SZL 0x001C).
         exchange.detail = f"next part of sequence {header.sequence}"
+    else:
+        stage = PUSH_STAGE if header.type == userdata.TYPE_PUSH else REQUEST
+        _apply_contents(exchange, userdata_contents(header, parsed.data, stage, pdu.connection, subscriptions),
+                        answer=False)
     return exchange, None
+
+
+def _item_name(address: object) -> str:
+    if isinstance(address, UnsupportedAddress):
+        areas = cyclic.describe_dbread(address)
+        if areas is not None:
+            return f"DBREAD {areas}"
+    return name_of(address)[0]
+
+
+def _apply_contents(exchange: Exchange, contents: Contents | None, *, answer: bool) -> None:
+    """A payload by name: its text after the exchange's (``->`` for an answer), its items by address."""
+    if contents is None:
+        return
+    if contents.detail:
+        if answer:
+            exchange.detail += f"{' ' if exchange.detail else ''}-> {contents.detail}"
+        else:
+            exchange.detail = f"{exchange.detail}; {contents.detail}" if exchange.detail else contents.detail
+    if contents.items:
+        exchange.items = [Item(address, _item_name(address)) if value is None else
+                          Item(address, _item_name(address), value.return_code, None, value.data.hex())
+                          for address, value in contents.items]
 
 
 def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange:
@@ -402,7 +432,8 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
     return exchange
 
 
-def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> None:
+def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture,
+                     subscriptions: Subscriptions | None = None) -> None:
     if parsed.error_class or parsed.error_code:
         exchange.header_error = describe_header_error(parsed.error_class, parsed.error_code)
         return
@@ -428,7 +459,12 @@ def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> 
             header = userdata.parse_userdata_parameter(parsed.parameter)
             if header.error_code:
                 exchange.header_error = describe_header_error(header.error_code >> 8, header.error_code & 0xFF)
-            elif header.last_data_unit:
+                return
+            request = s7.parse_pdu(exchange.job.data)
+            _apply_contents(exchange, userdata_contents(
+                header, parsed.data, RESPONSE, exchange.connection, {} if subscriptions is None else subscriptions,
+                userdata.parse_userdata_parameter(request.parameter), request.data), answer=True)
+            if header.last_data_unit:
                 exchange.detail += f"{' ' if exchange.detail else ''}-> more follows (sequence {header.sequence})"
         elif parsed.parameter and parsed.parameter[0] in blocks.FUNCTIONS:
             _describe_block_answer(exchange, blocks.parse_block_control(parsed.parameter), parsed.data)
@@ -507,3 +543,8 @@ def format_exchange(exchange: Exchange, start_s: float) -> list[str]:
                 text += f"  -> {RETURN_CODE_TEXTS.get(item.return_code, hex(item.return_code))}"
         lines.append(text)
     return lines
+
+
+def format_gap(gap: Gap, start_s: float) -> str:
+    """The ``trace show`` line of bytes the capture lost, at the frame after them."""
+    return f"{gap.time_s - start_s:10.3f}s  c{gap.connection}  #{gap.frame:<6} gap      {gap.describe()}"

@@ -1,7 +1,10 @@
 """Reading S7 traffic out of pcap / pcapng captures (dpkt), with TCP reassembly per direction.
 
 Out-of-order and duplicate segments are put right by sequence number; a capture that starts in
-the middle of a connection is taken from its first segment. What cannot be parsed is reported with
+the middle of a connection is taken from its first segment. Segments the capture lost (a port mirror,
+a filtered export: tshark's "previous segment not captured") leave a gap: once the peer has acknowledged
+bytes the capture never showed, or the stream has waited too long, the gap is recorded (``Gap``) and
+the stream resyncs on the next TPKT header, as tshark does. What cannot be parsed is reported with
 its frame number and skipped; only a file from which nothing can be read is an error.
 """
 
@@ -10,6 +13,7 @@ from __future__ import annotations
 import gc
 import io
 import mmap
+import re
 import socket
 import struct
 from collections.abc import Iterator
@@ -26,6 +30,18 @@ from nckemu.protocol.errors import NckProtocolError
 
 S7_PORT = 102
 _MAX_PENDING_BYTES = 4 * 1024 * 1024
+# A hole in a stream is a lost segment, not a late one, once this many of the peer's segments have
+# acknowledged bytes past it (one is not enough: a capture can see a segment after the peer's answer
+# to it, out of order), or when this many segments or seconds of capture wait behind it (a
+# retransmission comes within a few RTOs).
+_GAP_ACK_VOTES = 3
+_GAP_WAIT_SEGMENTS = 64
+_GAP_WAIT_S = 3.0
+_SEQ_MASK = 0xFFFFFFFF
+_HALF_SEQ = 0x80000000
+# Where a frame can start again after a gap: a TPKT header (version 3, reserved 0, a length) followed by
+# a COTP data TPDU (length indicator 2, DT, EOT bit) or a connect / disconnect TPDU.
+_TPKT_START = re.compile(rb"\x03\x00..(?:\x02\xf0[\x00\x80]|[\x06-\xfe][\xe0\xd0\x80\xc0])", re.DOTALL)
 
 
 @dataclass(slots=True)
@@ -41,6 +57,36 @@ class TracePdu:
     data: bytes                # the S7 PDU, or the whole TPKT frame for COTP connects
 
 
+@dataclass(slots=True)
+class Gap:
+    """Bytes of one TCP direction the capture never showed: ``missing_bytes`` before ``frame`` (the
+    first segment after the hole), and ``skipped_bytes`` of frames the hole cut (their captured parts,
+    before and after it) until a TPKT header started a frame again."""
+
+    frame: int
+    time_s: float
+    connection: int
+    from_client: bool
+    missing_bytes: int
+    skipped_bytes: int = 0
+
+    def describe(self) -> str:
+        side = "client" if self.from_client else "server"
+        text = f"{_bytes(self.missing_bytes)} from the {side} not captured before this frame"
+        if self.skipped_bytes:
+            text += f", {_bytes(self.skipped_bytes)} of cut frames skipped"
+        return text + "; resynced on the next TPKT header"
+
+    def to_json(self) -> dict[str, object]:
+        return {"frame": self.frame, "time_s": self.time_s, "connection": self.connection,
+                "sender": "client" if self.from_client else "server", "missing_bytes": self.missing_bytes,
+                "skipped_bytes": self.skipped_bytes}
+
+
+def _bytes(count: int) -> str:
+    return "1 byte" if count == 1 else f"{count} bytes"
+
+
 @dataclass
 class Capture:
     source: str
@@ -48,16 +94,21 @@ class Capture:
     problems: list[str] = field(default_factory=list)
     frames: int = 0
     connections: dict[int, str] = field(default_factory=dict)
+    gaps: list[Gap] = field(default_factory=list)
 
 
 @dataclass
 class _Direction:
     isn: int | None = None
     next_seq: int | None = None
-    pending: dict[int, bytes] = field(default_factory=dict)
+    # segments ahead of next_seq: sequence number -> (payload, frame number, time)
+    pending: dict[int, tuple[bytes, int, float]] = field(default_factory=dict)
+    pending_since_s: float = 0.0
+    ack_votes: int = 0  # the peer's segments that acknowledged past the hole before the waiting ones
     buffer: bytes = b""
     fragments: list[bytes] = field(default_factory=list)
     broken: bool = False
+    gap: Gap | None = None  # the last gap, while frames it cut are being skipped
 
 
 @dataclass
@@ -165,6 +216,7 @@ class _Segment:
     sport: int
     dport: int
     seq: int
+    ack: int
     flags: int
     data: bytes
 
@@ -185,12 +237,12 @@ def _fast_ipv4_tcp(frame: bytes) -> tuple[str, str, _Segment] | None:
     tcp_start = 14 + ip_header
     if len(frame) < tcp_start + 20:
         return None
-    sport, dport, seq, _ack, offset, flags = _TCP_HEADER.unpack_from(frame, tcp_start)
+    sport, dport, seq, ack, offset, flags = _TCP_HEADER.unpack_from(frame, tcp_start)
     data_start = tcp_start + (offset >> 4) * 4
     end = min(len(frame), 14 + total) if total else len(frame)
     src = socket.inet_ntop(socket.AF_INET, frame[26:30])
     dst = socket.inet_ntop(socket.AF_INET, frame[30:34])
-    return src, dst, _Segment(sport, dport, seq, flags, frame[data_start:end])
+    return src, dst, _Segment(sport, dport, seq, ack, flags, frame[data_start:end])
 
 
 def _tcp(frame: bytes, link: int) -> tuple[str, str, dpkt.tcp.TCP | _Segment] | None:
@@ -242,8 +294,8 @@ class _Reassembly:
         self.capture = capture
         self.port = port
         self.connections: dict[tuple[str, int, str], _Connection] = {}
-        # Ethernet/IPv4/TCP address-and-port bytes -> (connection, from_client, direction)
-        self.hot: dict[bytes, tuple[_Connection, bool, _Direction]] = {}
+        # Ethernet/IPv4/TCP address-and-port bytes -> (connection, from_client, direction, the other one)
+        self.hot: dict[bytes, tuple[_Connection, bool, _Direction, _Direction]] = {}
 
     def walk(self, records: Iterator[_Record], link: int) -> None:
         """Every record, as (frame number, time, buffer, start, captured length). Frames that are one whole
@@ -267,11 +319,12 @@ class _Reassembly:
                         and cotp_dt == b"\x02\xf0\x80":
                     known = hot_connections.get(key)
                     if known is not None:
-                        connection, from_client, direction = known
+                        connection, from_client, direction, other = known
                         end = ip + total if total else caplen
+                        # (a hole in the other direction: this segment's ACK may say it was lost)
                         if seq == direction.next_seq and tpkt_length == end - tpkt_at and pdu_at < end <= caplen \
                                 and not (direction.pending or direction.buffer or direction.fragments
-                                         or direction.broken):
+                                         or direction.broken or other.pending):
                             direction.next_seq = (seq + tpkt_length) & 0xFFFFFFFF
                             pdus.append(TracePdu(number, ts, connection.number, from_client, "s7",
                                                  buffer[start + pdu_at:start + end]))
@@ -298,8 +351,23 @@ class _Reassembly:
             self.capture.connections[connection.number] = connection.label
         ip = _HOT_LINK_HEADERS.get(link)
         if ip is not None and len(frame) >= ip + 24 and frame[ip - 2:ip + 1] == b"\x08\x00\x45":  # hot layout
-            self.hot.setdefault(frame[ip + 12:ip + 24], (connection, from_client, connection.directions[from_client]))
+            self.hot.setdefault(frame[ip + 12:ip + 24], (connection, from_client, connection.directions[from_client],
+                                                         connection.directions[not from_client]))
         _feed(self.capture, connection, from_client, segment, number, ts)
+
+    def finish(self) -> None:
+        """The end of the capture: what still waits behind a hole is past a gap. PDUs delivered after
+        later frames' PDUs are put back in frame order."""
+        for connection in self.connections.values():
+            for from_client, direction in connection.directions.items():
+                while direction.pending:
+                    _skip_gap(self.capture, connection, from_client, direction)
+        if self.capture.gaps:
+            self.capture.pdus.sort(key=_frame_of)
+
+
+def _frame_of(pdu: TracePdu) -> int:
+    return pdu.frame
 
 
 @contextmanager
@@ -343,6 +411,7 @@ def read_capture(path: str | Path, *, port: int = S7_PORT) -> Capture:
                 records = _mapped_pcapng_records(mapped, handle.tell(), reader, capture) if pcapng \
                     else _mapped_pcap_records(mapped, int.from_bytes(head, "big"), capture)
                 reassembly.walk(records, reader.datalink())
+        reassembly.finish()
     if capture.frames == 0:
         raise NckConfigError("no frames could be read", path=source)
     return capture
@@ -359,16 +428,28 @@ def _mapped(handle: BinaryIO) -> mmap.mmap | None:
 def _feed(capture: Capture, connection: _Connection, from_client: bool, segment: dpkt.tcp.TCP | _Segment,
           number: int, ts: float) -> None:
     direction = connection.directions[from_client]
+    other = connection.directions[not from_client]
+    if other.pending and segment.flags & dpkt.tcp.TH_ACK and other.next_seq is not None \
+            and 0 < ((segment.ack - other.next_seq) & _SEQ_MASK) < _HALF_SEQ:
+        # The peer acknowledges bytes of the other direction that the capture has not shown: lost, once
+        # it has done so a few times (or late: then they come and fill the hole).
+        other.ack_votes += 1
+        if other.ack_votes >= _GAP_ACK_VOTES:
+            ack = segment.ack
+            while other.pending and other.next_seq is not None \
+                    and 0 < ((ack - other.next_seq) & _SEQ_MASK) < _HALF_SEQ:
+                _skip_gap(capture, connection, not from_client, other)
+            other.ack_votes = 0
     seq = segment.seq
     payload = bytes(segment.data)
     if segment.flags & dpkt.tcp.TH_SYN:
         if direction.isn is None and direction.next_seq is not None \
-                and ((direction.next_seq - (seq + 1)) & 0xFFFFFFFF) < 0x80000000:
+                and ((direction.next_seq - (seq + 1)) & _SEQ_MASK) < _HALF_SEQ:
             direction.isn = seq  # captured after data it precedes: the stream so far stands
             return
         if direction.isn != seq:  # a retransmitted SYN changes nothing; a new one starts afresh
             direction.isn = seq
-            direction.next_seq = (seq + 1) & 0xFFFFFFFF
+            direction.next_seq = (seq + 1) & _SEQ_MASK
             direction.pending.clear()
             direction.buffer = b""
             direction.fragments.clear()
@@ -377,36 +458,80 @@ def _feed(capture: Capture, connection: _Connection, from_client: bool, segment:
         return
     if direction.next_seq is None:
         direction.next_seq = seq
-    offset = (seq - direction.next_seq) & 0xFFFFFFFF
-    if offset >= 0x80000000:  # before what we have: a retransmission, maybe overlapping
-        overlap = (direction.next_seq - seq) & 0xFFFFFFFF
+    offset = (seq - direction.next_seq) & _SEQ_MASK
+    if offset >= _HALF_SEQ:  # before what we have: a retransmission, maybe overlapping
+        overlap = (direction.next_seq - seq) & _SEQ_MASK
         if overlap >= len(payload):
             return
         payload = payload[overlap:]
         seq = direction.next_seq
         offset = 0
     if offset > 0:
-        if sum(len(p) for p in direction.pending.values()) < _MAX_PENDING_BYTES:
-            direction.pending.setdefault(seq, payload)
+        pending = direction.pending
+        if not pending:
+            direction.pending_since_s = ts
+        if sum(len(p[0]) for p in pending.values()) < _MAX_PENDING_BYTES:
+            pending.setdefault(seq, (payload, number, ts))
+        if len(pending) >= _GAP_WAIT_SEGMENTS or ts - direction.pending_since_s > _GAP_WAIT_S:
+            _skip_gap(capture, connection, from_client, direction)
         return
     stream = payload
-    direction.next_seq = (seq + len(payload)) & 0xFFFFFFFF
-    while direction.next_seq in direction.pending:
-        more = direction.pending.pop(direction.next_seq)
+    next_seq = (seq + len(payload)) & _SEQ_MASK
+    while next_seq in direction.pending:
+        more = direction.pending.pop(next_seq)[0]
         stream += more
-        direction.next_seq = (direction.next_seq + len(more)) & 0xFFFFFFFF
-    # Segments that the stream has overtaken are duplicates.
-    for stale in [s for s in direction.pending if ((s - direction.next_seq) & 0xFFFFFFFF) >= 0x80000000]:
-        direction.pending.pop(stale)
+        next_seq = (next_seq + len(more)) & _SEQ_MASK
+    direction.next_seq = next_seq
+    direction.ack_votes = 0  # the hole filled: it was late, not lost
+    _drop_stale(direction, next_seq)
     _frames(capture, connection, from_client, direction, stream, number, ts)
+
+
+def _drop_stale(direction: _Direction, next_seq: int) -> None:
+    """Segments that the stream (now at ``next_seq``) has overtaken are duplicates."""
+    for stale in [s for s in direction.pending if ((s - next_seq) & _SEQ_MASK) >= _HALF_SEQ]:
+        direction.pending.pop(stale)
+
+
+def _skip_gap(capture: Capture, connection: _Connection, from_client: bool, direction: _Direction) -> None:
+    """Jump over the hole before the nearest waiting segment: record the gap, drop the frame it cut,
+    and go on from that segment (and those after it in sequence), each PDU at the frame that brought it."""
+    next_seq = direction.next_seq
+    assert next_seq is not None
+    first = min(direction.pending, key=lambda s: (s - next_seq) & _SEQ_MASK)
+    payload, number, ts = direction.pending.pop(first)
+    cut = len(direction.buffer) + sum(len(f) for f in direction.fragments)
+    gap = Gap(number, ts, connection.number, from_client, (first - next_seq) & _SEQ_MASK, cut)
+    capture.gaps.append(gap)
+    direction.gap = gap
+    direction.buffer = b""
+    direction.fragments.clear()
+    direction.broken = True
+    while True:
+        next_seq = direction.next_seq = (first + len(payload)) & _SEQ_MASK
+        _frames(capture, connection, from_client, direction, payload, number, ts)
+        following = direction.pending.pop(next_seq, None)
+        if following is None:
+            break
+        first = next_seq
+        payload, number, ts = following
+    _drop_stale(direction, next_seq)
+    if direction.pending:
+        direction.pending_since_s = min(p[2] for p in direction.pending.values())
 
 
 def _frames(capture: Capture, connection: _Connection, from_client: bool, direction: _Direction, data: bytes,
             number: int, ts: float) -> None:
     if direction.broken:
-        if data[:2] != b"\x03\x00":
+        match = _TPKT_START.search(data)
+        skipped = len(data) if match is None else match.start()
+        if direction.gap is not None:
+            direction.gap.skipped_bytes += skipped
+        if match is None:
             return
+        data = data[skipped:]
         direction.broken = False
+        direction.gap = None
     buffer = direction.buffer + data
     try:
         frames, direction.buffer = tpkt.split_frames(buffer)

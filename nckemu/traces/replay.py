@@ -43,10 +43,16 @@ class ReplayReport:
                 "skipped": self.skipped, "differences": self.differences}
 
 
+# Seconds to wait for the connection confirm: a peer that accepts TCP but does not answer the
+# connection request is not an S7 server, and waiting a job timeout for each job would only delay that.
+CONNECT_TIMEOUT_S = 2.0
+
+
 class _Link:
     """One replayed connection: raw frames over a socket."""
 
     def __init__(self, host: str, port: int, timeout_s: float) -> None:
+        self.address = f"{host}:{port}"
         try:
             self.sock = socket.create_connection((host, port), timeout=timeout_s)
         except TimeoutError:
@@ -55,6 +61,27 @@ class _Link:
             raise NckConnectionError(f"cannot connect to {host}:{port}: {exc.strerror or exc} "
                                      f"(is an emulator listening there? nckemu serve --port {port})") from None
         self.buffer = b""
+        self.timeout_s = timeout_s
+
+    @classmethod
+    def connect(cls, host: str, port: int, request: bytes, timeout_s: float, connect_timeout_s: float) -> _Link:
+        """A connection whose connection request (``request``, a COTP CR frame) was answered within
+        ``connect_timeout_s``; a peer that stays silent is given up (NckTimeoutError naming it)."""
+        link = cls(host, port, connect_timeout_s)
+        try:
+            link.send_frame(request)
+            answer = link.receive_frame()
+        except OSError:
+            answer = None
+        if answer is None:
+            link.close()
+            raise NckTimeoutError(f"{link.address} accepted the TCP connection but did not answer the connection "
+                                  f"request within {connect_timeout_s:g} s (not an S7 server? --connect-timeout "
+                                  "sets the wait)")
+        # Whatever the answer (a confirm, or a refusal the recorded server may have given too), the
+        # peer speaks COTP: the jobs that follow are compared as usual.
+        link.sock.settimeout(timeout_s)
+        return link
 
     def send_frame(self, frame: bytes) -> None:
         self.sock.sendall(frame)
@@ -162,7 +189,8 @@ def seed_values(exchanges: list[Exchange]) -> dict[NckAddress, bytes]:
 
 
 def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, timeout_s: float = 5.0,
-           progress: Callable[[int, int], None] | None = None) -> ReplayReport:
+           progress: Callable[[int, int], None] | None = None,
+           connect_timeout_s: float = CONNECT_TIMEOUT_S) -> ReplayReport:
     exchanges = decode(capture)
     report = ReplayReport()
     by_job: dict[int, Exchange] = {}
@@ -191,9 +219,7 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
             if pdu.kind == "cr":
                 if link is not None:
                     link.close()
-                link = links[pdu.connection] = _Link(host, port, timeout_s)
-                link.send_frame(pdu.data)
-                link.receive_frame()
+                link = links[pdu.connection] = _Link.connect(host, port, pdu.data, timeout_s, connect_timeout_s)
                 continue
             if pdu.kind != "s7":
                 continue
@@ -203,10 +229,10 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
             if id(pdu) in not_sent:
                 continue
             if link is None:  # the capture began after the connect: make one like python-snap7 does
-                link = links[pdu.connection] = _Link(host, port, timeout_s)
-                link.send_frame(cotp.build_frame(cotp.ConnectRequest(src_ref=1, calling_tsap=b"\x01\x00",
-                                                                     called_tsap=b"\x01\x04", tpdu_size=1024)))
-                link.receive_frame()
+                link = links[pdu.connection] = _Link.connect(
+                    host, port, cotp.build_frame(cotp.ConnectRequest(src_ref=1, calling_tsap=b"\x01\x00",
+                                                                     called_tsap=b"\x01\x04", tpdu_size=1024)),
+                    timeout_s, connect_timeout_s)
             exchange = by_job.get(id(pdu))
             link.send_frame(cotp.build_data_frame(pdu.data))
             if exchange is None:

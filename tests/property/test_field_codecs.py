@@ -20,7 +20,10 @@ userdata_parameters = st.one_of(
               subfunction=u8, sequence=u8),
     st.builds(userdata.UserdataParameter, method=u8, type=st.integers(0, 15), group=st.integers(0, 15),
               subfunction=u8, sequence=u8, long=st.just(True), data_unit_ref=u8, last_data_unit=u8,
-              error_code=u16))
+              error_code=u16),
+    # a STEP 7 CPU's mode-transition push: head 01 00 10
+    st.builds(userdata.UserdataParameter, method=u8, type=st.integers(0, 15), group=st.integers(0, 15),
+              subfunction=u8, sequence=u8, head=st.just(userdata.MODE_TRANSITION_HEAD)))
 
 ascii_text = st.text(st.characters(min_codepoint=0x20, max_codepoint=0x7E), max_size=40)
 block_controls = st.one_of(
@@ -44,7 +47,7 @@ def test_userdata_parameter_round_trip(parameter: userdata.UserdataParameter) ->
     assert userdata.build_userdata_parameter(userdata.parse_userdata_parameter(raw)) == raw
 
 
-@given(st.binary(max_size=16))
+@given(st.one_of(st.binary(max_size=16), st.binary(min_size=5, max_size=5).map(lambda b: b"\x01\x00\x10" + b)))
 def test_userdata_garbage_raises_typed_errors(raw: bytes) -> None:
     try:
         parameter = userdata.parse_userdata_parameter(raw)

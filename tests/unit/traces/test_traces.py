@@ -202,3 +202,20 @@ def test_items_match_tshark(capture_path: Path, tmp_path: Path, capsys: pytest.C
             theirs.add((int(row["frame.number"]), index, int(area), int(unit), int(column), int(line),
                         int(module, 16)))
     assert ours and ours == theirs
+
+
+def test_replay_gives_up_on_a_port_that_never_answers(capture_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A port that accepts TCP and stays silent: one line naming the address after the connection
+    request goes unanswered (--connect-timeout), exit 1, instead of a job timeout per job."""
+    import socket
+    import time
+
+    with socket.create_server(("127.0.0.1", 0)) as silent:
+        port = silent.getsockname()[1]
+        started = time.monotonic()
+        assert main(["trace", "replay", str(capture_path), "--emulator", f"127.0.0.1:{port}",
+                     "--connect-timeout", "0.3", "--timeout", "30", "--quiet"]) == 1
+        elapsed_s = time.monotonic() - started
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"127.0.0.1:{port}" in err[0] and "connection request" in err[0]
+    assert elapsed_s < 15.0  # one short wait for the connection confirm, not the 30 s job timeout
