@@ -367,3 +367,64 @@ def load_runs(specs: Sequence[str | Path], axis: str | None = None) -> list[Reco
 
 def _err_list(recording: Recording) -> str:
     return ", ".join(f"err_{axis}_um" for axis in recording.axes()) or "none"
+
+
+# ------------------------------------------------------------------------------- one recording, runs
+def _speed_label(rpm: np.ndarray, idle_rpm: float) -> str:
+    running = np.unique(np.round(rpm[rpm > idle_rpm]).astype(np.int64))
+    if len(running) == 0:
+        return "0rpm"
+    if len(running) == 1:
+        return f"{running[0]}rpm"
+    return f"{running[0]}-{running[-1]}rpm"
+
+
+def split_runs(recording: Recording, *, speed_blocks: bool | None = None, max_gap_s: float | None = 3600.0,
+               idle_rpm: float = 0.0, min_rows: int = MIN_ROWS) -> list[Recording]:
+    """Cut one long recording into runs.
+
+    - At speed blocks (``speed_blocks``; by default when the recording has ``spindle_rpm``): a block
+      starts where the spindle starts after standing (speed above ``idle_rpm`` after a row at or below
+      it) and holds the running part and the standstill after it, a heating and a cooling phase. The
+      rows before the first start belong to the first block. Named ``<name>_block<NN>_<speed>rpm``
+      (``<low>-<high>rpm`` when the block ran at several speeds).
+    - At gaps in time longer than ``max_gap_s`` (the logger was off: the thermal state across the gap
+      is unknown, so a lag filter must start afresh). A cut block is named ``..._part<N>``; a recording
+      cut only at gaps ``<name>_part<N>``.
+
+    Pieces with fewer than ``min_rows`` rows cannot be runs and are left out. Nothing to cut: the
+    recording itself, as the one run."""
+    t = recording.t_s
+    rpm = recording.spindle_rpm
+    if speed_blocks is None:
+        speed_blocks = rpm is not None
+    if speed_blocks and rpm is None:
+        raise NckConfigError("cannot cut at speed blocks: no spindle_rpm column", path=recording.source,
+                             field="spindle_rpm")
+    if max_gap_s is not None and not max_gap_s > 0:
+        raise ValueError(f"max_gap_s must be positive, not {max_gap_s}")
+    rows = len(t)
+    block_starts = [0]
+    if speed_blocks and rpm is not None and rows:
+        running = rpm > idle_rpm
+        starts = np.flatnonzero(running[1:] & ~running[:-1]) + 1
+        first_run = np.flatnonzero(running)
+        block_starts += [int(s) for s in starts if not len(first_run) or s > first_run[0]]
+    gap_cuts = set() if max_gap_s is None else {int(i) + 1 for i in np.flatnonzero(np.diff(t) > max_gap_s)}
+    if len(block_starts) == 1 and not gap_cuts:
+        return [recording]
+    bounds = block_starts + [rows]
+    runs: list[Recording] = []
+    for number, (start, end) in enumerate(zip(bounds[:-1], bounds[1:], strict=True), start=1):
+        label = recording.name
+        if speed_blocks and rpm is not None:
+            label += f"_block{number:02d}_{_speed_label(rpm[start:end], idle_rpm)}"
+        cuts = [start, *sorted(c for c in gap_cuts if start < c < end), end]
+        pieces = list(zip(cuts[:-1], cuts[1:], strict=True))
+        for part, (a, b) in enumerate(pieces, start=1):
+            if b - a < min_rows:
+                continue
+            mask = np.zeros(rows, dtype=bool)
+            mask[a:b] = True
+            runs.append(recording.slice(mask, f"{label}_part{part}" if len(pieces) > 1 else label))
+    return runs
