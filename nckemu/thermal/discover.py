@@ -24,7 +24,6 @@ forward search and its guards) and ``explain`` (words, mismatch windows). This m
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,14 +34,14 @@ from nckemu.errors import NckConfigError
 from . import explain, stats
 from .library import Library
 from .problem import Problem
-from .readings import prepare
+from .readings import prepare, resampled
 from .recording import Recording
 from .selector import Baseline, Path, Selector
 from .settings import Settings
-from .splitters import Blocks, Splitter, held_out_masks
+from .splitters import Blocks, LeaveOneRunOut, Splitter, held_out_masks
 from .terms import Term, ThermalModel
 
-__all__ = ["Discoverer", "Discovery", "Settings", "discover"]
+__all__ = ["Discoverer", "Discovery", "Settings", "discover", "discover_runs"]
 
 
 @dataclass
@@ -60,18 +59,37 @@ class Discovery:
     series: dict[str, np.ndarray] = field(default_factory=dict)
     preferred: str = ""
     calibrated_on_record: bool = False
+    # What the headline "before" is: the baseline as given, or refitted per fold (like for like).
+    before_is: str = ""
+    # When nothing passed: why, in one line (independent blocks or runs, the smallest effect this
+    # record could have shown per family, the residual's autocorrelation).
+    why_nothing: str = ""
+    smallest_detectable_um: dict[str, float] = field(default_factory=dict)
+    # A term that passes every guard but the held-out bar: "likely, not proven", with its figures.
+    likely: list[dict[str, Any]] = field(default_factory=list)
+    # Several runs: the figures of each (leave-one-run-out), which columns some runs lack.
+    runs: list[dict[str, Any]] = field(default_factory=list)
+    coverage: list[dict[str, Any]] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
-        return {
+        document = {
             "axis": self.axis, "samples": self.samples,
             "baseline_rms_um": round(self.baseline_rms_um, 4),
             "recalibrated_rms_um": round(self.recalibrated_rms_um, 4),
             "heldout_rms_before_um": round(self.heldout_rms_before_um, 4),
             "heldout_rms_after_um": round(self.heldout_rms_after_um, 4),
+            "heldout_before_is": self.before_is,
             "mismatch": self.mismatch, "missing_physics": self.missing_physics,
             "data_quality": self.data_quality, "preferred": self.preferred,
             "calibrated_on_record": self.calibrated_on_record,
+            "why_nothing": self.why_nothing,
+            "smallest_detectable_um": {k: round(v, 4) for k, v in self.smallest_detectable_um.items()},
+            "likely_not_proven": self.likely,
         }
+        if self.runs:
+            document["runs"] = self.runs
+            document["coverage"] = self.coverage
+        return document
 
 
 def _isolated(flagged: np.ndarray, longest: int = 2) -> np.ndarray:
@@ -103,6 +121,31 @@ class Discoverer:
         self.sensor_noise_C = readings.sensor_noise_C
         self.problem = Problem([(recording.source, readings)], axis, model)
         self.splitter: Splitter = splitter or Blocks(self.settings.folds)
+
+    @classmethod
+    def for_runs(cls, runs: list[Recording], axis: str, model: ThermalModel | None,
+                 settings: Settings | None = None) -> Discoverer:
+        """Several runs of one machine: each its own offset, held out one at a time."""
+        self = cls.__new__(cls)
+        self.settings = settings or Settings()
+        self.data_quality = []
+        self.sensor_noise_C = {}
+        prepared = []
+        for run in runs:
+            name = getattr(run, "name", "") or run.source
+            readings = prepare(run, self.settings)
+            step_s = self.settings.runs_resample_s
+            coarse = resampled(readings, step_s)
+            if len(coarse.recording.t_s) < len(run.t_s):
+                self.data_quality.append(f"{name}: sampled every {float(np.median(np.diff(run.t_s))):g} s; "
+                                         f"resampled to {step_s:g} s steps (the gauge averaged per step) after "
+                                         f"the readings were averaged")
+            self.data_quality += [f"{name}: {note}" for note in readings.data_quality]
+            self.sensor_noise_C.update({f"{name}:{k}": v for k, v in readings.sensor_noise_C.items()})
+            prepared.append((name, coarse))
+        self.problem = Problem(prepared, axis, model, per_run_offset=True)
+        self.splitter = LeaveOneRunOut()
+        return self
 
     @property
     def y(self) -> np.ndarray:
@@ -186,7 +229,47 @@ class Discoverer:
         if selector.gain_eligible():
             with_gain = selector.search(gain_mode=True)
             chosen, preferred = selector.prefer(recalibrate, with_gain)
-        return self._finish(setup, chosen, preferred)
+        self.selector, self.setup, self.path = selector, setup, chosen
+        result = self._finish(setup, chosen, preferred)
+        self._honest(result, selector, setup, chosen)
+        if len(self.problem.runs) > 1:
+            self._per_run(result, setup, chosen)
+        return result
+
+    def _honest(self, result: Discovery, selector: Selector, setup: Baseline, path: Path) -> None:
+        """The like-for-like "before"; why nothing passed; a term likely but not proven."""
+        if path.gain_mode:
+            result.before_is = "the model as given (a common gain on it is the finding)"
+            before_um = setup.baseline_rms
+        else:
+            reference = setup.reference_cv
+            before_um = reference.rms_um
+            result.before_is = ("the baseline as given" if reference is setup.given_cv else
+                                "the baseline refitted on the other runs, each run's offset on its own"
+                                if self.problem.per_run_offset else "the baseline refitted per held-out block")
+        result.heldout_rms_before_um = before_um
+        if not result.missing_physics:
+            result.heldout_rms_after_um = before_um
+        near = selector.near_misses(path)
+        found = {(m["effect"], str(m["parameters"].get("sensor", m["parameters"].get("sensors", ""))))
+                 for m in result.missing_physics}
+        for evaluation in near[:1]:
+            term = evaluation.candidate.term
+            if (term.effect, str(term.parameters.get("sensor", term.parameters.get("sensors", "")))) in found:
+                continue
+            result.likely.append(explain.likely_record(evaluation, path.base_cv.rms_um, path.rejected_t_critical,
+                                                       len(setup.folds), self.settings.min_improvement))
+        if result.missing_physics or not path.rejected:
+            return
+        for evaluation in path.rejected:
+            evaluation.own_rms = selector.own_rms(path.design, evaluation.candidate.feature)
+        result.smallest_detectable_um = explain.detectable_um(path.rejected, path.base_cv.rms_um,
+                                                              path.rejected_t_critical, self.settings.min_improvement)
+        residual = path.final.residual if path.final is not None else self.y - setup.given
+        _beyond, words = explain.autocorrelation_words(residual)
+        runs = len(self.problem.runs)
+        unit = (runs, "runs") if runs > 1 else (len(setup.folds), "blocks of time")
+        result.why_nothing = explain.nothing_passed(unit[0], unit[1], result.smallest_detectable_um, words)
 
     def _finish(self, setup: Baseline, path: Path, preferred: str) -> Discovery:
         problem, given, final = self.problem, setup.given, path.final
@@ -239,3 +322,96 @@ class Discoverer:
 def discover(recording: Recording, axis: str | None = None, model: ThermalModel | None = None,
              settings: Settings | None = None) -> Discovery:
     return Discoverer(recording, axis, model, settings).run()
+
+
+def _heldout_residual(design: np.ndarray, y: np.ndarray, folds: list[np.ndarray]) -> np.ndarray:
+    """Each fold's residual predicted by the design fitted without it."""
+    out = np.empty_like(y)
+    for test in folds:
+        if design.shape[1] == 0:
+            out[test] = y[test]
+        else:
+            out[test] = y[test] - design[test] @ stats.least_squares(design[~test], y[~test])
+    return out
+
+
+def _per_run(self: Discoverer, result: Discovery, setup: Baseline, path: Path) -> None:
+    """Leave-one-run-out figures per run (before = the like-for-like baseline, after = the improved
+    model), the medians as headline, and which runs the model still fails and when."""
+    problem = self.problem
+    before_cv = setup.given_cv if path.gain_mode else setup.reference_cv
+    after_cv = path.base_cv if result.missing_physics else before_cv
+    residual = _heldout_residual(path.design if result.missing_physics else setup.base_design, self.y, setup.folds)
+    rows = []
+    for index, run in enumerate(problem.runs):
+        recording = run.readings.recording
+        rows.append({"name": run.name, "rows": int(run.mask.sum()), "duration_h": round(recording.duration_s / 3600, 3),
+                     "heldout_rms_before_um": round(before_cv.fold_rms_um[index], 4),
+                     "heldout_rms_after_um": round(after_cv.fold_rms_um[index], 4)})
+    result.runs = rows
+    result.heldout_rms_before_um = float(np.median([r["heldout_rms_before_um"] for r in rows]))
+    result.heldout_rms_after_um = float(np.median([r["heldout_rms_after_um"] for r in rows]))
+    result.before_is += "; median over runs, each held out"
+    median_after = result.heldout_rms_after_um
+    result.mismatch = []
+    for index, (run, row) in enumerate(zip(problem.runs, rows, strict=True)):
+        fails = row["heldout_rms_after_um"] > 2 * median_after or \
+            (result.missing_physics and row["heldout_rms_after_um"] >= row["heldout_rms_before_um"])
+        row["fails"] = bool(fails)
+        if not fails:
+            continue
+        mine = problem.groups == index
+        t_run, r_run = problem.t_s[mine], residual[mine]
+        windows = explain.structured_windows(t_run, r_run, limit=1)
+        start_s, end_s = windows[0] if windows else (float(t_run[0]), float(t_run[-1]))
+        inside = (t_run >= start_s) & (t_run <= end_s)
+        t0 = float(run.readings.recording.t_s[0])
+        row["fails_from_h"], row["fails_to_h"] = round((start_s - t0) / 3600, 2), round((end_s - t0) / 3600, 2)
+        result.mismatch.append({"run": run.name, "t_start_s": start_s, "t_end_s": end_s,
+                                "why": explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)})
+    result.coverage = [{"column": column, "missing_in": lacking,
+                        "handled": "candidates that need it were not tried (each candidate is judged on every run)"}
+                       for column, lacking in self.selector.library.unavailable.items()]
+    # The report's series: the runs laid end to end, each from its own start.
+    hours, start = [], 0.0
+    for index, run in enumerate(problem.runs):
+        t_run = problem.t_s[problem.groups == index]
+        hours.append(t_run - t_run[0] + start)
+        start += run.readings.recording.duration_s + 1800.0
+    result.series["t_s"] = np.concatenate(hours)
+    result.series["run_index"] = problem.groups.copy()
+    result.series["heldout_residual_um"] = residual
+
+
+Discoverer._per_run = _per_run  # type: ignore[attr-defined]
+
+
+def discover_runs(runs: list[Recording], axis: str | None = None, model: ThermalModel | None = None,
+                  settings: Settings | None = None) -> Discovery:
+    """Discovery over several runs of one machine. Each run has its own constant offset, always in
+    the baseline and fitted on that run; everything else (coefficients, time constants, the physics
+    named) is fitted on the other runs: the held-out figures are leave-one-run-out, per run and
+    their medians. Without a model (and without a ``sim_`` column in every run) the baseline is
+    each run's offset alone."""
+    if not runs:
+        raise NckConfigError("no runs to discover on")
+    axis = axis or (model.axis if model is not None else None)
+    if axis is None:
+        axes = sorted({a for run in runs for a in run.axes()})
+        if len(axes) != 1:
+            raise NckConfigError(f"several axes across the runs ({', '.join(axes)}): name one with --axis",
+                                 path=runs[0].source)
+        axis = axes[0]
+    for run in runs:
+        if axis not in run.errors_um:
+            raise NckConfigError(f"no err_{axis}_um column (the runs' axis is {axis})", path=run.source,
+                                 field=f"err_{axis}_um")
+    names = [getattr(run, "name", "") or run.source for run in runs]
+    if len(set(names)) != len(names):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        raise NckConfigError(f"two runs named {twice[0]!r}: runs need unique names", path=runs[0].source)
+    if len(runs) == 1:
+        return discover(runs[0], axis, model, settings)
+    if model is None and not all(axis in run.simulated_um for run in runs):
+        model = ThermalModel(axis, [], "<each run's own offset>")
+    return Discoverer.for_runs(runs, axis, model, settings).run()
