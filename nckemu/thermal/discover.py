@@ -244,7 +244,8 @@ class Discoverer:
         else:
             reference = setup.reference_cv
             before_um = reference.rms_um
-            result.before_is = ("the baseline as given" if reference is setup.given_cv else
+            result.before_is = ("each run's own offset" if self.problem.per_run_offset and not setup.base_design.shape[1]
+                                else "the baseline as given" if reference is setup.given_cv else
                                 "the baseline refitted on the other runs, each run's offset on its own"
                                 if self.problem.per_run_offset else "the baseline refitted per held-out block")
         result.heldout_rms_before_um = before_um
@@ -283,7 +284,8 @@ class Discoverer:
         residual_recal = setup.recalibrated.residual \
             if setup.recalibrated is not None and not path.gain_mode else before_residual
         mismatch = explain.mismatch(problem.recording, problem.axis, problem.t_s,
-                                    residual_recal if not discovered else before_residual)
+                                    residual_recal if not discovered else before_residual) \
+            if len(problem.runs) == 1 else []  # several runs: per run, from their held-out residuals
         return Discovery(
             axis=problem.axis, baseline_rms_um=setup.baseline_rms, recalibrated_rms_um=setup.recalibrated_rms,
             heldout_rms_before_um=stats.rms(before_residual), heldout_rms_after_um=heldout_after_um,

@@ -207,8 +207,9 @@ class Selector:
         chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um))
         chosen = self.parsimonious(chosen, passing)
         term = chosen.candidate.term.with_coefficient(chosen.coefficient)
-        window = explain.locate(self.t_s, chosen.coefficient * (chosen.candidate.feature
-                                                                - np.median(chosen.candidate.feature)))
+        # Several runs share one clock from their own starts: a window in time names no run.
+        window = [] if self.library.problem.per_run_offset else explain.locate(
+            self.t_s, chosen.coefficient * (chosen.candidate.feature - np.median(chosen.candidate.feature)))
         record = explain.evidence(chosen, best, equivalent, margin, path.base_cv.rms_um, t_crit, len(folds),
                                   window[0][:2] if window else None, EFFECTS[term.effect].description)
         path.discovered.append({"effect": term.effect, "parameters": {
