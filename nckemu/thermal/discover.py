@@ -373,9 +373,9 @@ def _per_run(self: Discoverer, result: Discovery, setup: Baseline, path: Path) -
         row["fails_from_h"], row["fails_to_h"] = round((start_s - t0) / 3600, 2), round((end_s - t0) / 3600, 2)
         result.mismatch.append({"run": run.name, "t_start_s": start_s, "t_end_s": end_s,
                                 "why": explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)})
-    result.coverage = [{"column": column, "missing_in": lacking,
-                        "handled": "candidates that need it were not tried (each candidate is judged on every run)"}
-                       for column, lacking in self.selector.library.unavailable.items()]
+    library = self.selector.library
+    result.coverage = [{"column": column, "missing_in": lacking, "handled": library.handling(column)}
+                       for column, lacking in library.unavailable.items()]
     # The report's series: the runs laid end to end, each from its own start.
     hours, start = [], 0.0
     for index, run in enumerate(problem.runs):

@@ -35,6 +35,8 @@ class Candidate:
     in_sample_rms_um: float = math.nan
     # Values of a time constant tried to find this one: each was a hypothesis tested on the data.
     grid_points: int = 1
+    # Several runs: which runs have the columns it needs (None: all); only those count as its folds.
+    runs_with: np.ndarray | None = None
 
     @property
     def label(self) -> str:
@@ -112,21 +114,30 @@ class Library:
         self.unavailable: dict[str, list[str]] = self._unavailable()
 
     # ------------------------------------------------------------------ what every run has
+    def _enough(self, have: int) -> bool:
+        """A column is used when at least half the runs (and two) have it: a candidate is judged on
+        the runs that have its columns."""
+        runs = len(self.problem.runs)
+        return have == runs or have >= max(2, math.ceil(runs / 2))
+
     def sensors(self) -> list[str]:
-        """Sensors present in every run (in the first run's order)."""
+        """Sensors enough runs have (in order of first appearance)."""
         runs = self.problem.runs
-        names = [key[len("temp_"):-len("_C")] for key in runs[0].readings.recording.temperatures_C]
-        return [n for n in names if all(f"temp_{n}_C" in r.readings.recording.temperatures_C for r in runs)]
+        names: list[str] = []
+        for run in runs:
+            names += [k[len("temp_"):-len("_C")] for k in run.readings.recording.temperatures_C
+                      if k[len("temp_"):-len("_C")] not in names]
+        return [n for n in names
+                if self._enough(sum(f"temp_{n}_C" in r.readings.recording.temperatures_C for r in runs))]
 
     def has_spindle(self) -> bool:
-        return all(r.readings.recording.spindle_rpm is not None for r in self.problem.runs)
+        return self._enough(sum(r.readings.recording.spindle_rpm is not None for r in self.problem.runs))
 
     def has_positions(self) -> bool:
-        return all(self.problem.axis in r.readings.recording.positions_mm for r in self.problem.runs)
+        return self._enough(sum(self.problem.axis in r.readings.recording.positions_mm for r in self.problem.runs))
 
     def _unavailable(self) -> dict[str, list[str]]:
-        """Columns some runs have and others lack: column -> the runs lacking it (candidates that need
-        such a column are not tried: a candidate is judged on every run)."""
+        """Columns some runs have and others lack: column -> the runs lacking it."""
         runs, axis = self.problem.runs, self.problem.axis
         if len(runs) < 2:
             return {}
@@ -151,6 +162,14 @@ class Library:
             if lacking:
                 columns[column] = lacking
         return columns
+
+    def handling(self, column: str) -> str:
+        """How candidates that need ``column`` were handled, in words."""
+        lacking = len(self.unavailable.get(column, []))
+        if self._enough(len(self.problem.runs) - lacking):
+            return ("candidates that need it were judged on the runs that have it: elsewhere they contribute "
+                    "nothing, and only those runs count among the folds they must improve")
+        return "candidates that need it were not tried (fewer than half the runs have it)"
 
     def duration_s(self) -> float:
         """The typical run's length: a time constant beyond a third of it is a trend, not a lag."""
@@ -194,8 +213,10 @@ class Library:
             t_ref = self.t_ref(sensor)
 
             def per_run(run: Run) -> np.ndarray:
-                t_coarse, signal = self._decimated(run, sensor)
                 t_gauge = run.readings.recording.t_s[run.mask]
+                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
+                    return np.full(len(t_gauge), t_ref)  # centred to zero: no contribution in that run
+                t_coarse, signal = self._decimated(run, sensor)
                 return np.interp(t_gauge, t_coarse, first_order_lag(t_coarse, signal, tau_s)) - t_ref
             return self.problem.gauge_column(per_run)
         return self._cached(("lag", sensor, tau_s), make)
@@ -205,8 +226,10 @@ class Library:
             t_ref = self.t_ref(sensor)
 
             def per_run(run: Run) -> np.ndarray:
-                t_coarse, signal = self._decimated(run, sensor)
                 t_gauge = run.readings.recording.t_s[run.mask]
+                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
+                    return np.full(len(t_gauge), t_ref)  # centred to zero: no contribution in that run
+                t_coarse, signal = self._decimated(run, sensor)
                 return np.interp(t_gauge, t_coarse, asymmetric_lag(t_coarse, signal, tau_heat_s, tau_cool_s)) - t_ref
             return self.problem.gauge_column(per_run)
         return self._cached(("hysteresis", sensor, tau_heat_s, tau_cool_s), make)
@@ -219,9 +242,12 @@ class Library:
             t_ref = self.t_ref(sensor)
             per_run = []
             for run in self.problem.runs:
+                t_gauge = run.readings.recording.t_s[run.mask]
+                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
+                    per_run.append([np.full(len(t_gauge), t_ref) - t_ref] * len(missing))
+                    continue
                 t_coarse, signal = self._decimated(run, sensor)
                 lagged = asymmetric_lags(t_coarse, signal, missing)
-                t_gauge = run.readings.recording.t_s[run.mask]
                 per_run.append([np.interp(t_gauge, t_coarse, lagged[:, k]) - t_ref for k in range(len(missing))])
             for k, pair in enumerate(missing):
                 column = self.problem.within(np.concatenate([columns[k] for columns in per_run]))
@@ -235,7 +261,10 @@ class Library:
         if np.ptp(feature) == 0 and term.effect != "offset":
             return None
         noise = self._cached(("noise",) + key, lambda: self.problem.feature(term, noisy=True) - feature)
-        return Candidate(term, feature, noise, grid_points=grid_points)
+        runs_with = self.problem.runs_with(term) if len(self.problem.runs) > 1 else None
+        if runs_with is not None and runs_with.all():
+            runs_with = None
+        return Candidate(term, feature, noise, grid_points=grid_points, runs_with=runs_with)
 
     def _in_sample(self, design: np.ndarray, feature: np.ndarray) -> float:
         y = self.problem.y

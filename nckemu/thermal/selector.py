@@ -107,7 +107,9 @@ class Selector:
         full = np.column_stack([design, candidate.feature])
         cv = self.baseline.cross_validate(full, self.y, self.baseline.folds)
         result = stats.fit(full, self.y)
-        wins = sum(after < before for after, before in zip(cv.fold_rms_um, base_cv.fold_rms_um, strict=True))
+        counted = candidate.runs_with if candidate.runs_with is not None else [True] * len(cv.fold_rms_um)
+        wins = sum(after < before for after, before, count in zip(cv.fold_rms_um, base_cv.fold_rms_um, counted,
+                                                                  strict=True) if count)
         # Errors in variables: noise n in the features adds mean((n @ b)^2) to the squared error of
         # the fitted model's prediction, independent of the gauge's noise and of the physics.
         carried = float(np.mean(np.square(np.column_stack([noise, candidate.noise]) @ result.coefficients)))
@@ -122,7 +124,10 @@ class Selector:
         # model on autocorrelated data can make it worse, and a candidate must not win by undoing that.
         reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
         improved = evaluation.cv.rms_um <= (1 - s.min_improvement) * reference_um
-        consistent = evaluation.fold_wins >= math.ceil(s.min_fold_share * len(base_cv.fold_rms_um))
+        # Several runs: a candidate is judged on the runs that have its columns.
+        folds = len(base_cv.fold_rms_um) if evaluation.candidate.runs_with is None \
+            else int(evaluation.candidate.runs_with.sum())
+        consistent = evaluation.fold_wins >= math.ceil(s.min_fold_share * folds)
         significant = abs(evaluation.t_value) >= t_crit
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         rest = consistent and significant and bounded(term)

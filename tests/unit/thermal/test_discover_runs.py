@@ -15,7 +15,7 @@ from nckemu.errors import NckConfigError
 from nckemu.thermal import stats
 from nckemu.thermal.discover import discover, discover_runs
 from nckemu.thermal.recording import load_recording, write_recording
-from nckemu.thermal.scenarios import make_scenario, make_variant
+from nckemu.thermal.scenarios import AXIS, make_run_family, make_scenario, make_variant
 from nckemu.thermal.terms import Term, ThermalModel, load_model
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
@@ -52,14 +52,32 @@ def test_a_runs_offset_changes_nothing_but_that_run() -> None:
     assert second.missing_physics[0]["parameters"] == first.missing_physics[0]["parameters"]
 
 
-def test_runs_lacking_a_sensor_are_named_and_candidates_needing_it_not_tried() -> None:
+def test_runs_lacking_a_sensor_are_named_and_candidates_judged_where_it_is() -> None:
     days = _days()
     del days[2].temperatures_C["temp_front_C"]
     result = discover_runs(days, model=load_model(FIXTURES / "baseline_spindle_bed.toml"))
     assert result.coverage == [{"column": "temp_front_C", "missing_in": ["day3"],
-                                "handled": "candidates that need it were not tried (each candidate is judged on "
-                                           "every run)"}]
+                                "handled": "candidates that need it were judged on the runs that have it: elsewhere "
+                                           "they contribute nothing, and only those runs count among the folds they "
+                                           "must improve"}]
     assert result.missing_physics[0]["effect"] == "thermal_lag"
+
+
+def test_a_sensor_the_physics_needs_missing_in_some_runs_is_judged_on_the_others() -> None:
+    """job_mix_gradient seed 1 with front absent from 2 of 8 runs: front - rear is still named first
+    (before, with its candidates left out, a temperature and two lags stood in for it)."""
+    family = make_run_family("job_mix_gradient", 1, missing_from=("front", "rear", "ambient", "coolant"))
+    result = discover_runs(family.runs, AXIS, family.model)
+    top = result.missing_physics[0]
+    assert top["effect"] == "thermal_gradient" and sorted(top["parameters"]["sensors"]) == ["front", "rear"]
+    assert result.coverage[0]["column"] == "temp_front_C" and len(result.coverage[0]["missing_in"]) == 2
+    # with front in 2 of 8 runs only, candidates of it are not tried, and it is said
+    for run in family.runs[2:]:
+        run.temperatures_C.pop("temp_front_C", None)
+    result = discover_runs(family.runs, AXIS, family.model)
+    front = next(c for c in result.coverage if c["column"] == "temp_front_C")
+    assert "not tried" in front["handled"]
+    assert "front" not in json.dumps([m["parameters"] for m in result.missing_physics])
 
 
 def test_runs_with_different_sampling_and_lengths() -> None:

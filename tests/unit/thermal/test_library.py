@@ -43,14 +43,19 @@ def test_a_round_offers_every_family_once() -> None:
     assert next(c for c in again if c.label == "thermal_lag(spindle)").feature is lag.feature
 
 
-def test_columns_some_runs_lack_are_named_and_not_tried() -> None:
+def test_columns_some_runs_lack_are_named_and_judged_where_they_are() -> None:
     library = _library(runs=3)
     assert library.unavailable == {"spindle_rpm": ["run2"], "temp_rear_C": ["run1"]}
-    assert "rear" not in library.sensors() and not library.has_spindle()
+    assert "rear" in library.sensors() and library.has_spindle()  # two of three runs have them
+    assert "judged on the runs that have it" in library.handling("temp_rear_C")
     design = np.column_stack([library.problem.feature(t) for t in library.problem.base_terms])
-    labels = {c.label for c in library.candidates(design, set())}
-    assert not any("rear" in name for name in labels) and "centrifugal_growth" not in labels
-    assert "offset" not in labels  # each run's own offset is in the baseline
+    candidates = {c.label: c for c in library.candidates(design, set())}
+    assert "offset" not in candidates  # each run's own offset is in the baseline
+    rear = candidates["temperature(rear)"]
+    assert list(rear.runs_with) == [True, False, True]
+    assert not rear.feature[library.problem.groups == 1].any()  # no contribution where it is missing
+    assert list(candidates["centrifugal_growth"].runs_with) == [True, True, False]
+    assert candidates["temperature(front)"].runs_with is None
 
 
 def test_term_helpers() -> None:
