@@ -38,6 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                "fixtures/thermal/runs/day3.csv --model fixtures/thermal/baseline_spindle_bed.toml --report runs.html\n"
                "  nckemu discover 'fixtures/thermal/runs/*.csv' --axis Z --json\n"
                "  nckemu discover fixtures/thermal/runs --axis Z\n"
+               "  nckemu discover fixtures/thermal/loop_bed_program_spindle_lag.csv --split-runs --axis Z\n"
                "Without --model and without a sim_<axis>_um column the baseline is a constant offset: "
                "discover then says which sensors explain the axis on their own.\n"
                "Several runs (files, a directory, a glob): each run has its own offset, fitted on that run; "
@@ -48,6 +49,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                                       "else a constant offset)")
     find.add_argument("--axis", help="which err_<axis>_um to explain (default: the model's axis, or the "
                                      "recording's only one)")
+    find.add_argument("--split-runs", action="store_true",
+                      help="cut each recording into runs at spindle-speed blocks and gaps over 1 h, then "
+                           "discover over the runs")
     find.add_argument("--json", action="store_true", help="print the findings as JSON on stdout")
     find.add_argument("--json-out", metavar="FILE", help="write the findings as JSON to FILE (- for stdout)")
     find.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
@@ -95,7 +99,7 @@ def run_discover(args: argparse.Namespace) -> int:
         check_output(path, option)
     model = load_model(args.model) if args.model else None
     specs = [args.recording, *getattr(args, "more", [])]
-    if len(specs) > 1 or not _is_one_file(args.recording):
+    if len(specs) > 1 or not _is_one_file(args.recording) or getattr(args, "split_runs", False):
         return _run_discover_runs(args, specs, model, discover_runs, load_runs)
     recording = load_recording(args.recording)
     axis = args.axis or (model.axis if model is not None else None)
@@ -156,6 +160,13 @@ def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, d
     from .wording import runs_table
 
     runs = load_runs(specs, args.axis or (model.axis if model is not None else None))
+    if getattr(args, "split_runs", False):
+        from .recording import split_runs
+
+        runs = [part for run in runs for part in split_runs(run)]
+        if not args.json:
+            print(f"nckemu discover: {len(runs)} runs after splitting: {', '.join(r.name for r in runs)}",
+                  file=sys.stderr)
     with working("discover", enabled=not args.json):
         result = discover_runs(runs, axis=args.axis, model=model)
     args.discovery = result

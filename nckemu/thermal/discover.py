@@ -209,7 +209,9 @@ class Discoverer:
         recalibrated = stats.fit(base_design, self.y) if base_design.shape[1] else None
         recalibrated_rms = recalibrated.rms_um if recalibrated else baseline_rms
         given_cv = stats.CrossValidation(baseline_rms, tuple(stats.rms(self.y[f] - given[f]) for f in folds))
-        recal_cv = stats.cross_validate(base_design, self.y, folds) if base_design.shape[1] else given_cv
+        # One fit per fold, or (one fold per run, many runs) each fold's share taken off the normal equations.
+        cross_validate = stats.cross_validate_gram if problem.per_run_offset else stats.cross_validate
+        recal_cv = cross_validate(base_design, self.y, folds) if base_design.shape[1] else given_cv
         # A model whose coefficients are the least-squares optimum on this very record was calibrated
         # on it: its RMS "as given" is an in-sample figure, not a held-out one. Compare like with like:
         # the baseline refitted per fold, under the same blocked cross-validation as the candidates.
@@ -217,7 +219,7 @@ class Discoverer:
         base_noise, given_noise = self._noise()
         extra = len(problem.runs) if problem.per_run_offset else 0
         return Baseline(base_design, given, folds, baseline_rms, recalibrated, recalibrated_rms, given_cv, recal_cv,
-                        calibrated_here, base_noise, given_noise, extra)
+                        calibrated_here, base_noise, given_noise, extra, cross_validate)
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Discovery:
@@ -371,9 +373,9 @@ def _per_run(self: Discoverer, result: Discovery, setup: Baseline, path: Path) -
         row["fails_from_h"], row["fails_to_h"] = round((start_s - t0) / 3600, 2), round((end_s - t0) / 3600, 2)
         result.mismatch.append({"run": run.name, "t_start_s": start_s, "t_end_s": end_s,
                                 "why": explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)})
-    result.coverage = [{"column": column, "missing_in": lacking,
-                        "handled": "candidates that need it were not tried (each candidate is judged on every run)"}
-                       for column, lacking in self.selector.library.unavailable.items()]
+    library = self.selector.library
+    result.coverage = [{"column": column, "missing_in": lacking, "handled": library.handling(column)}
+                       for column, lacking in library.unavailable.items()]
     # The report's series: the runs laid end to end, each from its own start.
     hours, start = [], 0.0
     for index, run in enumerate(problem.runs):

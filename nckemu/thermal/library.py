@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +35,8 @@ class Candidate:
     in_sample_rms_um: float = math.nan
     # Values of a time constant tried to find this one: each was a hypothesis tested on the data.
     grid_points: int = 1
+    # Several runs: which runs have the columns it needs (None: all); only those count as its folds.
+    runs_with: np.ndarray | None = None
 
     @property
     def label(self) -> str:
@@ -77,6 +80,28 @@ def extends(complex_term: Term, simple_term: Term) -> bool:
         and complex_term.parameters.get("sensor") == simple_term.parameters.get("sensor") is not None
 
 
+CACHE_BYTES = 400_000_000
+
+
+def asymmetric_lags(t_s: np.ndarray, signal: np.ndarray, pairs: list[tuple[float, float]]) -> np.ndarray:
+    """``terms.asymmetric_lag`` for every (tau_heat_s, tau_cool_s) pair at once, one column each: the
+    same operations in the same order per pair (so the same numbers), one pass over time."""
+    count = len(signal)
+    out = np.empty((count, len(pairs)))
+    if count == 0:
+        return out
+    dt = np.diff(t_s)
+    heat = np.stack([1.0 - np.exp(-dt / tau_heat) for tau_heat, _ in pairs], axis=1)
+    cool = np.stack([1.0 - np.exp(-dt / tau_cool) for _, tau_cool in pairs], axis=1)
+    previous = np.full(len(pairs), float(signal[0]))
+    out[0] = previous
+    for k in range(1, count):
+        target = signal[k]
+        previous = previous + np.where(target > previous, heat[k - 1], cool[k - 1]) * (target - previous)
+        out[k] = previous
+    return out
+
+
 class Library:
     """The candidates of one round, given the current design and the effects already in it."""
 
@@ -85,24 +110,34 @@ class Library:
         self.settings = settings
         self._columns: dict[tuple[object, ...], np.ndarray] = {}
         self._version = problem.version
+        self._signals: dict[tuple[int, str], tuple[np.ndarray, np.ndarray]] = {}
         self.unavailable: dict[str, list[str]] = self._unavailable()
 
     # ------------------------------------------------------------------ what every run has
+    def _enough(self, have: int) -> bool:
+        """A column is used when at least half the runs (and two) have it: a candidate is judged on
+        the runs that have its columns."""
+        runs = len(self.problem.runs)
+        return have == runs or have >= max(2, math.ceil(runs / 2))
+
     def sensors(self) -> list[str]:
-        """Sensors present in every run (in the first run's order)."""
+        """Sensors enough runs have (in order of first appearance)."""
         runs = self.problem.runs
-        names = [key[len("temp_"):-len("_C")] for key in runs[0].readings.recording.temperatures_C]
-        return [n for n in names if all(f"temp_{n}_C" in r.readings.recording.temperatures_C for r in runs)]
+        names: list[str] = []
+        for run in runs:
+            names += [k[len("temp_"):-len("_C")] for k in run.readings.recording.temperatures_C
+                      if k[len("temp_"):-len("_C")] not in names]
+        return [n for n in names
+                if self._enough(sum(f"temp_{n}_C" in r.readings.recording.temperatures_C for r in runs))]
 
     def has_spindle(self) -> bool:
-        return all(r.readings.recording.spindle_rpm is not None for r in self.problem.runs)
+        return self._enough(sum(r.readings.recording.spindle_rpm is not None for r in self.problem.runs))
 
     def has_positions(self) -> bool:
-        return all(self.problem.axis in r.readings.recording.positions_mm for r in self.problem.runs)
+        return self._enough(sum(self.problem.axis in r.readings.recording.positions_mm for r in self.problem.runs))
 
     def _unavailable(self) -> dict[str, list[str]]:
-        """Columns some runs have and others lack: column -> the runs lacking it (candidates that need
-        such a column are not tried: a candidate is judged on every run)."""
+        """Columns some runs have and others lack: column -> the runs lacking it."""
         runs, axis = self.problem.runs, self.problem.axis
         if len(runs) < 2:
             return {}
@@ -128,6 +163,14 @@ class Library:
                 columns[column] = lacking
         return columns
 
+    def handling(self, column: str) -> str:
+        """How candidates that need ``column`` were handled, in words."""
+        lacking = len(self.unavailable.get(column, []))
+        if self._enough(len(self.problem.runs) - lacking):
+            return ("candidates that need it were judged on the runs that have it: elsewhere they contribute "
+                    "nothing, and only those runs count among the folds they must improve")
+        return "candidates that need it were not tried (fewer than half the runs have it)"
+
     def duration_s(self) -> float:
         """The typical run's length: a time constant beyond a third of it is a trend, not a lag."""
         return float(np.median([r.readings.recording.duration_s for r in self.problem.runs]))
@@ -139,29 +182,41 @@ class Library:
         return 20.0
 
     # ------------------------------------------------------------------ features
-    def _cached(self, key: tuple[object, ...], make: callable) -> np.ndarray:  # type: ignore[valid-type]
+    def _cached(self, key: tuple[object, ...], make: Callable[[], np.ndarray]) -> np.ndarray:
+        """A column computed once per set of samples; the oldest go first beyond ``CACHE_BYTES`` (a
+        single recording of millions of samples would otherwise hold gigabytes of grid columns)."""
         if self._version != self.problem.version:
             self._columns.clear()
             self._version = self.problem.version
-        if key not in self._columns:
-            self._columns[key] = make()
-        return self._columns[key]
+        column = self._columns.get(key)
+        if column is None:
+            column = make()
+            self._columns[key] = column
+            self._bytes = sum(c.nbytes for c in self._columns.values())
+            while self._bytes > CACHE_BYTES and len(self._columns) > 1:
+                oldest = next(iter(self._columns))
+                self._bytes -= self._columns.pop(oldest).nbytes
+        return column
 
-    @staticmethod
-    def _decimated(run: Run, sensor: str) -> tuple[np.ndarray, np.ndarray]:
+    def _decimated(self, run: Run, sensor: str) -> tuple[np.ndarray, np.ndarray]:
         """The lags run on a coarser grid (>= 30 s: the readings are averaged over minutes already)."""
-        t = run.readings.recording.t_s
-        signal = run.readings.recording.sensor(sensor)
-        step = max(1, int(30.0 / max(float(np.median(np.diff(t))), 1e-9)))
-        return t[::step], signal[::step]
+        key = (id(run), sensor)
+        if key not in self._signals:
+            t = run.readings.recording.t_s
+            signal = run.readings.recording.sensor(sensor)
+            step = max(1, int(30.0 / max(float(np.median(np.diff(t))), 1e-9)))
+            self._signals[key] = (t[::step], signal[::step])
+        return self._signals[key]
 
     def lag_column(self, sensor: str, tau_s: float) -> np.ndarray:
         def make() -> np.ndarray:
             t_ref = self.t_ref(sensor)
 
             def per_run(run: Run) -> np.ndarray:
-                t_coarse, signal = self._decimated(run, sensor)
                 t_gauge = run.readings.recording.t_s[run.mask]
+                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
+                    return np.full(len(t_gauge), t_ref)  # centred to zero: no contribution in that run
+                t_coarse, signal = self._decimated(run, sensor)
                 return np.interp(t_gauge, t_coarse, first_order_lag(t_coarse, signal, tau_s)) - t_ref
             return self.problem.gauge_column(per_run)
         return self._cached(("lag", sensor, tau_s), make)
@@ -171,11 +226,33 @@ class Library:
             t_ref = self.t_ref(sensor)
 
             def per_run(run: Run) -> np.ndarray:
-                t_coarse, signal = self._decimated(run, sensor)
                 t_gauge = run.readings.recording.t_s[run.mask]
+                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
+                    return np.full(len(t_gauge), t_ref)  # centred to zero: no contribution in that run
+                t_coarse, signal = self._decimated(run, sensor)
                 return np.interp(t_gauge, t_coarse, asymmetric_lag(t_coarse, signal, tau_heat_s, tau_cool_s)) - t_ref
             return self.problem.gauge_column(per_run)
         return self._cached(("hysteresis", sensor, tau_heat_s, tau_cool_s), make)
+
+    def asymmetric_columns(self, sensor: str, pairs: list[tuple[float, float]]) -> list[np.ndarray]:
+        """``asymmetric_column`` for many time-constant pairs, the missing ones in one pass over time."""
+        missing = [p for p in pairs if ("hysteresis", sensor, *p) not in self._columns
+                   or self._version != self.problem.version]
+        if len(missing) > 1:
+            t_ref = self.t_ref(sensor)
+            per_run = []
+            for run in self.problem.runs:
+                t_gauge = run.readings.recording.t_s[run.mask]
+                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
+                    per_run.append([np.full(len(t_gauge), t_ref) - t_ref] * len(missing))
+                    continue
+                t_coarse, signal = self._decimated(run, sensor)
+                lagged = asymmetric_lags(t_coarse, signal, missing)
+                per_run.append([np.interp(t_gauge, t_coarse, lagged[:, k]) - t_ref for k in range(len(missing))])
+            for k, pair in enumerate(missing):
+                column = self.problem.within(np.concatenate([columns[k] for columns in per_run]))
+                self._cached(("hysteresis", sensor, *pair), lambda column=column: column)
+        return [self.asymmetric_column(sensor, *pair) for pair in pairs]
 
     def candidate(self, term: Term, grid_points: int = 1) -> Candidate | None:
         """The term with its feature and carried noise; None when its feature is constant."""
@@ -184,7 +261,10 @@ class Library:
         if np.ptp(feature) == 0 and term.effect != "offset":
             return None
         noise = self._cached(("noise",) + key, lambda: self.problem.feature(term, noisy=True) - feature)
-        return Candidate(term, feature, noise, grid_points=grid_points)
+        runs_with = self.problem.runs_with(term) if len(self.problem.runs) > 1 else None
+        if runs_with is not None and runs_with.all():
+            runs_with = None
+        return Candidate(term, feature, noise, grid_points=grid_points, runs_with=runs_with)
 
     def _in_sample(self, design: np.ndarray, feature: np.ndarray) -> float:
         y = self.problem.y
@@ -256,23 +336,23 @@ class Library:
                 continue
             best_h: tuple[float, float, float] | None = None
             tried = 0
-            for tau_heat, tau_cool in itertools.product(self.settings.hysteresis_grid_s, repeat=2):
-                if tau_heat == tau_cool or max(tau_heat, tau_cool) > duration_s / 3:
-                    continue
+            grid = [(h, c) for h, c in itertools.product(self.settings.hysteresis_grid_s, repeat=2)
+                    if h != c and max(h, c) <= duration_s / 3]
+            for (tau_heat, tau_cool), column in zip(grid, self.asymmetric_columns(sensor, grid), strict=True):
                 tried += 1
-                score = self._in_sample(design, self.asymmetric_column(sensor, tau_heat, tau_cool))
+                score = self._in_sample(design, column)
                 if best_h is None or score < best_h[0]:
                     best_h = (score, tau_heat, tau_cool)
             if best_h is not None:
                 # Refine around the grid point (not around the last improvement: that compounded,
                 # and walked a cooling time constant to 21 h on a 36 h null record).
                 grid_heat, grid_cool = best_h[1], best_h[2]
-                for factor_heat, factor_cool in itertools.product(np.geomspace(0.7, 1.4, 5), repeat=2):
-                    tau_heat, tau_cool = grid_heat * float(factor_heat), grid_cool * float(factor_cool)
-                    if max(tau_heat, tau_cool) > duration_s / 3:
-                        continue
+                near = [(grid_heat * float(fh), grid_cool * float(fc))
+                        for fh, fc in itertools.product(np.geomspace(0.7, 1.4, 5), repeat=2)]
+                near = [(h, c) for h, c in near if max(h, c) <= duration_s / 3]
+                for (tau_heat, tau_cool), column in zip(near, self.asymmetric_columns(sensor, near), strict=True):
                     tried += 1
-                    score = self._in_sample(design, self.asymmetric_column(sensor, tau_heat, tau_cool))
+                    score = self._in_sample(design, column)
                     if score < best_h[0]:
                         best_h = (score, tau_heat, tau_cool)
                 add(Term("heating_cooling_hysteresis", {"sensor": sensor, "t_ref_C": self.t_ref(sensor),

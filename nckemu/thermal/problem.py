@@ -111,10 +111,31 @@ class Problem:
         return self.within(np.concatenate([per_run(run) for run in self.runs]))
 
     def feature(self, term: Term, noisy: bool = False) -> np.ndarray:
+        """The term's feature on the gauge samples; zero in a run that lacks a column it needs (several
+        runs: the term then contributes nothing there, and that run does not inform its coefficient)."""
         axis = self.axis
-        if noisy:
-            return self.column(lambda run: term.feature(run.readings.noisy, axis))
-        return self.column(lambda run: term.feature(run.readings.recording, axis))
+
+        def per_run(run: Run) -> np.ndarray:
+            recording = run.readings.noisy if noisy else run.readings.recording
+            if len(self.runs) > 1 and not self.has_columns(run, term):
+                return np.zeros(len(recording.t_s))
+            return term.feature(recording, axis)
+        return self.column(per_run)
+
+    def has_columns(self, run: Run, term: Term) -> bool:
+        """Does the run have every column ``term`` needs?"""
+        recording = run.readings.recording
+        p = term.parameters
+        sensors = list(p.get("sensors", [])) + ([p["sensor"]] if "sensor" in p else [])
+        if any(f"temp_{s}_C" not in recording.temperatures_C for s in sensors):
+            return False
+        if term.effect == "centrifugal_growth" and recording.spindle_rpm is None:
+            return False
+        return not (term.effect == "position_dependent_expansion" and self.axis not in recording.positions_mm)
+
+    def runs_with(self, term: Term) -> np.ndarray:
+        """Per run: has it every column ``term`` needs?"""
+        return np.array([self.has_columns(run, term) for run in self.runs])
 
     def set_aside(self, outliers: np.ndarray) -> None:
         """Drop gauge samples (a boolean over the current samples) from every run."""

@@ -82,33 +82,33 @@ def prepare(recording: Recording, settings: Settings) -> Readings:
     return Readings(recording, averaged, _with(averaged, noisy), noise_C, notes)
 
 
-def _bin_mean(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Mean of the finite values in each bin [starts[i], starts[i+1]); NaN where a bin has none."""
-    finite = np.isfinite(values)
-    sums = np.add.reduceat(np.where(finite, values, 0.0), starts)
-    counts = np.add.reduceat(finite.astype(float), starts)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
-
-
 def resample(recording: Recording, step_s: float) -> Recording:
-    """The recording on a grid of about ``step_s``: every reading taken at the start of its step
-    (temperatures are averaged over minutes already), the gauge and the sim column averaged over
-    the step. Recordings sampled at ``step_s / 2`` or slower come back as they are."""
+    """The recording on a uniform grid of ``step_s`` (the centres of the steps): readings interpolated
+    there (temperatures are averaged over minutes already), the gauge and the sim column averaged over
+    each step (NaN where a step has none). A uniform grid lets every lag run as one linear filter.
+    Recordings sampled at ``step_s / 2`` or slower come back as they are."""
     t = recording.t_s
     if len(t) < 3 or float(np.median(np.diff(t))) * 2 > step_s:
         return recording
     bins = np.floor((t - t[0]) / step_s).astype(np.int64)
-    starts = np.flatnonzero(np.concatenate(([True], bins[1:] != bins[:-1])))
+    count = int(bins[-1]) + 1
+    grid = t[0] + step_s * (np.arange(count) + 0.5)
 
-    def pick(values: np.ndarray) -> np.ndarray:
-        return values[starts]
+    def at(values: np.ndarray) -> np.ndarray:
+        return np.interp(grid, t, values)
 
-    return replace(recording, t_s=pick(t), temperatures_C={k: pick(v) for k, v in recording.temperatures_C.items()},
-                   spindle_rpm=None if recording.spindle_rpm is None else pick(recording.spindle_rpm),
-                   positions_mm={k: pick(v) for k, v in recording.positions_mm.items()},
-                   errors_um={k: _bin_mean(v, starts) for k, v in recording.errors_um.items()},
-                   simulated_um={k: _bin_mean(v, starts) for k, v in recording.simulated_um.items()})
+    def mean(values: np.ndarray) -> np.ndarray:
+        finite = np.isfinite(values)
+        sums = np.bincount(bins[finite], weights=values[finite], minlength=count)
+        counts = np.bincount(bins[finite], minlength=count)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
+
+    return replace(recording, t_s=grid, temperatures_C={k: at(v) for k, v in recording.temperatures_C.items()},
+                   spindle_rpm=None if recording.spindle_rpm is None else at(recording.spindle_rpm),
+                   positions_mm={k: at(v) for k, v in recording.positions_mm.items()},
+                   errors_um={k: mean(v) for k, v in recording.errors_um.items()},
+                   simulated_um={k: mean(v) for k, v in recording.simulated_um.items()})
 
 
 def resampled(readings: Readings, step_s: float) -> Readings:

@@ -81,8 +81,8 @@ def _runs_section(discovery: Discovery) -> str:
     x = np.arange(len(names))
     axes.bar(x - 0.2, before, 0.4, label="before (baseline)")
     axes.bar(x + 0.2, after, 0.4, label="after (improved model)")
-    axes.set_xticks(x, names, rotation=60 if len(names) > 8 else 0, ha="right" if len(names) > 8 else "center",
-                    fontsize=8)
+    crowded = len(names) > 8 or max(len(n) for n in names) * len(names) > 90
+    axes.set_xticks(x, names, rotation=60 if crowded else 0, ha="right" if crowded else "center", fontsize=8)
     axes.set_ylabel("held-out RMS [um]")
     axes.set_title("each run held out: fitted on the other runs, its own offset on itself")
     axes.legend()
@@ -139,7 +139,8 @@ def write_report(path: str | Path, discovery: Discovery, title: str,
     residuals = _png(figure)
     rows = "".join(_row(m) for m in discovery.missing_physics) or "<tr><td colspan=3>nothing missing</td></tr>"
     windows = "".join(f"<li>{html.escape(w['run']) + ': ' if 'run' in w else ''}{w['t_start_s'] / 3600:.2f} h to {w['t_end_s'] / 3600:.2f} h: {html.escape(w['why'])}</li>"
-                      for w in discovery.mismatch) or "<li>no structured residual</li>"
+                      for w in discovery.mismatch) or ("<li>no run the model still fails</li>" if discovery.runs
+                                         else "<li>no structured residual</li>")
     quality = ("<h2>Data quality</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in discovery.data_quality)
                + "</ul>") if discovery.data_quality else ""
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{html.escape(title)}</title>

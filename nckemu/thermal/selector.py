@@ -10,6 +10,7 @@ splitter, and the candidate library. Blocks of one run and runs of a machine are
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -51,6 +52,9 @@ class Baseline:
     given_noise: np.ndarray         # ... and by the model as given
     # Columns fitted besides the design that every fit carries (one offset per run): degrees of freedom.
     extra_parameters: int = 0
+    # How held-out RMS is computed for the folds (several runs: through each fold's normal equations).
+    cross_validate: Callable[[np.ndarray, np.ndarray, list[np.ndarray]], stats.CrossValidation] = \
+        stats.cross_validate
     gain: tuple[float, float, stats.CrossValidation] = (math.nan, math.nan, stats.CrossValidation(math.nan, ()))
 
     @property
@@ -101,9 +105,11 @@ class Selector:
     def evaluate(self, design: np.ndarray, noise: np.ndarray, candidate: Candidate,
                  base_cv: stats.CrossValidation) -> Evaluation:
         full = np.column_stack([design, candidate.feature])
-        cv = stats.cross_validate(full, self.y, self.baseline.folds)
+        cv = self.baseline.cross_validate(full, self.y, self.baseline.folds)
         result = stats.fit(full, self.y)
-        wins = sum(after < before for after, before in zip(cv.fold_rms_um, base_cv.fold_rms_um, strict=True))
+        counted = candidate.runs_with if candidate.runs_with is not None else [True] * len(cv.fold_rms_um)
+        wins = sum(after < before for after, before, count in zip(cv.fold_rms_um, base_cv.fold_rms_um, counted,
+                                                                  strict=True) if count)
         # Errors in variables: noise n in the features adds mean((n @ b)^2) to the squared error of
         # the fitted model's prediction, independent of the gauge's noise and of the physics.
         carried = float(np.mean(np.square(np.column_stack([noise, candidate.noise]) @ result.coefficients)))
@@ -118,7 +124,10 @@ class Selector:
         # model on autocorrelated data can make it worse, and a candidate must not win by undoing that.
         reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
         improved = evaluation.cv.rms_um <= (1 - s.min_improvement) * reference_um
-        consistent = evaluation.fold_wins >= math.ceil(s.min_fold_share * len(base_cv.fold_rms_um))
+        # Several runs: a candidate is judged on the runs that have its columns.
+        folds = len(base_cv.fold_rms_um) if evaluation.candidate.runs_with is None \
+            else int(evaluation.candidate.runs_with.sum())
+        consistent = evaluation.fold_wins >= math.ceil(s.min_fold_share * folds)
         significant = abs(evaluation.t_value) >= t_crit
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         rest = consistent and significant and bounded(term)
@@ -246,7 +255,7 @@ class Selector:
         gain_design = setup.given[:, None]
         gain_fit = stats.fit(gain_design, y)
         gain, gain_se = float(gain_fit.coefficients[0]), float(gain_fit.standard_errors[0])
-        gain_cv = stats.cross_validate(gain_design, y, setup.folds)
+        gain_cv = setup.cross_validate(gain_design, y, setup.folds)
         explains = (setup.baseline_rms - gain_fit.rms_um) >= 0.9 * (setup.baseline_rms - setup.recalibrated_rms) \
             or setup.base_design.shape[1] <= 1
         wins = sum(g < b for g, b in zip(gain_cv.fold_rms_um, setup.given_cv.fold_rms_um, strict=True))
