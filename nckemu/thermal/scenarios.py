@@ -5,7 +5,8 @@ A synthetic machine: a spindle schedule of 3 h blocks, sensors that follow it th
 The baseline model the "builder believes in" is offset + temperature(spindle) + temperature(bed);
 the truth adds (or replaces) one effect of the vocabulary, concealed by correlation with an included
 term, by smallness against the noise, or by acting in one window only. Null scenarios leave
-nothing out but add AR(1) noise, outliers and gaps.
+nothing out but add AR(1) noise, outliers and gaps. ``make_run_family`` builds many runs of one
+machine instead, where the concealed physics shows across runs (issue 23).
 """
 
 from __future__ import annotations
