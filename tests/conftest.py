@@ -39,7 +39,7 @@ def _shared_dir() -> Path:
     return common.parent.parent / "shared"
 
 
-SHARED = _shared_dir()
+SHARED = Path(os.environ["NCKEMU_SHARED"]) if os.environ.get("NCKEMU_SHARED") else _shared_dir()
 FIXTURES = REPO / "fixtures"
 
 
