@@ -19,6 +19,7 @@ from nckemu.errors import NckConfigError, NckError
 
 COMMAND_MODULES = (
     "nckemu.emulator.commands",   # serve, machine show
+    "nckemu.emulator.fleet_commands",  # fleet
     "nckemu.catalogue.commands",  # vars
     "nckemu.clients.commands",    # get, put, pi, comp840c, lec
     "nckemu.traces.commands",     # trace show, trace replay
