@@ -35,7 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                "  nckemu discover fixtures/thermal/seed003_spindle_elongation.csv --json\n"
                "Without --model and without a sim_<axis>_um column the baseline is a constant offset: "
                "discover then says which sensors explain the axis on their own.\n")
-    find.add_argument("recording", help="recording CSV")
+    find.add_argument("recording", nargs="?", help="recording CSV (or --fleet ROOT)")
     find.add_argument("--model", help="baseline model TOML (default: the recording's sim_<axis>_um column, "
                                       "else a constant offset)")
     find.add_argument("--axis", help="which err_<axis>_um to explain (default: the model's axis, or the "
@@ -44,6 +44,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     find.add_argument("--json-out", metavar="FILE", help="write the findings as JSON to FILE (- for stdout)")
     find.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
     find.add_argument("--write-model", metavar="IMPROVED.toml", help="write the improved model")
+    # fleet discovery (thermal/fleet.py): one Dask task per machine folder
+    find.add_argument("--fleet", metavar="ROOT", help="one folder per machine under ROOT (its runs as CSV or "
+                                                     "Parquet, optionally its model TOML); each machine a Dask task")
+    find.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                      help="with --fleet: a running Dask scheduler (default: a local cluster in this process)")
+    find.add_argument("--workers", type=int, metavar="N", help="with --fleet: local cluster workers (default: cores)")
     find.set_defaults(func=run_discover)
 
 
@@ -73,6 +79,12 @@ def run_simulate(args: argparse.Namespace) -> int:
 
 
 def run_discover(args: argparse.Namespace) -> int:
+    if args.fleet or args.scheduler or args.workers:
+        from .fleet_commands import run_fleet_discover
+
+        return run_fleet_discover(args)
+    if args.recording is None:
+        raise NckConfigError("give a recording CSV, or --fleet ROOT")
     from .discover import discover
     from .recording import load_recording
     from .report import write_report
