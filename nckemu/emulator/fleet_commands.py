@@ -12,6 +12,7 @@ from nckemu.errors import NckConfigError
 
 from .commands import loop_factory
 from .fleet import Fleet, load_fleet, quick_fleet
+from .server import ServerLimits
 
 EXAMPLE = """\
 examples:
@@ -42,6 +43,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--machine", help="with --count: machine TOML (default: the built-in default machine)")
     parser.add_argument("--host", default="127.0.0.1", help="with --count: address to bind (default 127.0.0.1)")
     parser.add_argument("--state", metavar="DIR", help="keep each machine's retained data in DIR/<name>.json")
+    parser.add_argument("--max-connections", type=int, default=ServerLimits.max_connections,
+                        help=f"per machine (default {ServerLimits.max_connections})")
     parser.add_argument("--loop", choices=("auto", "uvloop", "asyncio"), default="auto",
                         help="event loop: uvloop when installed, else asyncio's own (auto)")
     parser.add_argument("--json", action="store_true",
@@ -60,7 +63,9 @@ def run_fleet(args: argparse.Namespace) -> int:
         if args.machine is not None or args.base_port is not None:
             raise NckConfigError("--machine and --base-port go with --count; a fleet file names its own")
         spec = load_fleet(args.fleet)
-    fleet = Fleet(spec, state_dir=args.state)
+    if args.max_connections < 1:
+        raise NckConfigError(f"--max-connections {args.max_connections}: at least 1")
+    fleet = Fleet(spec, state_dir=args.state, limits=ServerLimits(max_connections=args.max_connections))
     try:
         with asyncio.Runner(loop_factory=loop_factory(args.loop)) as runner:
             return runner.run(_serve(fleet, args))
