@@ -70,7 +70,7 @@ def on_cluster(root: Path, workers: int) -> dict[str, float]:
         raise RuntimeError(f"machines failed: {document['failed']}")
     # cores the workers had on average: below their count, the host (not Dask) limited the scaling
     return {"seconds": seconds, "worker_rss_mb": max(rss.values()), "machines": len(document["machines"]),
-            "worker_cores_used": cpu_used_s / seconds}
+            "worker_cores_used": cpu_used_s / seconds, "worker_cpu_s": cpu_used_s}
 
 
 def dense_day(root: Path) -> dict[str, float]:
@@ -114,6 +114,7 @@ def main() -> int:
         "machine_days": machine_days, "machines": args.machines, "anchor_in_process_s": anchor_s,
         "anchor_s_per_machine_day": anchor_s / machine_days,
         "clusters": {str(w): {**r, "machine_days_per_s": machine_days / r["seconds"],
+                              "cpu_s_per_machine_day": r["worker_cpu_s"] / machine_days,
                               "speedup_over_first": base / r["seconds"], "over_anchor": anchor_s / r["seconds"]}
                      for w, r in runs.items()},
         "dense_machine_day": dense, "cores": os.cpu_count(), "load_average_at_start": busy,
@@ -128,7 +129,8 @@ def main() -> int:
     for workers, figures in result["clusters"].items():
         print(f"local cluster, {workers} worker(s): {figures['seconds']:.1f} s, {figures['machine_days_per_s']:.2f} "
               f"machine-days/s, x{figures['speedup_over_first']:.2f} over {args.workers[0]} worker(s), "
-              f"x{figures['over_anchor']:.2f} over the anchor; workers used {figures['worker_cores_used']:.2f} cores; "
+              f"x{figures['over_anchor']:.2f} over the anchor; workers used {figures['worker_cores_used']:.2f} cores, "
+              f"{1000 * figures['cpu_s_per_machine_day']:.0f} ms CPU per machine-day; "
               f"worker RSS {figures['worker_rss_mb']:.0f} MB")
     print(f"one dense machine-day (1 Hz, {dense['samples']} samples, {dense['csv_mb']:.1f} MB CSV): read and "
           f"discovered in {dense['seconds']:.1f} s, of which reading the CSV {dense['read_s']:.1f} s")
