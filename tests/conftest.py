@@ -22,7 +22,7 @@ settings.register_profile(
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 REPO = Path(__file__).resolve().parent.parent
-SHARED = REPO.parent / "shared"
+SHARED = Path(os.environ.get("NCKEMU_SHARED", REPO.parent / "shared"))  # worktrees: set NCKEMU_SHARED
 FIXTURES = REPO / "fixtures"
 
 

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from nckemu.cliutil import check_output, working, write_json
 from nckemu.errors import NckConfigError
@@ -33,13 +34,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                "  nckemu discover fixtures/thermal/seed003_spindle_elongation.csv --axis Z "
                "--json-out out.json --report out.html\n"
                "  nckemu discover fixtures/thermal/seed003_spindle_elongation.csv --json\n"
+               "  nckemu discover fixtures/thermal/runs/day1.csv fixtures/thermal/runs/day2.csv "
+               "fixtures/thermal/runs/day3.csv --model fixtures/thermal/baseline_spindle_bed.toml --report runs.html\n"
+               "  nckemu discover 'fixtures/thermal/runs/*.csv' --axis Z --json\n"
+               "  nckemu discover fixtures/thermal/runs --axis Z\n"
+               "  nckemu discover fixtures/thermal/loop_bed_program_spindle_lag.csv --split-runs --axis Z\n"
                "Without --model and without a sim_<axis>_um column the baseline is a constant offset: "
-               "discover then says which sensors explain the axis on their own.\n")
-    find.add_argument("recording", nargs="?", help="recording CSV (or --fleet ROOT)")
+               "discover then says which sensors explain the axis on their own.\n"
+               "Several runs (files, a directory, a glob): each run has its own offset, fitted on that run; "
+               "everything else is fitted on the other runs, and each run is held out in turn.\n")
+    find.add_argument("recording", nargs="?", help="recording (CSV or Parquet), a directory of them or a glob "
+                                                   "(or --fleet ROOT)")
+    find.add_argument("more", nargs="*", metavar="RUN", help="more runs of the same machine")
     find.add_argument("--model", help="baseline model TOML (default: the recording's sim_<axis>_um column, "
                                       "else a constant offset)")
     find.add_argument("--axis", help="which err_<axis>_um to explain (default: the model's axis, or the "
                                      "recording's only one)")
+    find.add_argument("--split-runs", action="store_true",
+                      help="cut each recording into runs at spindle-speed blocks and gaps over 1 h, then "
+                           "discover over the runs")
     find.add_argument("--json", action="store_true", help="print the findings as JSON on stdout")
     find.add_argument("--json-out", metavar="FILE", help="write the findings as JSON to FILE (- for stdout)")
     find.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
@@ -78,6 +91,10 @@ def run_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _is_one_file(spec: str) -> bool:
+    return not any(ch in spec for ch in "*?[") and not Path(spec).is_dir()
+
+
 def run_discover(args: argparse.Namespace) -> int:
     if args.fleet or args.scheduler or args.workers:
         from .fleet_commands import run_fleet_discover
@@ -85,8 +102,8 @@ def run_discover(args: argparse.Namespace) -> int:
         return run_fleet_discover(args)
     if args.recording is None:
         raise NckConfigError("give a recording CSV, or --fleet ROOT")
-    from .discover import discover
-    from .recording import load_recording
+    from .discover import discover, discover_runs
+    from .recording import load_recording, load_runs
     from .report import write_report
     from .terms import Term, ThermalModel, load_model, render_model
 
@@ -94,6 +111,9 @@ def run_discover(args: argparse.Namespace) -> int:
                          ("--write-model", args.write_model)):
         check_output(path, option)
     model = load_model(args.model) if args.model else None
+    specs = [args.recording, *getattr(args, "more", [])]
+    if len(specs) > 1 or not _is_one_file(args.recording) or getattr(args, "split_runs", False):
+        return _run_discover_runs(args, specs, model, discover_runs, load_runs)
     recording = load_recording(args.recording)
     axis = args.axis or (model.axis if model is not None else None)
     if axis is None:
@@ -132,11 +152,54 @@ def run_discover(args: argparse.Namespace) -> int:
     text = sys.stderr if args.json_out == "-" else sys.stdout
     print(f"axis {result.axis}: RMS as given {result.baseline_rms_um:.3f} um, recalibrated "
           f"{result.recalibrated_rms_um:.3f} um, held-out {result.heldout_rms_before_um:.3f} -> "
-          f"{result.heldout_rms_after_um:.3f} um", file=text)
+          f"{result.heldout_rms_after_um:.3f} um (before: {result.before_is})", file=text)
     for heading, sentence in findings or []:
         print(f"  {heading}: {sentence}", file=text)
-    for effect in result.missing_physics:
-        print(f"  missing: {effect['effect']} {json.dumps(effect['parameters'])}", file=text)
-    if not result.missing_physics:
-        print("  nothing missing", file=text)
+    _print_findings(result, text)
+    return 0
+
+
+def _print_findings(result: Any, text: Any) -> None:
+    from .wording import finding_lines
+
+    for line in finding_lines(result):
+        print(f"  {line}", file=text)
+
+
+def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, discover_runs: Any,
+                       load_runs: Any) -> int:
+    from .report import write_report
+    from .terms import render_model
+    from .wording import runs_table
+
+    runs = load_runs(specs, args.axis or (model.axis if model is not None else None))
+    if getattr(args, "split_runs", False):
+        from .recording import split_runs
+
+        runs = [part for run in runs for part in split_runs(run)]
+        if not args.json:
+            print(f"nckemu discover: {len(runs)} runs after splitting: {', '.join(r.name for r in runs)}",
+                  file=sys.stderr)
+    with working("discover", enabled=not args.json):
+        result = discover_runs(runs, axis=args.axis, model=model)
+    args.discovery = result
+    document = result.to_json()
+    write_json(document, args.json_out)
+    title = f"nckemu discover: {len(runs)} runs ({', '.join(r.name for r in runs[:3])}{', ...' if len(runs) > 3 else ''})"
+    if args.report:
+        write_report(args.report, result, title)
+    if args.write_model:
+        note = "" if args.model else "# baseline: each run's own offset\n"
+        Path(args.write_model).write_text(note + "# plus each run's own offset, fitted on that run\n"
+                                          + render_model(result.improved_model), encoding="utf-8")
+    if args.json:
+        print(json.dumps(document))
+        return 0
+    text = sys.stderr if args.json_out == "-" else sys.stdout
+    print(f"axis {result.axis} over {len(runs)} runs: RMS as given {result.baseline_rms_um:.3f} um, held-out "
+          f"(each run left out, median over runs) {result.heldout_rms_before_um:.3f} -> "
+          f"{result.heldout_rms_after_um:.3f} um (before: {result.before_is})", file=text)
+    for line in runs_table(result):
+        print(f"  {line}", file=text)
+    _print_findings(result, text)
     return 0

@@ -20,7 +20,7 @@ from typing import Any
 
 from nckemu.errors import NckConfigError, NckError
 
-RUN_SUFFIXES = (".csv", ".parquet")
+RUN_SUFFIXES = (".csv", ".parquet", ".pq")
 # How long to try to reach --scheduler before saying it cannot be reached.
 SCHEDULER_TIMEOUT_S = 10.0
 
@@ -59,49 +59,6 @@ def scan_root(root: str | Path) -> list[MachineFolder]:
 
 
 # ---------------------------------------------------------------------------- the task (on a worker)
-def _load_runs(paths: Sequence[str]) -> list[Any]:
-    """The machine's runs as recordings. Swap point: ``recording.load_runs`` when it lands (Parquet)."""
-    from .recording import load_recording
-
-    recordings = []
-    for path in paths:
-        if path.lower().endswith(".parquet"):
-            raise NckConfigError("Parquet runs need the Parquet reader (nckemu.thermal.recording.load_runs), "
-                                 "which this nckemu does not have yet; give CSV", path=path)
-        recordings.append(load_recording(path))
-    return recordings
-
-
-def _discover_runs(runs: list[Any], axis: str | None, model: Any) -> Any:
-    """One discovery over a machine's runs. Swap point: ``discover.discover_runs`` when it lands; until
-    then the runs are joined end to end in time (each run starts one sample after the last ended)."""
-    import numpy as np
-
-    from .discover import discover
-    from .recording import Recording
-
-    if len(runs) == 1:
-        return discover(runs[0], axis=axis, model=model)
-    first = runs[0]
-    parts_t, offset_s = [], 0.0
-    for run in runs:
-        if run.errors_um.keys() != first.errors_um.keys() or run.temperatures_C.keys() != first.temperatures_C.keys():
-            raise NckConfigError(f"its columns differ from {Path(first.source).name}'s", path=run.source)
-        step_s = float(np.median(np.diff(run.t_s))) if len(run.t_s) > 1 else 1.0
-        parts_t.append(run.t_s - run.t_s[0] + offset_s)
-        offset_s = float(parts_t[-1][-1]) + step_s
-
-    def joined(name: str) -> dict[str, np.ndarray]:
-        return {key: np.concatenate([getattr(run, name)[key] for run in runs]) for key in getattr(first, name)}
-
-    rpm = None if any(run.spindle_rpm is None for run in runs) else np.concatenate([r.spindle_rpm for r in runs])
-    recording = Recording(first.source, np.concatenate(parts_t), joined("temperatures_C"), rpm,
-                          joined("positions_mm"), joined("errors_um"),
-                          joined("simulated_um") if all(r.simulated_um.keys() == first.simulated_um.keys()
-                                                        for r in runs) else {})
-    return discover(recording, axis=axis, model=model)
-
-
 def _worker_name() -> str:
     try:
         from distributed import get_worker
@@ -115,6 +72,8 @@ def discover_machine(machine: MachineFolder, axis: str | None = None) -> dict[st
     """The Dask task: read this machine's runs and model, discover, return the findings as JSON.
 
     Bad data of one machine is that machine's error in the result, not the fleet's."""
+    from .discover import discover_runs
+    from .recording import load_runs
     from .terms import Term, ThermalModel, load_model
 
     document: dict[str, Any] = {"machine": machine.name, "runs": [Path(run).name for run in machine.runs],
@@ -122,20 +81,19 @@ def discover_machine(machine: MachineFolder, axis: str | None = None) -> dict[st
                                 "worker": _worker_name()}
     try:
         model = load_model(machine.model) if machine.model else None
-        runs = _load_runs(machine.runs)
         chosen = axis or (model.axis if model is not None else None)
-        axes = sorted(set.intersection(*(set(run.errors_um) for run in runs)))
+        runs = load_runs(list(machine.runs), chosen)
         if chosen is None:
+            axes = sorted(set.intersection(*(set(run.errors_um) for run in runs)))
             if len(axes) != 1:
                 raise NckConfigError(f"which axis? give --axis ({', '.join(axes) or 'no err_<axis>_um column'})",
                                      path=machine.runs[0])
             chosen = axes[0]
-        if chosen not in axes:
-            raise NckConfigError(f"no err_{chosen}_um column in every run (all have: {', '.join(axes) or 'none'})",
-                                 path=machine.runs[0])
-        if model is None and not all(chosen in run.simulated_um for run in runs):
+        if model is None and len(runs) == 1 and chosen not in runs[0].simulated_um:
+            # as `discover REC.csv` does: the sensors explain the axis on their own (several runs: each
+            # run's own offset, discover_runs's baseline)
             model = ThermalModel(chosen, [Term("offset", {"value_um": 0.0})], "<constant offset>")
-        result = _discover_runs(runs, chosen, model)
+        result = discover_runs(runs, axis=chosen, model=model)
     except NckError as exc:
         document["error"] = str(exc)
         return document

@@ -14,8 +14,10 @@ from nckemu.errors import NckConfigError
 def run_fleet_discover(args: argparse.Namespace) -> int:
     if not args.fleet:
         raise NckConfigError("--scheduler and --workers go with --fleet ROOT")
-    if args.recording is not None:
-        raise NckConfigError(f"give a recording or --fleet, not both ({args.recording})")
+    if args.recording is not None or getattr(args, "more", None):
+        raise NckConfigError(f"give recordings or --fleet, not both ({args.recording})")
+    if getattr(args, "split_runs", False):
+        raise NckConfigError("--split-runs does not go with --fleet (a machine folder's files are its runs)")
     for option, value in (("--model", args.model), ("--write-model", args.write_model)):
         if value is not None:
             raise NckConfigError(f"{option} does not go with --fleet (each machine folder holds its own model)")

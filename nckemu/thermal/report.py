@@ -26,6 +26,8 @@ def _png(figure: plt.Figure) -> str:
 
 
 def _shade(axes: plt.Axes, discovery: Discovery) -> None:
+    if discovery.runs:  # the runs are laid end to end: each run's windows are in the per-run table
+        return
     for index, window in enumerate(discovery.mismatch):
         axes.axvspan(window["t_start_s"] / 3600, window["t_end_s"] / 3600, color="orange", alpha=0.15,
                      label="located mismatch" if index == 0 else None)
@@ -65,6 +67,54 @@ def _row(finding: dict[str, Any]) -> str:
             f"<td>{'<br>'.join(parts)}</td></tr>")
 
 
+def _runs_section(discovery: Discovery) -> str:
+    """Several runs: each run's held-out RMS before and after (a table and a bar plot), and where
+    the model still fails."""
+    if not discovery.runs:
+        return ""
+    import numpy as np
+
+    names = [r["name"] for r in discovery.runs]
+    before = [r["heldout_rms_before_um"] for r in discovery.runs]
+    after = [r["heldout_rms_after_um"] for r in discovery.runs]
+    figure, axes = plt.subplots(figsize=(10, 3.5))
+    x = np.arange(len(names))
+    axes.bar(x - 0.2, before, 0.4, label="before (baseline)")
+    axes.bar(x + 0.2, after, 0.4, label="after (improved model)")
+    crowded = len(names) > 8 or max(len(n) for n in names) * len(names) > 90
+    axes.set_xticks(x, names, rotation=60 if crowded else 0, ha="right" if crowded else "center", fontsize=8)
+    axes.set_ylabel("held-out RMS [um]")
+    axes.set_title("each run held out: fitted on the other runs, its own offset on itself")
+    axes.legend()
+    plot = _png(figure)
+    red = ' style="background:#fee"'
+    rows = "".join(
+        f"<tr{red if r.get('fails') else ''}><td>{html.escape(r['name'])}</td>"
+        f"<td>{r['rows']}</td><td>{r['duration_h']:.1f}</td><td>{r['heldout_rms_before_um']:.3f}</td>"
+        f"<td>{r['heldout_rms_after_um']:.3f}</td><td>"
+        + (f"still fails, {r['fails_from_h']:.2f} h to {r['fails_to_h']:.2f} h after its start" if r.get("fails") else "")
+        + "</td></tr>" for r in discovery.runs)
+    coverage = "".join(f"<li>{html.escape(c['column'])} missing in {html.escape(', '.join(c['missing_in']))}: "
+                       f"{html.escape(c['handled'])}</li>" for c in discovery.coverage)
+    return (f"<h2>Runs</h2><table><tr><th>run</th><th>rows</th><th>hours</th><th>held-out before [um]</th>"
+            f"<th>held-out after [um]</th><th></th></tr>{rows}</table>"
+            + (f"<p>Columns some runs lack:</p><ul>{coverage}</ul>" if coverage else "")
+            + f'<img alt="held-out RMS per run, before and after" src="data:image/png;base64,{plot}">')
+
+
+def _honest_section(discovery: Discovery) -> str:
+    parts = []
+    if discovery.why_nothing:
+        parts.append(f"<p><b>Why nothing is missing.</b> {html.escape(discovery.why_nothing)}</p>")
+    for item in discovery.likely:
+        e = item["evidence"]
+        parts.append(f"<p><b>Likely, not proven:</b> {html.escape(item['label'])} "
+                     f"<code>{html.escape(json.dumps(item['parameters']))}</code>: held-out "
+                     f"{_um(e['heldout_rms_before_um'])} &rarr; {_um(e['heldout_rms_after_um'])}; "
+                     f"{html.escape(e['why'])}.</p>")
+    return "".join(parts)
+
+
 def write_report(path: str | Path, discovery: Discovery, title: str,
                  findings: list[tuple[str, str]] | None = None) -> None:
     series = discovery.series
@@ -74,7 +124,7 @@ def write_report(path: str | Path, discovery: Discovery, title: str,
     axes.plot(hours, series["baseline_um"], label="baseline (as given)")
     axes.plot(hours, series["improved_um"], label="improved model")
     _shade(axes, discovery)
-    axes.set_xlabel("time [h]")
+    axes.set_xlabel("time [h]" + (" (runs end to end, each about its own offset)" if discovery.runs else ""))
     axes.set_ylabel(f"error of axis {discovery.axis} [um]")
     axes.legend()
     overview = _png(figure)
@@ -88,8 +138,9 @@ def write_report(path: str | Path, discovery: Discovery, title: str,
     axes.legend()
     residuals = _png(figure)
     rows = "".join(_row(m) for m in discovery.missing_physics) or "<tr><td colspan=3>nothing missing</td></tr>"
-    windows = "".join(f"<li>{w['t_start_s'] / 3600:.2f} h to {w['t_end_s'] / 3600:.2f} h: {html.escape(w['why'])}</li>"
-                      for w in discovery.mismatch) or "<li>no structured residual</li>"
+    windows = "".join(f"<li>{html.escape(w['run']) + ': ' if 'run' in w else ''}{w['t_start_s'] / 3600:.2f} h to {w['t_end_s'] / 3600:.2f} h: {html.escape(w['why'])}</li>"
+                      for w in discovery.mismatch) or ("<li>no run the model still fails</li>" if discovery.runs
+                                         else "<li>no structured residual</li>")
     quality = ("<h2>Data quality</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in discovery.data_quality)
                + "</ul>") if discovery.data_quality else ""
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{html.escape(title)}</title>
@@ -98,10 +149,13 @@ table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}</style></hea
 <h1>{html.escape(title)}</h1>
 <p>Axis {html.escape(discovery.axis)}, {discovery.samples} measured samples. RMS as given
 {discovery.baseline_rms_um:.3f} um; recalibrated {discovery.recalibrated_rms_um:.3f} um; held-out
-{discovery.heldout_rms_before_um:.3f} &rarr; {discovery.heldout_rms_after_um:.3f} um.</p>
+{discovery.heldout_rms_before_um:.3f} &rarr; {discovery.heldout_rms_after_um:.3f} um
+(before: {html.escape(discovery.before_is or "the baseline")}).</p>
 {findings_html(findings) if findings else ""}
+{_runs_section(discovery)}
 <h2>Missing physics</h2><table><tr><th>effect</th><th>parameters</th><th>evidence</th></tr>{rows}</table>
 <p><b>Preferred explanation.</b> {html.escape(discovery.preferred or "-")}</p>
+{_honest_section(discovery)}
 {quality}
 <h2>Where the model disagrees</h2><ul>{windows}</ul>
 <img alt="recording, baseline and improved model" src="data:image/png;base64,{overview}">

@@ -47,3 +47,39 @@ def program_findings(discovery: Discovery, law: str | None = None) -> list[tuple
             ("Where it falls short", short), ("What physics it leaves out", physics)]
 
 
+
+
+def finding_lines(discovery: Discovery) -> list[str]:
+    """The text output's lines after the headline: found, likely, why nothing, coverage, data quality."""
+    import json
+
+    lines = [f"missing: {m['effect']} {json.dumps(m['parameters'])}" for m in discovery.missing_physics]
+    for item in discovery.likely:
+        e = item["evidence"]
+        lines.append(f"likely, not proven: {item['label']} {json.dumps(item['parameters'])}: held-out "
+                     f"{e['heldout_rms_before_um']:.3f} -> {e['heldout_rms_after_um']:.3f} um "
+                     f"({e['heldout_improvement']:.1%}, the bar is {e['heldout_bar']:.0%}), t = "
+                     f"{e['t_value_ar1_corrected']} (critical {e['t_critical']}), folds {e['folds_improved']}")
+    if not discovery.missing_physics:
+        lines.append(f"nothing missing: {discovery.why_nothing}" if discovery.why_nothing else "nothing missing")
+    for item in discovery.coverage:
+        lines.append(f"{item['column']} missing in {', '.join(item['missing_in'])}: {item['handled']}")
+    return lines
+
+
+def runs_table(discovery: Discovery) -> list[str]:
+    """Per run: rows, hours, held-out before and after (each run left out), and where it still fails."""
+    if not discovery.runs:
+        return []
+    width = max(len(r["name"]) for r in discovery.runs)
+    lines = [f"{'run':<{width}}  {'rows':>6}  {'hours':>6}  {'before_um':>9}  {'after_um':>8}"]
+    for r in discovery.runs:
+        flag = "  still fails" if r.get("fails") else ""
+        lines.append(f"{r['name']:<{width}}  {r['rows']:>6}  {r['duration_h']:>6.1f}  "
+                     f"{r['heldout_rms_before_um']:>9.3f}  {r['heldout_rms_after_um']:>8.3f}{flag}")
+    for w in discovery.mismatch:
+        if "run" in w:
+            run = next(r for r in discovery.runs if r["name"] == w["run"])
+            lines.append(f"{w['run']} still fails from {run['fails_from_h']:.2f} h to {run['fails_to_h']:.2f} h "
+                         f"after its start ({w['why']})")
+    return lines

@@ -17,7 +17,7 @@ from nckemu.thermal.fleet import (
     scan_root,
     write_fleet_report,
 )
-from nckemu.thermal.recording import write_recording
+from nckemu.thermal.recording import load_recording, write_recording
 from nckemu.thermal.scenarios import make_scenario
 from nckemu.thermal.terms import render_model
 
@@ -73,8 +73,21 @@ def test_bad_data_is_that_machines_error_not_the_fleets(tmp_path: Path) -> None:
     (folder / "run.csv").write_text("t_s,temp_bed_C\n0,20\n", encoding="utf-8")
     result = discover_machine(scan_root(tmp_path)[0])
     assert "no err_<axis>_um column" in result["error"] and "run.csv" in result["error"]
-    parquet = MachineFolder("p", (str(tmp_path / "run.parquet"),))
-    assert "Parquet" in discover_machine(parquet)["error"]
+    missing = MachineFolder("p", (str(tmp_path / "gone.parquet"),))
+    assert "gone.parquet" in discover_machine(missing)["error"]
+
+
+def test_parquet_and_csv_runs_give_the_same_findings(tmp_path: Path) -> None:
+    folder = _machine(tmp_path / "csv", "m", "thermal_lag", 4, days=2)
+    as_parquet = tmp_path / "parquet" / "m"
+    as_parquet.mkdir(parents=True)
+    for run in folder.glob("*.csv"):
+        write_recording(as_parquet / f"{run.stem}.parquet", load_recording(run))
+    (as_parquet / "model.toml").write_text((folder / "model.toml").read_text())
+    from_csv = discover_machine(scan_root(tmp_path / "csv")[0])
+    from_parquet = discover_machine(scan_root(tmp_path / "parquet")[0])
+    assert from_parquet["runs"] == ["day001.parquet", "day002.parquet"]
+    assert from_parquet["findings"] == from_csv["findings"]
 
 
 def test_fleet_table_counts_machines_and_spreads_parameters() -> None:

@@ -1,0 +1,97 @@
+"""Discovery over many runs: 30 runs x 24 h at 1 Hz with 6 sensors (issue 23: under 60 s here).
+
+The anchor, measured in the same run: single-run discovery on the same rows, the runs laid end to end
+as one recording. Also the time to read the runs back from CSV and from Parquet (load_runs).
+
+Usage: .venv/bin/python bench/bench_discover_runs.py [--runs 30] [--hours 24] [--dt 1] [--no-anchor]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from nckemu.thermal.discover import discover  # noqa: E402
+from nckemu.thermal.recording import Recording, load_runs, write_recording  # noqa: E402
+from nckemu.thermal.scenarios import AXIS, make_run_family  # noqa: E402
+
+
+def end_to_end(runs: list[Recording]) -> Recording:
+    """The runs as one recording, each starting one median interval after the previous one ends."""
+    pieces, shift = [], 0.0
+    for run in runs:
+        pieces.append(run.t_s - run.t_s[0] + shift)
+        shift = pieces[-1][-1] + float(np.median(np.diff(run.t_s)))
+    sensors = sorted(set.intersection(*(set(run.temperatures_C) for run in runs)))
+    rpm = None if any(run.spindle_rpm is None for run in runs) else np.concatenate([run.spindle_rpm for run in runs])
+    return Recording("<runs end to end>", np.concatenate(pieces),
+                     {k: np.concatenate([run.temperatures_C[k] for run in runs]) for k in sensors}, rpm, {},
+                     {AXIS: np.concatenate([run.errors_um[AXIS] for run in runs])})
+
+
+def timed(label: str, work):  # noqa: ANN001, ANN201 - a bench helper
+    started = time.perf_counter()
+    result = work()
+    elapsed = time.perf_counter() - started
+    print(f"{label:<46} {elapsed:8.2f} s", flush=True)
+    return result, elapsed
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=30)
+    parser.add_argument("--hours", type=float, default=24.0)
+    parser.add_argument("--dt", type=float, default=1.0, help="mean sampling interval, s")
+    parser.add_argument("--family", default="job_mix_gradient")
+    parser.add_argument("--no-anchor", action="store_true", help="skip single-run discovery on the same rows")
+    parser.add_argument("--no-files", action="store_true", help="skip writing and reading CSV/Parquet")
+    args = parser.parse_args()
+
+    family, _ = timed("generate", lambda: make_run_family(args.family, 1, args.runs, args.hours, args.dt,
+                                                          missing_share=0.0))
+    runs = family.runs
+    rows = sum(len(run.t_s) for run in runs)
+    readings = sum(int(np.count_nonzero(~np.isnan(run.errors_um[AXIS]))) for run in runs)
+    print(f"{len(runs)} runs x {args.hours:g} h, mean dt {args.dt:g} s: {rows} rows, {readings} gauge readings, "
+          f"{len(runs[0].temperatures_C)} sensors")
+    if not args.no_files:
+        with tempfile.TemporaryDirectory() as directory:
+            for suffix in (".parquet", ".csv"):
+                folder = Path(directory) / suffix[1:]
+                folder.mkdir()
+                timed(f"write {suffix[1:]}", lambda f=folder, s=suffix: [write_recording(f / f"{r.name}{s}", r)
+                                                                          for r in runs])
+                size_mb = sum(p.stat().st_size for p in folder.iterdir()) / 1e6
+                timed(f"load_runs {suffix[1:]} ({size_mb:.0f} MB)", lambda f=folder: load_runs([f], axis=AXIS))
+
+    try:
+        from nckemu.thermal.discover import discover_runs  # type: ignore[attr-defined]
+    except ImportError:
+        discover_runs = None
+    elapsed_runs = None
+    if discover_runs is None:
+        print("discover_runs: not in this tree yet")
+    else:
+        result, elapsed_runs = timed("discover_runs", lambda: discover_runs(runs, AXIS, family.model))
+        named = [m["effect"] for m in getattr(result, "missing_physics", [])]
+        print(f"  named: {', '.join(named) or '-'} (truth: {family.truth.effect})")
+    if not args.no_anchor:
+        whole = end_to_end(runs)
+        result, elapsed_one = timed(f"anchor: discover, one recording of {len(whole.t_s)} rows",
+                                    lambda: discover(whole, AXIS, family.model))
+        if elapsed_runs is not None:
+            print(f"ratio discover_runs / anchor: {elapsed_runs / elapsed_one:.2f}")
+    if elapsed_runs is not None:
+        print(f"target: discover_runs under 60 s: {'met' if elapsed_runs < 60 else 'NOT met'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

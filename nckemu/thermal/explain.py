@@ -1,0 +1,208 @@
+"""The explainer: words for what the selector decided, where the model disagrees with the recording
+(mismatch windows and what was going on there), and why nothing passed when nothing did."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import stats
+from .library import label
+from .recording import Recording
+
+if TYPE_CHECKING:  # the selector imports this module for its words
+    from .selector import Evaluation
+
+
+def finite(value: float) -> float | None:
+    return None if not math.isfinite(value) else round(float(value), 6)
+
+
+def locate(t_s: np.ndarray, values: np.ndarray, fraction: float = 0.5) -> list[tuple[float, float, float]]:
+    """Contiguous windows where |values| exceeds ``fraction`` of its peak: (start, end, weight)."""
+    if len(values) == 0:
+        return []
+    peak = float(np.max(np.abs(values)))
+    if peak == 0:
+        return []
+    above = np.abs(values) >= fraction * peak
+    windows = []
+    start = None
+    for index, flag in enumerate(np.append(above, False)):
+        if flag and start is None:
+            start = index
+        elif not flag and start is not None:
+            end = index - 1
+            windows.append((float(t_s[start]), float(t_s[end]), float(np.sum(np.abs(values[start:end + 1])))))
+            start = None
+    merged: list[tuple[float, float, float]] = []
+    gap = 0.02 * (t_s[-1] - t_s[0]) if len(t_s) > 1 else 0
+    for window in windows:
+        if merged and window[0] - merged[-1][1] <= gap:
+            previous = merged.pop()
+            window = (previous[0], window[1], previous[2] + window[2])
+        merged.append(window)
+    return sorted(merged, key=lambda w: -w[2])
+
+
+def smooth(values: np.ndarray, width: int) -> np.ndarray:
+    if width <= 1 or len(values) < width:
+        return values.copy()
+    kernel = np.ones(width) / width
+    padded = np.pad(values, (width // 2, width - 1 - width // 2), mode="edge")
+    return np.convolve(padded, kernel, mode="valid")
+
+
+def structured_windows(t_s: np.ndarray, residual: np.ndarray, limit: int = 5) -> list[tuple[float, float]]:
+    """Windows where the smoothed residual exceeds half its peak and the noise: (start, end)."""
+    if len(t_s) < 8:
+        return []
+    width = max(3, len(t_s) // 40)
+    smoothed = smooth(residual, width)
+    noise = float(np.std(np.diff(residual)) / math.sqrt(2)) if len(residual) > 2 else 0.0
+    if not np.max(np.abs(smoothed)) > 3 * noise / math.sqrt(width) + 1e-12:
+        return []
+    return [(start, end) for start, end, _weight in locate(t_s, smoothed - np.median(smoothed))[:limit]]
+
+
+def mismatch(recording: Recording, axis: str, t_s: np.ndarray, residual: np.ndarray) -> list[dict[str, Any]]:
+    """Where the residual is structured, with what was going on there."""
+    out = []
+    for start, end in structured_windows(t_s, residual):
+        inside = (t_s >= start) & (t_s <= end)
+        out.append({"t_start_s": start, "t_end_s": end, "why": why(recording, axis, t_s, inside, residual)})
+    return out
+
+
+def why(recording: Recording, axis: str, t_s: np.ndarray, inside: np.ndarray, residual: np.ndarray) -> str:
+    parts = [f"mean residual {float(np.mean(residual[inside])):+.2f} um "
+             f"(elsewhere {float(np.mean(residual[~inside])) if (~inside).any() else 0:+.2f} um)"]
+    t_all = recording.t_s
+    window = (t_all >= t_s[inside][0]) & (t_all <= t_s[inside][-1])
+    if recording.temperatures_C:
+        name, values = max(recording.temperatures_C.items(), key=lambda kv: float(np.ptp(kv[1])))
+        if window.sum() > 1:
+            slope = float(values[window][-1] - values[window][0])
+            trend = "rises" if slope > 0.2 else "falls" if slope < -0.2 else "is steady"
+            parts.append(f"{name} {trend} ({slope:+.1f} K)")
+    if recording.spindle_rpm is not None and window.any():
+        parts.append(f"spindle at {float(np.mean(recording.spindle_rpm[window])):.0f} rpm on average")
+    if axis in recording.positions_mm and window.any():
+        inside_pos = float(np.mean(recording.positions_mm[axis][window]))
+        outside_pos = float(np.mean(recording.positions_mm[axis][~window])) if (~window).any() else inside_pos
+        if abs(inside_pos - outside_pos) > 50:
+            parts.append(f"axis {axis} at {inside_pos:.0f} mm on average (elsewhere {outside_pos:.0f} mm)")
+    return "; ".join(parts)
+
+
+def preference_words(chosen: Evaluation, best: Evaluation, equivalent: list[Evaluation], margin: float) -> str:
+    name = chosen.candidate.label
+    if chosen is not best and chosen not in equivalent:
+        return (f"{name} preferred to {best.candidate.label}: the time constant of the latter improves "
+                f"held-out RMS by less than the bar an effect must clear")
+    others = [e.candidate.label for e in equivalent if e is not chosen]
+    if not others:
+        return f"{name}: passed every guard, and no other explanation came within {margin:.0%} of its held-out RMS"
+    if chosen is best:
+        return f"{name}: best held-out RMS and simplest; {', '.join(others)} explain the data almost as well"
+    return (f"{name} preferred as the simplest of equivalent explanations (held-out RMS within {margin:.0%} "
+            f"of the best, {best.ranked_rms_um:.3f} um without the sensors' noise): "
+            f"{', '.join(others)}")
+
+
+def recalibration_words(found: list[str], calibrated_here: bool, gain_note: str | None) -> str:
+    if found:
+        words = (f"the model recalibrated (its own coefficients refitted) plus {', '.join(found)}: each passed "
+                 f"the held-out, fold and t-test guards against the recalibrated model")
+    else:
+        words = "nothing passed the guards: the model stands (recalibration is not physics)"
+    if calibrated_here:
+        words += ("; the model as given was calibrated on this record, so candidates were compared with "
+                  "it refitted per fold under the same blocked cross-validation")
+    return words + (f"; {gain_note}" if gain_note else "")
+
+
+def evidence(chosen: Evaluation, best: Evaluation, equivalent: list[Evaluation], margin: float,
+             before_um: float, t_critical: float, folds: int, window: tuple[float, float] | None,
+             why_text: str) -> dict[str, Any]:
+    """The evidence record of one admitted effect."""
+    record: dict[str, Any] = {
+        "heldout_rms_before_um": round(before_um, 4), "heldout_rms_after_um": round(chosen.cv.rms_um, 4),
+        "heldout_rms_without_sensor_noise_um": round(chosen.ranked_rms_um, 4),
+        "t_value_ar1_corrected": finite(chosen.t_value), "t_critical": round(t_critical, 3),
+        "folds_improved": f"{chosen.fold_wins}/{folds}",
+        "window": {"t_start_s": window[0], "t_end_s": window[1]} if window else None,
+        "equivalent": [{"effect": e.candidate.label, "heldout_rms_um": round(e.cv.rms_um, 4),
+                        "heldout_rms_without_sensor_noise_um": round(e.ranked_rms_um, 4)}
+                       for e in equivalent if e is not chosen],
+        "why": why_text,
+    }
+    if chosen is not best:
+        record["resolved_to_simpler"] = best.candidate.label
+    record["preferred"] = preference_words(chosen, best, equivalent, margin)
+    return record
+
+
+# ---------------------------------------------------------------------- when nothing passes
+FAMILY_ORDER = ("offset", "time_drift", "temperature", "quadratic_temperature", "thermal_gradient",
+                "centrifugal_growth", "position_dependent_expansion", "thermal_lag", "heating_cooling_hysteresis")
+
+
+def detectable_um(evaluations: list[Evaluation], base_rms_um: float, t_critical: float,
+                  min_improvement: float) -> dict[str, float]:
+    """Per candidate family, the smallest effect (RMS of its contribution over the gauge samples, um)
+    this record could have shown: it must clear the t-test (coefficient >= t_critical standard
+    errors, on the part of its feature the design does not already hold) and lower held-out RMS by
+    ``min_improvement`` (explain 1 - (1 - min_improvement)^2 of the mean square). Best-placed
+    candidate of each family."""
+    held_out_um = base_rms_um * math.sqrt(1 - (1 - min_improvement) ** 2)
+    out: dict[str, float] = {}
+    for e in evaluations:
+        if not (math.isfinite(e.t_value) and e.t_value != 0 and math.isfinite(e.own_rms)):
+            continue
+        se = abs(e.coefficient / e.t_value)
+        size = max(t_critical * se * e.own_rms, held_out_um)
+        family = e.candidate.term.effect
+        out[family] = min(out.get(family, math.inf), size)
+    return {k: out[k] for k in FAMILY_ORDER if k in out}
+
+
+def autocorrelation_words(residual: np.ndarray, lags: int = 20) -> tuple[bool, str]:
+    """Is the residual autocorrelated beyond white noise? Ljung-Box at 1 %, with r(1)."""
+    from scipy.stats import chi2
+
+    q = stats.ljung_box(residual, lags)
+    r1 = stats.autocorrelation(residual, 1)
+    if not math.isfinite(q):
+        return False, "too few samples to judge the residual's autocorrelation"
+    beyond = q > float(chi2.isf(0.01, lags))
+    if beyond:
+        return True, (f"the residual is autocorrelated beyond white noise (r(1) = {r1:.2f}, Ljung-Box Q = {q:.0f}): "
+                      f"structure is left that no candidate explains on this evidence")
+    return False, f"the residual is consistent with white noise (r(1) = {r1:.2f}, Ljung-Box Q = {q:.0f})"
+
+
+def nothing_passed(units: int, unit_name: str, detectable: dict[str, float], autocorrelation: str) -> str:
+    """One line: why "nothing missing" is a finding, and what this record could have shown."""
+    sizes = ", ".join(f"{family} {size:.2g}" for family, size in detectable.items()) or "n/a"
+    return (f"nothing passed the guards on {units} independent {unit_name}; the smallest effect this record "
+            f"could have shown (RMS over the gauge samples, um): {sizes}; {autocorrelation}")
+
+
+def likely_record(evaluation: Evaluation, before_um: float, t_critical: float, folds: int,
+                  bar: float) -> dict[str, Any]:
+    """A correctly named term below the held-out bar: "likely, not proven", with its figures."""
+    term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
+    gain = 1 - evaluation.cv.rms_um / before_um if before_um > 0 else 0.0
+    return {"effect": term.effect, "label": label(term),
+            "parameters": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
+            "status": "likely, not proven",
+            "evidence": {"heldout_rms_before_um": round(before_um, 4),
+                         "heldout_rms_after_um": round(evaluation.cv.rms_um, 4),
+                         "heldout_improvement": round(gain, 4), "heldout_bar": bar,
+                         "t_value_ar1_corrected": finite(evaluation.t_value), "t_critical": round(t_critical, 3),
+                         "folds_improved": f"{evaluation.fold_wins}/{folds}",
+                         "why": (f"passes the t-test and improves {evaluation.fold_wins} of {folds} folds, but lowers "
+                                 f"held-out RMS by {gain:.1%}, below the {bar:.0%} an effect must clear")}}

@@ -1,0 +1,332 @@
+"""The candidate library: every named effect of the vocabulary that could explain what the baseline
+leaves, as a term with its feature on the gauge samples (and the sensor noise that feature carries).
+
+Like PySINDy's feature libraries, it only builds columns; what is fitted and judged is the
+selector's. A lag's or a hysteresis's time constant is picked here on a grid, in-sample against the
+current design: each value tried is a hypothesis the selector counts in its Bonferroni correction.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import stats
+from .problem import Problem, Run
+from .settings import Settings
+from .terms import Term, asymmetric_lag, first_order_lag
+
+# Effects of one sensor that contain another as a special case (a time constant going to zero, or
+# heating and cooling at the same rate).
+_EXTENDS = {("thermal_lag", "temperature"), ("heating_cooling_hysteresis", "temperature"),
+            ("heating_cooling_hysteresis", "thermal_lag")}
+
+
+@dataclass
+class Candidate:
+    term: Term
+    feature: np.ndarray
+    # What the sensors' white noise contributes to the feature (one draw of it), gauge samples only.
+    noise: np.ndarray
+    in_sample_rms_um: float = math.nan
+    # Values of a time constant tried to find this one: each was a hypothesis tested on the data.
+    grid_points: int = 1
+
+    @property
+    def label(self) -> str:
+        return label(self.term)
+
+
+def label(term: Term) -> str:
+    """``effect(sensor)``, ``effect(a - b)`` or ``effect``."""
+    p = term.parameters
+    detail = p.get("sensor") or (f"{p['sensors'][0]} - {p['sensors'][1]}" if "sensors" in p else "")
+    return f"{term.effect}({detail})" if detail else term.effect
+
+
+def present_key(term: Term) -> str:
+    """What a found term rules out of later rounds: the effect, or the effect of that sensor (pair)."""
+    if term.effect in ("offset", "time_drift", "centrifugal_growth"):
+        return term.effect
+    return f"{term.effect}:{term.parameters.get('sensor') or '-'.join(term.parameters.get('sensors', []))}"
+
+
+def bounded(term: Term) -> bool:
+    """Parameters a machine can have."""
+    p = term.parameters
+    c = term.coefficient
+    if term.effect == "thermal_lag":
+        return 60.0 <= float(p["tau_s"]) <= 48 * 3600.0
+    if term.effect == "heating_cooling_hysteresis":
+        return all(60.0 <= float(p[key]) <= 48 * 3600.0 for key in ("tau_heat_s", "tau_cool_s"))
+    if term.effect == "gain_error":
+        return 0.2 <= c <= 5.0
+    return math.isfinite(c)
+
+
+def time_constants(term: Term) -> int:
+    return sum(key in term.parameters for key in ("tau_s", "tau_heat_s", "tau_cool_s"))
+
+
+def extends(complex_term: Term, simple_term: Term) -> bool:
+    """``complex_term`` is ``simple_term`` of the same sensor plus a time constant."""
+    return (complex_term.effect, simple_term.effect) in _EXTENDS \
+        and complex_term.parameters.get("sensor") == simple_term.parameters.get("sensor") is not None
+
+
+CACHE_BYTES = 400_000_000
+
+
+def asymmetric_lags(t_s: np.ndarray, signal: np.ndarray, pairs: list[tuple[float, float]]) -> np.ndarray:
+    """``terms.asymmetric_lag`` for every (tau_heat_s, tau_cool_s) pair at once, one column each: the
+    same operations in the same order per pair (so the same numbers), one pass over time."""
+    count = len(signal)
+    out = np.empty((count, len(pairs)))
+    if count == 0:
+        return out
+    dt = np.diff(t_s)
+    heat = np.stack([1.0 - np.exp(-dt / tau_heat) for tau_heat, _ in pairs], axis=1)
+    cool = np.stack([1.0 - np.exp(-dt / tau_cool) for _, tau_cool in pairs], axis=1)
+    previous = np.full(len(pairs), float(signal[0]))
+    out[0] = previous
+    for k in range(1, count):
+        target = signal[k]
+        previous = previous + np.where(target > previous, heat[k - 1], cool[k - 1]) * (target - previous)
+        out[k] = previous
+    return out
+
+
+class Library:
+    """The candidates of one round, given the current design and the effects already in it."""
+
+    def __init__(self, problem: Problem, settings: Settings) -> None:
+        self.problem = problem
+        self.settings = settings
+        self._columns: dict[tuple[object, ...], np.ndarray] = {}
+        self._version = problem.version
+        self._signals: dict[tuple[int, str], tuple[np.ndarray, np.ndarray]] = {}
+        self.unavailable: dict[str, list[str]] = self._unavailable()
+
+    # ------------------------------------------------------------------ what every run has
+    def sensors(self) -> list[str]:
+        """Sensors present in every run (in the first run's order)."""
+        runs = self.problem.runs
+        names = [key[len("temp_"):-len("_C")] for key in runs[0].readings.recording.temperatures_C]
+        return [n for n in names if all(f"temp_{n}_C" in r.readings.recording.temperatures_C for r in runs)]
+
+    def has_spindle(self) -> bool:
+        return all(r.readings.recording.spindle_rpm is not None for r in self.problem.runs)
+
+    def has_positions(self) -> bool:
+        return all(self.problem.axis in r.readings.recording.positions_mm for r in self.problem.runs)
+
+    def _unavailable(self) -> dict[str, list[str]]:
+        """Columns some runs have and others lack: column -> the runs lacking it (candidates that need
+        such a column are not tried: a candidate is judged on every run)."""
+        runs, axis = self.problem.runs, self.problem.axis
+        if len(runs) < 2:
+            return {}
+        columns: dict[str, list[str]] = {}
+        everything = set()
+        for run in runs:
+            recording = run.readings.recording
+            everything |= set(recording.temperatures_C)
+            if recording.spindle_rpm is not None:
+                everything.add("spindle_rpm")
+            if axis in recording.positions_mm:
+                everything.add(f"pos_{axis}_mm")
+        for column in sorted(everything):
+            lacking = []
+            for run in runs:
+                recording = run.readings.recording
+                has = (recording.spindle_rpm is not None if column == "spindle_rpm"
+                       else axis in recording.positions_mm if column == f"pos_{axis}_mm"
+                       else column in recording.temperatures_C)
+                if not has:
+                    lacking.append(run.name)
+            if lacking:
+                columns[column] = lacking
+        return columns
+
+    def duration_s(self) -> float:
+        """The typical run's length: a time constant beyond a third of it is a trend, not a lag."""
+        return float(np.median([r.readings.recording.duration_s for r in self.problem.runs]))
+
+    def t_ref(self, sensor: str) -> float:
+        for term in self.problem.base_terms:
+            if term.parameters.get("sensor") == sensor and "t_ref_C" in term.parameters:
+                return float(term.parameters["t_ref_C"])
+        return 20.0
+
+    # ------------------------------------------------------------------ features
+    def _cached(self, key: tuple[object, ...], make: Callable[[], np.ndarray]) -> np.ndarray:
+        """A column computed once per set of samples; the oldest go first beyond ``CACHE_BYTES`` (a
+        single recording of millions of samples would otherwise hold gigabytes of grid columns)."""
+        if self._version != self.problem.version:
+            self._columns.clear()
+            self._version = self.problem.version
+        column = self._columns.get(key)
+        if column is None:
+            column = make()
+            self._columns[key] = column
+            self._bytes = sum(c.nbytes for c in self._columns.values())
+            while self._bytes > CACHE_BYTES and len(self._columns) > 1:
+                oldest = next(iter(self._columns))
+                self._bytes -= self._columns.pop(oldest).nbytes
+        return column
+
+    def _decimated(self, run: Run, sensor: str) -> tuple[np.ndarray, np.ndarray]:
+        """The lags run on a coarser grid (>= 30 s: the readings are averaged over minutes already)."""
+        key = (id(run), sensor)
+        if key not in self._signals:
+            t = run.readings.recording.t_s
+            signal = run.readings.recording.sensor(sensor)
+            step = max(1, int(30.0 / max(float(np.median(np.diff(t))), 1e-9)))
+            self._signals[key] = (t[::step], signal[::step])
+        return self._signals[key]
+
+    def lag_column(self, sensor: str, tau_s: float) -> np.ndarray:
+        def make() -> np.ndarray:
+            t_ref = self.t_ref(sensor)
+
+            def per_run(run: Run) -> np.ndarray:
+                t_coarse, signal = self._decimated(run, sensor)
+                t_gauge = run.readings.recording.t_s[run.mask]
+                return np.interp(t_gauge, t_coarse, first_order_lag(t_coarse, signal, tau_s)) - t_ref
+            return self.problem.gauge_column(per_run)
+        return self._cached(("lag", sensor, tau_s), make)
+
+    def asymmetric_column(self, sensor: str, tau_heat_s: float, tau_cool_s: float) -> np.ndarray:
+        def make() -> np.ndarray:
+            t_ref = self.t_ref(sensor)
+
+            def per_run(run: Run) -> np.ndarray:
+                t_coarse, signal = self._decimated(run, sensor)
+                t_gauge = run.readings.recording.t_s[run.mask]
+                return np.interp(t_gauge, t_coarse, asymmetric_lag(t_coarse, signal, tau_heat_s, tau_cool_s)) - t_ref
+            return self.problem.gauge_column(per_run)
+        return self._cached(("hysteresis", sensor, tau_heat_s, tau_cool_s), make)
+
+    def asymmetric_columns(self, sensor: str, pairs: list[tuple[float, float]]) -> list[np.ndarray]:
+        """``asymmetric_column`` for many time-constant pairs, the missing ones in one pass over time."""
+        missing = [p for p in pairs if ("hysteresis", sensor, *p) not in self._columns
+                   or self._version != self.problem.version]
+        if len(missing) > 1:
+            t_ref = self.t_ref(sensor)
+            per_run = []
+            for run in self.problem.runs:
+                t_coarse, signal = self._decimated(run, sensor)
+                lagged = asymmetric_lags(t_coarse, signal, missing)
+                t_gauge = run.readings.recording.t_s[run.mask]
+                per_run.append([np.interp(t_gauge, t_coarse, lagged[:, k]) - t_ref for k in range(len(missing))])
+            for k, pair in enumerate(missing):
+                column = self.problem.within(np.concatenate([columns[k] for columns in per_run]))
+                self._cached(("hysteresis", sensor, *pair), lambda column=column: column)
+        return [self.asymmetric_column(sensor, *pair) for pair in pairs]
+
+    def candidate(self, term: Term, grid_points: int = 1) -> Candidate | None:
+        """The term with its feature and carried noise; None when its feature is constant."""
+        key = ("term", repr(term))
+        feature = self._cached(key, lambda: self.problem.feature(term))
+        if np.ptp(feature) == 0 and term.effect != "offset":
+            return None
+        noise = self._cached(("noise",) + key, lambda: self.problem.feature(term, noisy=True) - feature)
+        return Candidate(term, feature, noise, grid_points=grid_points)
+
+    def _in_sample(self, design: np.ndarray, feature: np.ndarray) -> float:
+        y = self.problem.y
+        full = np.column_stack([design, feature])
+        return stats.rms(y - full @ stats.least_squares(full, y))
+
+    # ------------------------------------------------------------------ the round's candidates
+    def candidates(self, design: np.ndarray, present: set[str]) -> list[Candidate]:
+        problem = self.problem
+        duration_s = self.duration_s()
+        out: list[Candidate] = []
+
+        def add(term: Term, grid_points: int = 1) -> None:
+            if term.effect == "gain_error":
+                return
+            candidate = self.candidate(term, grid_points)
+            if candidate is not None:
+                out.append(candidate)
+
+        modelled = {(t.effect, t.parameters.get("sensor")) for t in problem.base_terms}
+        if "offset" not in present and not problem.per_run_offset \
+                and not any(t.effect == "offset" for t in problem.base_terms):
+            add(Term("offset", {"value_um": 0.0}))
+        if "time_drift" not in present:
+            add(Term("time_drift", {"um_per_h": 0.0}))
+        if self.has_spindle() and "centrifugal_growth" not in present:
+            add(Term("centrifugal_growth", {"coeff_um_per_krpm2": 0.0}))
+        sensors = self.sensors()
+        positions = self.has_positions()
+        for sensor in sensors:
+            t_ref = self.t_ref(sensor)
+            if ("temperature", sensor) not in modelled and f"temperature:{sensor}" not in present:
+                add(Term("temperature", {"sensor": sensor, "t_ref_C": t_ref, "coeff_um_per_K": 0.0}))
+            if f"quadratic_temperature:{sensor}" not in present:
+                add(Term("quadratic_temperature", {"sensor": sensor, "t_ref_C": t_ref, "coeff_um_per_K2": 0.0}))
+            if positions and f"position_dependent_expansion:{sensor}" not in present \
+                    and ("position_dependent_expansion", sensor) not in modelled:
+                add(Term("position_dependent_expansion", {"sensor": sensor, "t_ref_C": t_ref, "p0_mm": 0.0,
+                                                          "slope_um_per_m_per_K": 0.0}))
+        for a, b in itertools.combinations(sensors, 2):
+            if f"thermal_gradient:{a}-{b}" not in present:
+                add(Term("thermal_gradient", {"sensors": [a, b], "coeff_um_per_K": 0.0}))
+        # Lags: the best time constant per sensor (grid in-sample), then the asymmetric variant
+        # for the two sensors whose lag fits best.
+        lag_scores = []
+        for sensor in sensors:
+            if f"thermal_lag:{sensor}" in present:
+                continue
+            best: tuple[float, float] | None = None
+            tried = 0
+            for tau in self.settings.lag_grid_s:
+                if tau > duration_s / 3:
+                    continue
+                tried += 1
+                score = self._in_sample(design, self.lag_column(sensor, tau))
+                if best is None or score < best[0]:
+                    best = (score, tau)
+            if best is not None:
+                for tau in best[1] * np.geomspace(0.8, 1.25, 9):
+                    tried += 1
+                    score = self._in_sample(design, self.lag_column(sensor, float(tau)))
+                    if score < best[0]:
+                        best = (score, float(tau))
+                lag_scores.append((best[0], sensor, best[1]))
+                add(Term("thermal_lag", {"sensor": sensor, "t_ref_C": self.t_ref(sensor), "tau_s": best[1],
+                                         "coeff_um_per_K": 0.0}), tried)
+        for _score, sensor, _tau in sorted(lag_scores)[:2]:
+            if f"heating_cooling_hysteresis:{sensor}" in present:
+                continue
+            best_h: tuple[float, float, float] | None = None
+            tried = 0
+            grid = [(h, c) for h, c in itertools.product(self.settings.hysteresis_grid_s, repeat=2)
+                    if h != c and max(h, c) <= duration_s / 3]
+            for (tau_heat, tau_cool), column in zip(grid, self.asymmetric_columns(sensor, grid), strict=True):
+                tried += 1
+                score = self._in_sample(design, column)
+                if best_h is None or score < best_h[0]:
+                    best_h = (score, tau_heat, tau_cool)
+            if best_h is not None:
+                # Refine around the grid point (not around the last improvement: that compounded,
+                # and walked a cooling time constant to 21 h on a 36 h null record).
+                grid_heat, grid_cool = best_h[1], best_h[2]
+                near = [(grid_heat * float(fh), grid_cool * float(fc))
+                        for fh, fc in itertools.product(np.geomspace(0.7, 1.4, 5), repeat=2)]
+                near = [(h, c) for h, c in near if max(h, c) <= duration_s / 3]
+                for (tau_heat, tau_cool), column in zip(near, self.asymmetric_columns(sensor, near), strict=True):
+                    tried += 1
+                    score = self._in_sample(design, column)
+                    if score < best_h[0]:
+                        best_h = (score, tau_heat, tau_cool)
+                add(Term("heating_cooling_hysteresis", {"sensor": sensor, "t_ref_C": self.t_ref(sensor),
+                                                        "tau_heat_s": best_h[1], "tau_cool_s": best_h[2],
+                                                        "coeff_um_per_K": 0.0}), tried)
+        return out

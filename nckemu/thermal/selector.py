@@ -1,0 +1,302 @@
+"""The selector: a forward search that adds one named effect a round, under the guards against
+false discovery (docs/thermal.md): held-out RMS, folds improved, an autocorrelation-corrected
+t-test Bonferroni-corrected over the round, physical parameters, equivalent explanations resolved
+to the simplest, a time constant earning its place, and a common gain named only when physical.
+
+It sees matrices only: the gauge samples ``y``, the baseline's columns, the held-out masks of a
+splitter, and the candidate library. Blocks of one run and runs of a machine are alike to it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import explain, stats
+from .library import Candidate, Library, bounded, extends, present_key, time_constants
+from .settings import Settings
+from .terms import EFFECTS, Term
+
+
+@dataclass
+class Evaluation:
+    candidate: Candidate
+    cv: stats.CrossValidation
+    t_value: float
+    coefficient: float
+    fold_wins: int
+    # Held-out RMS without the sensors' noise carried by the fitted model's features: what candidates
+    # are ranked on (held-out RMS itself still decides whether one is admitted at all).
+    ranked_rms_um: float
+    # RMS of the part of the feature the design does not already hold (for the detectable size).
+    own_rms: float = math.nan
+
+
+@dataclass
+class Baseline:
+    """What every search path shares: the baseline's columns, the folds and the baseline's figures."""
+    base_design: np.ndarray
+    given: np.ndarray
+    folds: list[np.ndarray]
+    baseline_rms: float
+    recalibrated: stats.Fit | None
+    recalibrated_rms: float
+    given_cv: stats.CrossValidation
+    recal_cv: stats.CrossValidation
+    calibrated_here: bool
+    base_noise: np.ndarray          # sensor noise carried by base_design's columns
+    given_noise: np.ndarray         # ... and by the model as given
+    # Columns fitted besides the design that every fit carries (one offset per run): degrees of freedom.
+    extra_parameters: int = 0
+    # How held-out RMS is computed for the folds (several runs: through each fold's normal equations).
+    cross_validate: Callable[[np.ndarray, np.ndarray, list[np.ndarray]], stats.CrossValidation] = \
+        stats.cross_validate
+    gain: tuple[float, float, stats.CrossValidation] = (math.nan, math.nan, stats.CrossValidation(math.nan, ()))
+
+    @property
+    def given_heldout_um(self) -> float:
+        """The model as given is held-out data only when it was not calibrated on this record."""
+        return math.inf if self.calibrated_here else self.baseline_rms
+
+    @property
+    def reference_cv(self) -> stats.CrossValidation:
+        """The like-for-like baseline: refitted per fold, or as given when that predicts better."""
+        return self.recal_cv if self.recal_cv.rms_um <= self.given_heldout_um else self.given_cv
+
+
+@dataclass
+class Path:
+    """One line of explanation: the recalibrated model plus effects, or gain x model plus effects."""
+    gain_mode: bool
+    design: np.ndarray
+    base_cv: stats.CrossValidation
+    noise: np.ndarray               # sensor noise carried by each column of design
+    discovered: list[dict[str, Any]] = field(default_factory=list)
+    added: list[Term] = field(default_factory=list)
+    present: set[str] = field(default_factory=set)
+    final: stats.Fit | None = None
+    # The last round's candidates, none of which passed, and its critical t: what "nothing more"
+    # rests on (the smallest detectable effects, a term that is likely but not proven).
+    rejected: list[Evaluation] = field(default_factory=list)
+    rejected_t_critical: float = math.nan
+
+
+def t_critical(alpha: float, tests: int, dof: int) -> float:
+    """Two-sided Student-t at ``alpha`` / ``tests`` (Bonferroni): short records need the t tail."""
+    from scipy.stats import t as student_t
+
+    return float(student_t.isf(alpha / (2 * max(tests, 1)), max(dof, 1)))
+
+
+class Selector:
+    def __init__(self, y: np.ndarray, t_s: np.ndarray, library: Library, settings: Settings,
+                 baseline: Baseline) -> None:
+        self.y = y
+        self.t_s = t_s
+        self.library = library
+        self.settings = settings
+        self.baseline = baseline
+
+    # ------------------------------------------------------------------ one candidate
+    def evaluate(self, design: np.ndarray, noise: np.ndarray, candidate: Candidate,
+                 base_cv: stats.CrossValidation) -> Evaluation:
+        full = np.column_stack([design, candidate.feature])
+        cv = self.baseline.cross_validate(full, self.y, self.baseline.folds)
+        result = stats.fit(full, self.y)
+        wins = sum(after < before for after, before in zip(cv.fold_rms_um, base_cv.fold_rms_um, strict=True))
+        # Errors in variables: noise n in the features adds mean((n @ b)^2) to the squared error of
+        # the fitted model's prediction, independent of the gauge's noise and of the physics.
+        carried = float(np.mean(np.square(np.column_stack([noise, candidate.noise]) @ result.coefficients)))
+        ranked = math.sqrt(max(cv.rms_um ** 2 - carried, 0.0))
+        return Evaluation(candidate, cv, result.t_value(full.shape[1] - 1), float(result.coefficients[-1]), wins,
+                          ranked)
+
+    def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> tuple[bool, bool]:
+        """(passes every guard, passes every guard but the held-out bar)."""
+        s = self.settings
+        # Beat both the current model (refitted) and the model exactly as given: refitting a right
+        # model on autocorrelated data can make it worse, and a candidate must not win by undoing that.
+        reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
+        improved = evaluation.cv.rms_um <= (1 - s.min_improvement) * reference_um
+        consistent = evaluation.fold_wins >= math.ceil(s.min_fold_share * len(base_cv.fold_rms_um))
+        significant = abs(evaluation.t_value) >= t_crit
+        term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
+        rest = consistent and significant and bounded(term)
+        return improved and rest, rest and evaluation.cv.rms_um <= (1 - s.likely_min_improvement) * reference_um
+
+    def passes(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> bool:
+        return self._guards(evaluation, base_cv, t_crit)[0]
+
+    def margin(self, *evaluations: Evaluation) -> float:
+        """Held-out RMS within this share is "as good": a time constant is picked on the whole record,
+        so the held-out RMS of an effect that has one is optimistic; one more share per time constant."""
+        return self.settings.equivalence * (1 + max(time_constants(e.candidate.term) for e in evaluations))
+
+    def equivalent(self, passing: list[Evaluation]) -> tuple[Evaluation, float, list[Evaluation]]:
+        """The best candidate on held-out RMS without the sensors' noise, its margin, and the candidates
+        within that margin of it.
+
+        Removing the noise may make up for it within the margin of equivalence, not beyond. Near-collinear
+        effects (a gradient of two sensors and a lag of a third all follow the spindle's load) fit the
+        shape alike, and then the sensors' noise is all the record tells them apart by. A candidate
+        that predicts the gauge worse than another as measured, and whose features carry more of the
+        noise than the pair's margin (a large coefficient on raw readings: held-out RMS with / without
+        the noise), ranks where it does on the correction, not on the record: it is set aside. The
+        best as measured always stays."""
+        def carried(e: Evaluation) -> float:
+            return e.cv.rms_um / e.ranked_rms_um if e.ranked_rms_um > 0 else math.inf
+
+        pool = [e for e in passing
+                if not any(other.cv.rms_um < e.cv.rms_um
+                           and carried(e) > (1 + self.margin(e, other)) * carried(other) for other in passing)]
+        best = min(pool, key=lambda e: e.ranked_rms_um)
+        margin = self.margin(best)
+        return best, margin, [e for e in pool if e.ranked_rms_um <= best.ranked_rms_um * (1 + margin)]
+
+    def parsimonious(self, chosen: Evaluation, passing: list[Evaluation]) -> Evaluation:
+        """An effect that extends a simpler one of the same sensor by a time constant (a lag extends a
+        plain temperature term, an asymmetric lag a lag) must earn that parameter as an effect earns
+        its place: by ``min_improvement`` of held-out RMS over the simpler one, or the simpler wins."""
+        while True:
+            simpler = [e for e in passing if extends(chosen.candidate.term, e.candidate.term)
+                       and chosen.ranked_rms_um > (1 - self.settings.min_improvement) * e.ranked_rms_um]
+            if not simpler:
+                return chosen
+            chosen = min(simpler, key=lambda e: e.ranked_rms_um)
+
+    # ------------------------------------------------------------------ the search
+    def search(self, gain_mode: bool) -> Path:
+        """Add effects one round at a time to the recalibrated model (or to gain x the model as given)."""
+        setup = self.baseline
+        if gain_mode:
+            gain, gain_se, gain_cv = setup.gain
+            path = Path(True, setup.given[:, None], gain_cv, setup.given_noise[:, None])
+            path.present.add("gain_error")
+            path.discovered.append({"effect": "gain_error", "parameters": {"gain": round(gain, 5)},
+                                    "evidence": {"heldout_rms_before_um": round(setup.baseline_rms, 4),
+                                                 "heldout_rms_after_um": round(gain_cv.rms_um, 4),
+                                                 "baseline_rms_um": round(setup.baseline_rms, 4),
+                                                 "gain_se": round(gain_se, 5), "equivalent": [],
+                                                 "why": "one common factor on the whole model explains the mismatch"}})
+        else:
+            path = Path(False, setup.base_design, setup.recal_cv, setup.base_noise)
+        if self.library.problem.per_run_offset:
+            path.present.add("offset")  # each run's own offset is in the baseline
+        for _round in range(self.settings.max_effects):
+            if not self.round(path):
+                break
+        path.final = stats.fit(path.design, self.y) if path.design.shape[1] else None
+        return path
+
+    def round(self, path: Path) -> bool:
+        s, setup = self.settings, self.baseline
+        folds = setup.folds
+        design = path.design
+        candidates = self.library.candidates(design if design.shape[1] else setup.given[:, None], path.present)
+        if not candidates:
+            return False
+        # Bonferroni over every hypothesis of the round, each time constant tried included.
+        tests = sum(c.grid_points for c in candidates)
+        t_crit = t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1 - setup.extra_parameters)
+        evaluations = [self.evaluate(design, path.noise, c, path.base_cv) for c in candidates]
+        passing = [e for e in evaluations if self.passes(e, path.base_cv, t_crit)]
+        if not passing:
+            path.rejected, path.rejected_t_critical = evaluations, t_crit
+            return False
+        best, margin, equivalent = self.equivalent(passing)
+        chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um))
+        chosen = self.parsimonious(chosen, passing)
+        term = chosen.candidate.term.with_coefficient(chosen.coefficient)
+        # Several runs share one clock from their own starts: a window in time names no run.
+        window = [] if self.library.problem.per_run_offset else explain.locate(
+            self.t_s, chosen.coefficient * (chosen.candidate.feature - np.median(chosen.candidate.feature)))
+        record = explain.evidence(chosen, best, equivalent, margin, path.base_cv.rms_um, t_crit, len(folds),
+                                  window[0][:2] if window else None, EFFECTS[term.effect].description)
+        path.discovered.append({"effect": term.effect, "parameters": {
+            k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()}, "evidence": record})
+        path.added.append(term)
+        path.present.add(present_key(term))
+        path.design = np.column_stack([design, chosen.candidate.feature])
+        path.noise = np.column_stack([path.noise, chosen.candidate.noise])
+        path.base_cv = chosen.cv
+        return True
+
+    def near_misses(self, path: Path) -> list[Evaluation]:
+        """Candidates of the last round that pass every guard but the held-out bar (and still lower
+        held-out RMS by ``likely_min_improvement``), best first."""
+        if not path.rejected:
+            return []
+        near = [e for e in path.rejected if self._guards(e, path.base_cv, path.rejected_t_critical)[1]]
+        for e in near:
+            e.own_rms = self.own_rms(path.design, e.candidate.feature)
+        return sorted(near, key=lambda e: e.ranked_rms_um)
+
+    def own_rms(self, design: np.ndarray, feature: np.ndarray) -> float:
+        """RMS of the part of ``feature`` that ``design`` does not already hold."""
+        if design.shape[1] == 0:
+            return stats.rms(feature)
+        return stats.rms(feature - design @ stats.least_squares(design, feature))
+
+    # ------------------------------------------------------------------ a common gain
+    def gain_eligible(self) -> bool:
+        """One common factor on the model as given: physical (``gain_range``), departing from 1 by
+        more than ``min_gain_departure`` and 3 standard errors, explaining (>= 90 % of) what
+        recalibration explains, and improving held-out RMS in most blocks."""
+        s, y, setup = self.settings, self.y, self.baseline
+        gain_design = setup.given[:, None]
+        gain_fit = stats.fit(gain_design, y)
+        gain, gain_se = float(gain_fit.coefficients[0]), float(gain_fit.standard_errors[0])
+        gain_cv = setup.cross_validate(gain_design, y, setup.folds)
+        explains = (setup.baseline_rms - gain_fit.rms_um) >= 0.9 * (setup.baseline_rms - setup.recalibrated_rms) \
+            or setup.base_design.shape[1] <= 1
+        wins = sum(g < b for g, b in zip(gain_cv.fold_rms_um, setup.given_cv.fold_rms_um, strict=True))
+        setup.gain = (gain, gain_se, gain_cv)
+        return (self.gain_physical(gain, gain_se) and explains
+                and gain_cv.rms_um <= (1 - s.min_improvement) * setup.baseline_rms
+                and wins >= math.ceil(s.min_fold_share * len(setup.folds)))
+
+    def gain_physical(self, gain: float, gain_se: float) -> bool:
+        s = self.settings
+        return s.gain_range[0] <= gain <= s.gain_range[1] and abs(gain - 1) >= max(s.min_gain_departure, 3 * gain_se)
+
+    def prefer(self, recalibrate: Path, with_gain: Path) -> tuple[Path, str]:
+        """A gain error is a claim about a gauge or a scale. It is named only if it stays physical
+        once the other effects are in, and explains the mismatch better than recalibrating the model
+        and naming the physics does (or as well, when recalibration finds no physics, or when the
+        model has a single coefficient, whose refit *is* a gain)."""
+        s, setup = self.settings, self.baseline
+        final = with_gain.final
+        joint_gain, joint_se = (float(final.coefficients[0]), float(final.standard_errors[0])) \
+            if final is not None else (math.nan, math.nan)
+        cv_gain, cv_recal = with_gain.base_cv.rms_um, recalibrate.base_cv.rms_um
+        alternative = {"effect": "recalibration" + "".join(f" + {d['effect']}" for d in recalibrate.discovered),
+                       "heldout_rms_um": round(cv_recal, 4)}
+        found = [d["effect"] for d in recalibrate.discovered]
+        if not self.gain_physical(joint_gain, joint_se):
+            why = (f"a common gain was considered and withdrawn: with the other effects in, it is {joint_gain:.3g} "
+                   f"(physical range {s.gain_range[0]:g}..{s.gain_range[1]:g}, and it must depart from 1)")
+            return recalibrate, explain.recalibration_words(found, setup.calibrated_here, why)
+        single = setup.base_design.shape[1] <= 1
+        if single or not recalibrate.discovered or cv_gain < (1 - s.equivalence) * cv_recal:
+            reason = ("the model has one coefficient: its refit is the gain" if single else
+                      "recalibrating the model's coefficients finds no physics the gain does not explain"
+                      if not recalibrate.discovered else
+                      f"gain x model explains held-out data better ({cv_gain:.3f} um) than recalibrating and "
+                      f"adding physics ({cv_recal:.3f} um)")
+            if not single:  # with one coefficient, recalibration is the same model as the gain
+                with_gain.discovered[0]["evidence"]["equivalent"] = [alternative]
+            words = f"gain_error preferred: {reason}"
+            with_gain.discovered[0]["evidence"]["preferred"] = words
+            return with_gain, words
+        why = (f"a common gain of {joint_gain:.3g} was considered: held-out {cv_gain:.3f} um against "
+               f"{cv_recal:.3f} um for recalibration + physics, not better by {s.equivalence:.0%}")
+        for record in recalibrate.discovered:
+            record["evidence"]["note"] = "a common gain on the model was considered and set aside"
+        if recalibrate.discovered:
+            recalibrate.discovered[0]["evidence"]["equivalent"].append(
+                {"effect": "gain_error", "gain": round(joint_gain, 5), "heldout_rms_um": round(cv_gain, 4)})
+        return recalibrate, explain.recalibration_words(found, setup.calibrated_here, why)
