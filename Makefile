@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 PORT   ?= 1102
 HOST   ?= 127.0.0.1
 
-.PHONY: serve test tshark lint bench
+.PHONY: serve test tshark chromium lint bench
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -30,11 +30,19 @@ tshark:
 	  || echo "tshark could not be installed: the tshark tests will skip"; \
 	else echo "tshark is missing and we are not root: the tshark tests will skip"; fi
 
+# A real headless browser for the `serve --http` page tests (Debian's chromium and its driver).
+chromium:
+	@if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null) \
+	  || echo "chromium could not be installed: the browser tests will skip"; \
+	else echo "chromium is missing and we are not root: the browser tests will skip"; fi
+
 lint: $(VENV)/.installed-test
 	$(VENV)/bin/ruff check nckemu awlsimhw_nckemu tests bench examples
 	$(VENV)/bin/lint-imports --no-cache
 
-test: $(VENV)/.installed-test tshark lint
+test: $(VENV)/.installed-test tshark chromium lint
 	$(PY) -m pytest
 
 bench: $(VENV)/.installed-test

@@ -9,13 +9,15 @@ import json
 import logging
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from nckemu.cliutil import check_output, listen_port
-from nckemu.errors import NckConfigError
+from nckemu.errors import NckConfigError, NckError
 
+from .clock import Clock
 from .core import Emulator
+from .live import Face
 from .server import EmulatorServer, ServerLimits
 
 log = logging.getLogger(__name__)
@@ -47,8 +49,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help="seconds without a byte before a connection is closed")
     parser.add_argument("--partial-frame-timeout", type=float, default=ServerLimits.partial_frame_timeout_s,
                         help="seconds a begun frame may take to complete")
-    parser.add_argument("--loop", choices=("auto", "uvloop", "asyncio"), default="auto",
+    parser.add_argument("--event-loop", choices=("auto", "uvloop", "asyncio"), default="auto",
                         help="event loop: uvloop (faster, libuv) when installed, else asyncio's own (auto)")
+    parser.add_argument("--http", type=listen_port, metavar="PORT",
+                        help="also serve a live page of the machine on http://HOST:PORT/ (axes, sensors, "
+                             "compensation over time, PLC, clients)")
     parser.add_argument("--json", action="store_true", help="print the ready line as JSON on stdout")
     parser.set_defaults(func=run_serve)
 
@@ -108,7 +113,7 @@ def loop_factory(choice: str = "auto") -> Callable[[], asyncio.AbstractEventLoop
             import uvloop
         except ImportError:
             if choice == "uvloop":
-                raise NckConfigError("--loop uvloop: uvloop is not installed (pip install uvloop)") from None
+                raise NckConfigError("--event-loop uvloop: uvloop is not installed (pip install uvloop)") from None
         else:
             return uvloop.new_event_loop
     return asyncio.new_event_loop
@@ -123,11 +128,16 @@ def _read_program(path: str) -> str:
         raise NckConfigError("not a text file (an NC program is text)", path=path) from None
 
 
-def run_serve(args: argparse.Namespace) -> int:
+# Builds a further face of a served machine (a living machine, an OPC UA face) from the emulator and
+# its S7 server, before anything listens: bad input is refused then, in one line.
+FaceFactory = Callable[[Emulator, EmulatorServer], Face]
+
+
+def run_serve(args: argparse.Namespace, *, clock: Clock | None = None, faces: Sequence[FaceFactory] = ()) -> int:
     check_output(args.record, "--record")
     check_output(args.state, "--state")
     programs = [(path, _read_program(path)) for path in args.lec]
-    emulator = Emulator(args.machine, state_path=args.state)
+    emulator = Emulator(args.machine, state_path=args.state, clock=clock)
     for path, text in programs:
         if not emulator.nck.load_leadscrew_program(text, source=path):
             raise NckConfigError("no leadscrew table in it (expected $AA_ENC_COMP[...] lines)", path=path)
@@ -137,14 +147,42 @@ def run_serve(args: argparse.Namespace) -> int:
                           partial_frame_timeout_s=args.partial_frame_timeout)
     server = EmulatorServer(emulator, host=args.host, port=args.port, limits=limits,
                             record_path=args.record)
+    built = [make(emulator, server) for make in faces]
+    if getattr(args, "http", None) is not None:
+        from .web import WebFace
+
+        built.append(WebFace(emulator, server, host=args.host, port=args.http))
     try:
-        with asyncio.Runner(loop_factory=loop_factory(args.loop)) as runner:
-            return runner.run(_serve(server, args))
+        with asyncio.Runner(loop_factory=loop_factory(args.event_loop)) as runner:
+            return runner.run(_serve(server, args, built))
     except KeyboardInterrupt:
         return 0
 
 
-async def _serve(server: EmulatorServer, args: argparse.Namespace) -> int:
+async def _start_faces(faces: Sequence[Face], args: argparse.Namespace) -> list[Face]:
+    """Start each face after the S7 face; one that cannot (a port in use) is one line, exit 1."""
+    started: list[Face] = []
+    for face in faces:
+        try:
+            await face.start()
+        except OSError as exc:
+            port = getattr(face, "port", "?")
+            what = getattr(face, "what", type(face).__name__)
+            reason = "is already in use" if exc.errno == errno.EADDRINUSE else f"cannot be bound ({exc.strerror})"
+            print(f"nckemu serve: {what}: {args.host}:{port} {reason}; use another port", file=sys.stderr)
+            break
+        except NckError as exc:
+            print(f"nckemu serve: {exc}", file=sys.stderr)
+            break
+        started.append(face)
+    else:
+        return started
+    for face in reversed(started):
+        await face.stop()
+    return []
+
+
+async def _serve(server: EmulatorServer, args: argparse.Namespace, faces: Sequence[Face] = ()) -> int:
     try:
         await server.start()
     except OSError as exc:
@@ -158,9 +196,15 @@ async def _serve(server: EmulatorServer, args: argparse.Namespace) -> int:
         else:
             print(f"nckemu serve: cannot bind {args.host}:{args.port}: {exc}", file=sys.stderr)
         return 1
+    started = await _start_faces(faces, args)
+    if len(started) < len(faces):
+        await server.stop()
+        return 1
     machine_name = getattr(server.emulator.machine, "name", "default")
     ready = {"host": args.host, "port": server.port, "machine": machine_name,
              "state": args.state, "record": args.record}
+    for face in started:
+        ready.update(getattr(face, "ready", {}))
     if args.json:
         print(json.dumps(ready), flush=True)
     else:
@@ -168,6 +212,9 @@ async def _serve(server: EmulatorServer, args: argparse.Namespace) -> int:
               f"(NCK: rack 0 slot 4, PLC: rack 0 slot 2; any TSAP is accepted). Ctrl-C stops.\n"
               f"  python-snap7: c = snap7.Client(); c.connect('{args.host}', 0, 4, {server.port})\n"
               f"  nckemu get --port {server.port} SD43900[AX4]", flush=True)
+        for face in started:
+            if getattr(face, "ready_line", None):
+                print(f"  {face.ready_line}", flush=True)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -178,6 +225,8 @@ async def _serve(server: EmulatorServer, args: argparse.Namespace) -> int:
     try:
         await stop.wait()
     finally:
+        for face in reversed(started):
+            await face.stop()
         await server.stop()
         print("nckemu: stopped; retained state flushed" if args.state else "nckemu: stopped",
               flush=True)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckAddress
@@ -31,6 +33,9 @@ class Emulator:
         self.nck = NckModel(self.machine, self.clock)
         self.plc = PlcModel(self.machine, self.nck, clock=self.clock)
         self.store = RetainedStore(Path(state_path)) if state_path is not None else None
+        # Parts of the machine's state that layers above the emulator report (a living machine's
+        # recording and PLC program): name -> a function giving a JSON-able dict (the live page).
+        self.status_sections: dict[str, Callable[[], dict[str, Any]]] = {}
         # An alarm text while retained state cannot be written (disk full, read-only directory).
         self.persist_alarm: str | None = None
         if self.store is not None:

@@ -17,6 +17,7 @@ import concurrent.futures
 import logging
 import re
 import struct
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -440,6 +441,20 @@ class NckBridgeHardware(AbstractHardwareInterface):  # type: ignore[misc]
         return self.bridge.write_output(accessWidth, accessOffset, bytes(data))
 
 
+_AWLSIM_LINE = re.compile(r"at line (?P<line>\d+):\s*(?P<rest>.*)", re.DOTALL)
+
+
+def awlsim_error_text(exc: BaseException) -> str:
+    """awlsim's error text on one line: its message spans lines (source hash, the statement, a CPU
+    dump); keep the line number, the statement and what is wrong with it."""
+    text = str(exc)
+    found = _AWLSIM_LINE.search(text)
+    if found is None:
+        return " ".join(text.split())[:300]
+    rest = found["rest"].split("[S7-CPU]", 1)[0]
+    return f"line {found['line']}: " + " ".join(rest.split())[:300]
+
+
 def parse_sources(paths: list[Path]) -> list[Any]:
     trees = []
     for path in paths:
@@ -449,7 +464,7 @@ def parse_sources(paths: list[Path]) -> list[Any]:
         except OSError as exc:
             raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
         except Exception as exc:  # awlsim's parser errors carry the line
-            raise NckConfigError(f"awlsim cannot parse it: {exc}", path=str(path)) from None
+            raise NckConfigError(f"awlsim cannot parse it: {awlsim_error_text(exc)}", path=str(path)) from None
         trees.append(parser.getParseTree())
     return trees
 
@@ -458,7 +473,7 @@ class PlcRunner:
     """An awlsim CPU with the FB stubs and the bridge; its clock is ``clock_s``."""
 
     def __init__(self, program: Path, client: Any, read_peripheral: Callable[[int, int], bytes],
-                 clock_s: Callable[[], float]) -> None:
+                 clock_s: Callable[[], float], watchdog_wall_s: float | None = None) -> None:
         self.sim = AwlSim()
         self.sim.reset()
         self.clock_s = clock_s
@@ -472,14 +487,27 @@ class PlcRunner:
         except NckConfigError:
             raise
         except Exception as exc:  # awlsim's translator errors name the block and the statement
-            raise NckConfigError(f"awlsim cannot load it: {exc}", path=str(program)) from None
+            raise NckConfigError(f"awlsim cannot load it: {awlsim_error_text(exc)}", path=str(program)) from None
         cpu = self.sim.getCPU()
         # The CPU's clock is the caller's: timers such as S5T#1M run in simulated time.
         original = type(cpu).updateTimestamp
-        cpu.updateTimestamp = lambda: original(cpu, _getTime=clock_s)
+        self._cycle_wall_s = time.monotonic()
+        if watchdog_wall_s is None:
+            cpu.updateTimestamp = lambda: original(cpu, _getTime=clock_s)
+        else:
+            # Simulated time stands still within a cycle, so awlsim's own cycle-time watchdog would
+            # never see an endless loop: past watchdog_wall_s of wall time in one cycle its clock
+            # jumps, and awlsim stops the program with its "cycle time exceeded" error.
+            def watched_s() -> float:
+                if time.monotonic() - self._cycle_wall_s > watchdog_wall_s:
+                    return clock_s() + 1e6
+                return clock_s()
+
+            cpu.updateTimestamp = lambda: original(cpu, _getTime=watched_s)
         self.sim.startup()
 
     def run_cycle(self) -> None:
+        self._cycle_wall_s = time.monotonic()
         self.sim.runCycle()
 
     def pending(self) -> list[concurrent.futures.Future[Any]]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import logging
 import math
 from typing import Any
 
@@ -72,6 +73,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     add_json_options(loop, out=True)
     loop.add_argument("--write-stl", metavar="NEW.awl", help="write the generated program (fitted on all data)")
     loop.set_defaults(func=run_loop_command)
+    serve = subparsers.choices.get("serve")
+    if serve is not None:  # a living machine: the recording and the PLC live here, the server never imports plcsim
+        add_live_options(serve)
+        serve.set_defaults(func=functools.partial(serve_live, serve.get_default("func")))
     discover = subparsers.choices.get("discover")
     if discover is not None:  # `discover --write-stl`: the PLC side lives here, thermal never imports plcsim
         discover.add_argument("--write-stl", metavar="NEW.awl",
@@ -352,3 +357,60 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     if generated.position_dependent:
         print(f"  the program writes tan beta and P0: set MD32750 bit 1 for machine axis {axis.number}")
     return status
+
+
+LIVE_EXAMPLE = """\
+a living machine (a recording at 600 times real time, the PLC program on the same clock, a live page):
+  nckemu serve --port 1102 --machine fixtures/machines/loop_mill.toml --inputs fixtures/thermal/loop_bed_program_spindle_lag.csv --speed 600x --loop --plc fixtures/plc/bed_only_z.awl --http 0 -v
+"""
+
+
+def add_live_options(serve: argparse.ArgumentParser) -> None:
+    serve.epilog = (serve.epilog or "") + LIVE_EXAMPLE
+    live = serve.add_argument_group("a living machine (docs/live.md)")
+    live.add_argument("--inputs", metavar="REC.csv",
+                      help="a recording drives the machine on the server's clock: sensors (PIW words), positions, "
+                           "spindle speed; at its end the last row holds")
+    live.add_argument("--loop", action="store_true", help="with --inputs: start the recording over at its end")
+    live.add_argument("--plc", metavar="PROGRAM.awl",
+                      help="run this STL program (with OB1) in awlsim on the server's clock; its FB2/FB3/FB4 "
+                           "reach this machine")
+    live.add_argument("--speed", default=None,
+                      help="simulated time per real time, e.g. 60x or 60 (1x); also without --inputs/--plc")
+    live.add_argument("--cycle", default="1s", help="simulated PLC and recording cycle (1s)")
+
+
+def serve_live(plain_serve: Any, args: argparse.Namespace) -> int:
+    """``serve`` with --inputs/--plc/--speed: the emulator on a live clock, a LiveMachine as a face."""
+    if args.inputs is None and args.plc is None and args.speed is None:
+        if args.loop:
+            raise NckConfigError("--loop starts a recording over: it needs --inputs")
+        return int(plain_serve(args) or 0)
+    import sys
+
+    from nckemu.emulator.clock import LiveClock
+
+    from .live import LiveMachine, parse_speed
+
+    speed = parse_speed(args.speed) if args.speed is not None else 1.0
+    cycle_s = _cycle(args.cycle)
+    if args.loop and args.inputs is None:
+        raise NckConfigError("--loop starts a recording over: it needs --inputs")
+    verbose = getattr(args, "verbose", 0) > 0
+    # The program's own client (FB2/FB3/FB4 jobs, up to hundreds a second at high speed) logs every
+    # frame at debug: -v is for the minute lines, not for that.
+
+    def minute(line: str) -> None:
+        print(json.dumps({"live": line}) if args.json else line, file=sys.stdout, flush=True)
+
+    def make(emulator: Any, server: Any) -> LiveMachine:
+        return LiveMachine(emulator, inputs=args.inputs, plc=args.plc, speed=speed, loop=args.loop, cycle_s=cycle_s,
+                           server=server, on_minute=minute if verbose else None)
+
+    snap7_log = logging.getLogger("snap7")
+    level = snap7_log.level
+    snap7_log.setLevel(max(logging.INFO, logging.getLogger().level))
+    try:
+        return int(plain_serve(args, clock=LiveClock(speed), faces=[make]) or 0)
+    finally:
+        snap7_log.setLevel(level)  # the level is the process's: give it back (main() may run again)

@@ -34,19 +34,19 @@ from nckemu.protocol.addresses import S7Area
 from nckemu.thermal.recording import Recording
 
 from .bridge import BridgeLog, PlcRunner, check_program
+from .drive import (  # noqa: F401 (their old home)
+    NCK_SPINDLE,
+    SPINDLE_SPEED_SENSOR,
+    RecordingDrive,
+    check_inputs,
+    nck_spindle_speed,
+    sensor_column,
+)
 
 JOB_WAIT_S = 10.0
 TC_BIT_POSITION_DEPENDENT = 2
 # The marker a generated program carries when it writes tan beta (SD43910) and P0 (SD43920).
 POSITION_DEPENDENT_MARKER = "nckemu: position-dependent compensation"
-
-# A [[sensor]] with this name carries the spindle speed to the PLC (its "degrees" are rpm): driven
-# from the recording's spindle_rpm column; the generator computes centrifugal growth from it.
-SPINDLE_SPEED_SENSOR = "spindle_rpm"
-# The recording's spindle_rpm also drives the NCK's actual speed (actSpeed) of this spindle of
-# channel 1, so a program can read it with FB2 GET instead.
-NCK_SPINDLE = 1
-
 
 @dataclass
 class RecordingRun:
@@ -81,41 +81,10 @@ def recording_axis(machine: Machine, letter: str) -> Axis:
     return matches[0]
 
 
-def _check_inputs(machine: Machine, recording: Recording, axis: Axis) -> dict[int, np.ndarray]:
-    for sensor in machine.sensors:
-        key = f"temp_{sensor.name}_C"
-        if sensor.name == SPINDLE_SPEED_SENSOR:
-            if sensor.plc_input and recording.spindle_rpm is None:
-                raise NckConfigError(f"the recording has no spindle_rpm column, which the spindle speed input "
-                                     f"({sensor.plc_input}) of {machine.source} needs", path=recording.source,
-                                     line=1, field="spindle_rpm")
-            continue
-        if sensor.plc_input and key not in recording.temperatures_C:
-            raise NckConfigError(f"the recording has no column {key!r}, which sensor {sensor.name!r} "
-                                 f"({sensor.plc_input}) of {machine.source} needs", path=recording.source,
-                                 line=1, field=key)
-    positions: dict[int, np.ndarray] = {}
-    for candidate in machine.axes:
-        values = recording.positions_mm.get(candidate.recording) if candidate.recording else None
-        if values is None or candidate.rotary:
-            continue
-        outside = np.flatnonzero((values < candidate.travel_min_mm) | (values > candidate.travel_max_mm))
-        if len(outside):
-            row = int(outside[0])
-            raise NckConfigError(f"{values[row]:g} mm is outside the travel of axis {candidate.name} "
-                                 f"({candidate.travel_min_mm:g}..{candidate.travel_max_mm:g} mm)",
-                                 path=recording.source, line=row + 2, field=f"pos_{candidate.recording}_mm")
-        positions[candidate.number] = values
+def _check_axis(recording: Recording, axis: Axis) -> None:
     if axis.recording not in recording.errors_um and axis.recording not in recording.positions_mm:
         raise NckConfigError(f"the recording has neither err_{axis.recording}_um nor pos_{axis.recording}_mm "
                              f"for axis {axis.name}", path=recording.source, line=1)
-    return positions
-
-
-def _sensor_column(recording: Recording, name: str) -> np.ndarray | None:
-    if name == SPINDLE_SPEED_SENSOR:
-        return recording.spindle_rpm
-    return recording.temperatures_C.get(f"temp_{name}_C")
 
 
 def plc_inputs(machine: Machine, recording: Recording) -> tuple[list[str], bool]:
@@ -126,11 +95,6 @@ def plc_inputs(machine: Machine, recording: Recording) -> tuple[list[str], bool]
     spindle = (any(s.plc_input and s.name == SPINDLE_SPEED_SENSOR for s in machine.sensors)
                or nck_spindle_speed(machine)) and recording.spindle_rpm is not None
     return sensors, spindle
-
-
-def nck_spindle_speed(machine: Machine) -> bool:
-    """Whether the NCK has a spindle whose actual speed a recording's spindle_rpm drives."""
-    return any(axis.spindle for axis in machine.axes)
 
 
 def position_dependent_warning(program_text: str, machine: Machine, axis: Axis) -> str | None:
@@ -167,18 +131,13 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
     program_text = check_program(program)
     machine = machine if isinstance(machine, Machine) else load_machine(machine)
     axis = recording_axis(machine, axis_letter)
-    positions = _check_inputs(machine, recording, axis)
+    _check_axis(recording, axis)
+    drive = RecordingDrive(machine, recording, cycle_s, warmup_s=warmup_s)
     warnings = [w for w in [position_dependent_warning(program_text, machine, axis)] if w]
 
-    t_rows = np.asarray(recording.t_s, dtype=float)
-    t0 = float(t_rows[0]) - math.ceil(max(warmup_s, 0.0) / cycle_s - 1e-9) * cycle_s
-    cycles = int(math.floor((float(t_rows[-1]) - t0) / cycle_s + 1e-9)) + 1
+    t_rows = drive.t_rows
+    t0, cycles = drive.t0_s, drive.cycles
     t_cycles = t0 + cycle_s * np.arange(cycles)
-    sensor_series = [(s.name, np.interp(t_cycles, t_rows, _sensor_column(recording, s.name)).tolist())
-                     for s in machine.sensors if _sensor_column(recording, s.name) is not None]
-    spindle_series = np.interp(t_cycles, t_rows, recording.spindle_rpm).tolist() \
-        if recording.spindle_rpm is not None and nck_spindle_speed(machine) else None
-    position_series = [(number, np.interp(t_cycles, t_rows, values).tolist()) for number, values in positions.items()]
     sign = -machine.settings.compensation_sign
     ipo_s = machine.ipo_cycle_s
     # The first row index at or after each cycle's start: rows in [t_k, t_k+1) are sampled after cycle k.
@@ -198,15 +157,6 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
             # even while a job started in this cycle is on the emulator's thread.
             return emulator.plc.read(S7Area.P, 0, offset, size)
 
-        def set_inputs(k: int) -> None:
-            clock.set(t_cycles[k] - t0)
-            for name, series in sensor_series:
-                nck.set_sensor_temperature(name, series[k])
-            for number, series in position_series:
-                nck.set_axis_position(number, series[k])
-            if spindle_series is not None:
-                nck.set_spindle_speed(NCK_SPINDLE, spindle_series[k])
-
         runner = PlcRunner(program, client, read_peripheral, clock.now_s)
         bar = tqdm(total=cycles, unit="cycle", disable=None if progress is None else not progress,
                    desc=f"PLC on {Path(recording.source).name}", mininterval=0.5)
@@ -216,7 +166,10 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
             # awaited before the next cycle: between cycles the model is ours without a thread hop
             # (emu.call costs about 0.9 ms a cycle, more than awlsim's cycle itself).
             for k in range(cycles):
-                set_inputs(k)
+                # The cycle a live `serve --inputs` runs too (plcsim/live.py): the recording's
+                # inputs, then the program; only the clock and the wait for jobs differ.
+                clock.set(k * cycle_s)
+                drive.apply(nck, k)
                 runner.run_cycle()
                 pending = runner.pending()
                 if pending:  # the cycle did not wait; simulated time waits for the network
@@ -225,9 +178,9 @@ def run_on_recording(program: str | Path, machine: str | Path | Machine | None, 
                 if end > next_row:
                     # One interpolation cycle after the row: the NCK recomputes the TC from the new
                     # position (and a value just written) in its next IPO cycle, not at the same instant.
-                    limit = t_cycles[k + 1] - t0 if k + 1 < cycles else math.inf
+                    limit = (k + 1) * cycle_s if k + 1 < cycles else math.inf
                     for row in range(next_row, end):
-                        clock.set(min(rows[row] - t0 + ipo_s, limit))
+                        clock.set(max(clock.now_s(), min(rows[row] - t0 + ipo_s, limit)))
                         sim_um[row] = sign * nck.tc_value_mm(axis.number) * 1000.0
                     for name, probe in (probes or {}).items():
                         probe_values[name][next_row:end] = probe(runner)
