@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
     "nckemu.plcsim.commands",     # plc run, plc stubs
+    "nckemu.plcsim.fleet_live",   # fleet: living machines (inputs/plc in a [[machine]])
 )
 
 log = logging.getLogger(__name__)

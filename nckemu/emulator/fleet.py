@@ -17,20 +17,22 @@ import errno
 import ipaddress
 import logging
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from nckemu.errors import NckConfigError
 
+from .clock import Clock
 from .core import Emulator
+from .live import Face
 from .machine import Machine, load_machine
 from .server import EmulatorServer, ServerLimits
 
 log = logging.getLogger(__name__)
 
-MACHINE_KEYS = frozenset({"name", "port", "host", "machine", "inputs", "plc"})
+MACHINE_KEYS = frozenset({"name", "port", "host", "machine", "inputs", "plc", "speed", "cycle", "loop"})
 FLEET_KEYS = frozenset({"host", "machine"})
 DEFAULT_HOST = "127.0.0.1"
 
@@ -46,10 +48,24 @@ class FleetMachine:
     inputs: str | None = None    # recording that drives the living machine
     plc: str | None = None       # the user's PLC program (STL) on the living machine
     line: int | None = None      # where it is declared in the fleet file (for messages)
+    speed: str | None = None     # the living machine's simulated time per real time ("60x")
+    cycle: str | None = None     # its PLC and recording cycle ("1s")
+    loop: bool = False           # its recording starts over at its end
 
     @property
     def address(self) -> str:
         return f"{self.host}:{self.port}"
+
+    @property
+    def living(self) -> bool:
+        return self.inputs is not None or self.plc is not None or self.speed is not None
+
+
+# The living machine (a recording and a PLC program on the machine's own live clock) is built above
+# the emulator (nckemu.plcsim) and handed in: for a living entry, the clock its Emulator runs on and
+# the face that drives it, built from the emulator and its S7 server. Errors name the fleet file line.
+FaceFactory = Callable[[Emulator, EmulatorServer], Face]
+LivingHook = Callable[[FleetMachine, str], tuple[Clock, FaceFactory]]
 
 
 @dataclass(frozen=True)
@@ -153,10 +169,17 @@ def parse_fleet(text: str, source: str, base: Path | None = None) -> FleetSpec:
             raise NckConfigError(f"{host}:{port} is already taken by machine {holder!r}", path=source, line=line,
                                  field="port")
         addresses[(host, port)] = name
+        speed = row.get("speed")
+        if speed is not None and (isinstance(speed, bool) or not isinstance(speed, str | int | float)):
+            raise NckConfigError("expected a speed such as \"60x\" or 60", path=source, line=line, field="speed")
+        loop = row.get("loop", False)
+        if not isinstance(loop, bool):
+            raise NckConfigError("expected true or false", path=source, line=line, field="loop")
         machines.append(FleetMachine(
             name=name, host=host, port=port, line=line,
             machine=_path(row, "machine", source, line, base, default_machine),
-            inputs=_path(row, "inputs", source, line, base), plc=_path(row, "plc", source, line, base)))
+            inputs=_path(row, "inputs", source, line, base), plc=_path(row, "plc", source, line, base),
+            speed=None if speed is None else str(speed), cycle=_text(row, "cycle", source, line), loop=loop))
     return FleetSpec(source, tuple(machines))
 
 
@@ -204,15 +227,12 @@ class _MachineCache:
         return machine
 
 
-def _living(entry: FleetMachine, source: str) -> None:
-    """The living machine (a recording and a PLC program on the server's clock) of an entry.
-
-    The one place where the fleet meets the living machine; until it lands, ``inputs``/``plc`` are
-    refused rather than ignored."""
-    for field in ("inputs", "plc"):
+def _refuse_living(entry: FleetMachine, source: str) -> None:
+    """Without a living hook (a program using ``Fleet`` alone), living keys are refused, not ignored."""
+    for field in ("inputs", "plc", "speed"):
         if getattr(entry, field) is not None:
-            raise NckConfigError(f"machine {entry.name!r}: {field} needs the living machine, which this "
-                                 f"nckemu does not have yet", path=source, line=entry.line, field=field)
+            raise NckConfigError(f"machine {entry.name!r}: {field} needs the living machine (nckemu.plcsim), "
+                                 f"which was not given", path=source, line=entry.line, field=field)
 
 
 @dataclass
@@ -220,6 +240,7 @@ class RunningMachine:
     entry: FleetMachine
     emulator: Emulator
     server: EmulatorServer
+    face: Face | None = None
 
     @property
     def port(self) -> int:
@@ -228,16 +249,17 @@ class RunningMachine:
     def ready(self) -> dict[str, Any]:
         return {"name": self.entry.name, "host": self.entry.host, "port": self.port,
                 "machine": self.emulator.machine.name, "state": str(self.emulator.store.path)
-                if self.emulator.store is not None else None}
+                if self.emulator.store is not None else None, "living": self.face is not None}
 
 
 class Fleet:
     """The machines of a ``FleetSpec``, each an ``Emulator`` with its own server, on the running loop.
 
-    ``state_dir``: each machine keeps its retained data in ``<state_dir>/<name>.json``."""
+    ``state_dir``: each machine keeps its retained data in ``<state_dir>/<name>.json``; ``living``
+    builds the living machines (``LivingHook``), without it their keys are refused."""
 
     def __init__(self, spec: FleetSpec, *, state_dir: str | Path | None = None,
-                 limits: ServerLimits | None = None) -> None:
+                 limits: ServerLimits | None = None, living: LivingHook | None = None) -> None:
         self.spec = spec
         self.state_dir = Path(state_dir) if state_dir is not None else None
         if self.state_dir is not None and not self.state_dir.is_dir():
@@ -245,17 +267,24 @@ class Fleet:
         machines = _MachineCache()
         self.machines: list[RunningMachine] = []
         for entry in spec.machines:
-            _living(entry, spec.source)
+            clock: Clock | None = None
+            make_face: FaceFactory | None = None
+            if entry.living:
+                if living is None:
+                    _refuse_living(entry, spec.source)
+                else:
+                    clock, make_face = living(entry, spec.source)
             state = self.state_dir / f"{entry.name}.json" if self.state_dir is not None else None
             try:
-                emulator = Emulator(machines.get(entry, spec.source), state_path=state)
+                emulator = Emulator(machines.get(entry, spec.source), state_path=state, clock=clock)
             except NckConfigError as exc:
                 if exc.path == spec.source:
                     raise
                 raise NckConfigError(f"machine {entry.name!r}: {exc}", path=spec.source, line=entry.line,
                                      field="name") from None
-            self.machines.append(RunningMachine(entry, emulator, EmulatorServer(
-                emulator, host=entry.host, port=entry.port, limits=limits)))
+            server = EmulatorServer(emulator, host=entry.host, port=entry.port, limits=limits)
+            face = make_face(emulator, server) if make_face is not None else None
+            self.machines.append(RunningMachine(entry, emulator, server, face))
 
     def __getitem__(self, name: str) -> RunningMachine:
         for machine in self.machines:
@@ -270,11 +299,22 @@ class Fleet:
             try:
                 await machine.server.start()
             except OSError as exc:
-                for other in started:
-                    await other.server.stop()
+                await self._stop(started)
                 raise NckConfigError(self._bind_error(machine.entry, exc), path=self.spec.source,
                                      line=machine.entry.line, field="port") from None
             started.append(machine)
+        # the living machines after every S7 face listens (a PLC program's client connects to its own)
+        living = [machine for machine in self.machines if machine.face is not None]
+        for index, machine in enumerate(living):
+            assert machine.face is not None
+            try:
+                await machine.face.start()
+            except (OSError, NckConfigError) as exc:
+                for unstarted in living[index:]:
+                    unstarted.face = None
+                await self._stop(started)
+                raise NckConfigError(f"machine {machine.entry.name!r}: the living machine did not start: {exc}",
+                                     path=self.spec.source, line=machine.entry.line) from None
         return self
 
     @staticmethod
@@ -290,8 +330,14 @@ class Fleet:
 
     async def stop(self) -> None:
         """Stop every machine (each flushes its retained data); one failing does not keep the rest."""
-        for machine in self.machines:
+        await self._stop(self.machines)
+
+    @staticmethod
+    async def _stop(machines: list[RunningMachine]) -> None:
+        for machine in machines:
             try:
+                if machine.face is not None:
+                    await machine.face.stop()
                 await machine.server.stop()
             except Exception:  # noqa: BLE001 - a machine's fault must not leave the others running
                 log.exception("machine %r did not stop cleanly", machine.entry.name)

@@ -11,7 +11,7 @@ from nckemu.cliutil import port_number
 from nckemu.errors import NckConfigError
 
 from .commands import loop_factory
-from .fleet import Fleet, load_fleet, quick_fleet
+from .fleet import Fleet, LivingHook, load_fleet, quick_fleet
 from .server import ServerLimits
 
 EXAMPLE = """\
@@ -28,6 +28,12 @@ a fleet file:
   name = "lathe-02"
   port = 2002
   machine = "../machines/warm_z.toml"
+  [[machine]]                   # a living machine: a recording and a PLC program on its own clock
+  name = "mill-03"
+  port = 2003
+  inputs = "../thermal/loop_bed_program_spindle_lag.csv"
+  plc = "../plc/bed_only_z.awl"
+  speed = "600x"                # also: cycle = "1s", loop = true (the recording starts over)
 """
 
 
@@ -45,14 +51,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--state", metavar="DIR", help="keep each machine's retained data in DIR/<name>.json")
     parser.add_argument("--max-connections", type=int, default=ServerLimits.max_connections,
                         help=f"per machine (default {ServerLimits.max_connections})")
-    parser.add_argument("--loop", choices=("auto", "uvloop", "asyncio"), default="auto",
+    parser.add_argument("--event-loop", choices=("auto", "uvloop", "asyncio"), default="auto",
                         help="event loop: uvloop when installed, else asyncio's own (auto)")
     parser.add_argument("--json", action="store_true",
                         help="print one JSON ready line (every machine's name and address) on stdout")
     parser.set_defaults(func=run_fleet)
 
 
-def run_fleet(args: argparse.Namespace) -> int:
+def run_fleet(args: argparse.Namespace, *, living: LivingHook | None = None) -> int:
+    """``living`` builds the living machines (nckemu.plcsim wraps this command with it)."""
     if args.fleet is not None and args.count is not None:
         raise NckConfigError("give a fleet file or --count, not both")
     if args.fleet is None:
@@ -65,9 +72,10 @@ def run_fleet(args: argparse.Namespace) -> int:
         spec = load_fleet(args.fleet)
     if args.max_connections < 1:
         raise NckConfigError(f"--max-connections {args.max_connections}: at least 1")
-    fleet = Fleet(spec, state_dir=args.state, limits=ServerLimits(max_connections=args.max_connections))
+    fleet = Fleet(spec, state_dir=args.state, limits=ServerLimits(max_connections=args.max_connections),
+                  living=living)
     try:
-        with asyncio.Runner(loop_factory=loop_factory(args.loop)) as runner:
+        with asyncio.Runner(loop_factory=loop_factory(args.event_loop)) as runner:
             return runner.run(_serve(fleet, args))
     except KeyboardInterrupt:
         return 0
@@ -80,7 +88,8 @@ async def _serve(fleet: Fleet, args: argparse.Namespace) -> int:
         print(json.dumps({"fleet": fleet.spec.source, "machines": ready}), flush=True)
     else:
         for machine in ready:
-            print(f"{machine['name']} {machine['host']}:{machine['port']} ({machine['machine']})")
+            alive = ", living" if machine["living"] else ""
+            print(f"{machine['name']} {machine['host']}:{machine['port']} ({machine['machine']}{alive})")
         print(f"nckemu fleet: {len(ready)} machine(s) serving (NCK: rack 0 slot 4, PLC: rack 0 slot 2). "
               f"Ctrl-C stops.", flush=True)
     stop = asyncio.Event()

@@ -154,3 +154,50 @@ async def test_machines_on_loopback_addresses_share_one_port() -> None:
             assert await b.get("R1") == [0.0]
     finally:
         await fleet.stop()
+
+
+async def test_a_living_machine_runs_its_program_beside_a_plain_one(tmp_path: Path) -> None:
+    from nckemu.plcsim.fleet_live import living_machine
+
+    from .live_tools import MACHINE, PROGRAM, write_recording
+
+    recording = write_recording(tmp_path / "rec.csv", hours=3.0)
+    spec = FleetSpec("test", (
+        FleetMachine("alive", "127.0.0.1", 0, machine=str(MACHINE), inputs=str(recording), plc=str(PROGRAM),
+                     speed="600x"),
+        FleetMachine("plain", "127.0.0.1", 0, machine=str(MACHINE)),
+    ))
+    fleet = await Fleet(spec, living=living_machine).start()
+    try:
+        assert [m.ready()["living"] for m in fleet.machines] == [True, False]
+        alive, plain = (machine.port for machine in fleet.machines)
+        # tc_z.awl writes K0 = 0.3 mm per 10 K of bed above 30 degC once a simulated minute; the
+        # recording's bed passes 30 degC after 45 simulated minutes (4.5 s at 600x)
+        deadline = asyncio.get_running_loop().time() + 60
+        value = 0.0
+        async with AsyncNckClient("127.0.0.1", alive) as client:
+            while value <= 0.0 and asyncio.get_running_loop().time() < deadline:
+                await asyncio.sleep(0.2)
+                (value,) = await client.get("SD43900[AX4]")
+        assert value > 0.0
+        async with AsyncNckClient("127.0.0.1", plain) as client:
+            assert await client.get("SD43900[AX4]") == [0.0]
+    finally:
+        await fleet.stop()
+
+
+def test_cli_living_keys_are_checked_with_the_fleet_file_line(tmp_path: Path) -> None:
+    from nckemu.cli import main
+
+    from .live_tools import write_recording
+
+    write_recording(tmp_path / "rec.csv", hours=1.0)
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text('[[machine]]\nname = "a"\nport = 2001\n\n[[machine]]\nname = "b"\nport = 2002\n'
+                     'inputs = "rec.csv"\nspeed = "fast"\n', encoding="utf-8")
+    process = subprocess.run([sys.executable, "-m", "nckemu", "fleet", str(fleet)], cwd=REPO, text=True,
+                             capture_output=True, timeout=60)
+    assert process.returncode == 1
+    assert process.stderr.count("\n") == 1
+    assert f"{fleet}, line 5, field 'speed': machine 'b': --speed 'fast'" in process.stderr
+    assert main is not None

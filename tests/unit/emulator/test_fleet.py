@@ -136,3 +136,12 @@ def test_a_fleet_parses_exactly_when_names_and_addresses_are_unique(rows: list[t
 def test_fleet_machine_address() -> None:
     assert FleetMachine("a", "127.0.0.12", 102).address == "127.0.0.12:102"
     assert FleetSpec("x", ()).machines == ()
+
+
+def test_the_living_fixture_names_its_recording_program_and_speed() -> None:
+    spec = load_fleet(REPO / "fixtures" / "fleets" / "living.toml")
+    alive, plain = spec.machines
+    assert alive.living and not plain.living
+    assert Path(alive.plc or "").name == "bed_only_z.awl" and alive.speed == "600x" and alive.loop
+    with pytest.raises(NckConfigError, match="field 'loop': expected true or false"):
+        parse_fleet('[[machine]]\nname = "a"\nport = 2001\nloop = "yes"\n', "f.toml")
