@@ -5,9 +5,8 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
-import signal
 
-from nckemu.cliutil import port_number
+from nckemu.cliutil import port_number, until_signalled
 from nckemu.errors import NckConfigError
 
 from .commands import loop_factory
@@ -92,15 +91,8 @@ async def _serve(fleet: Fleet, args: argparse.Namespace) -> int:
             print(f"{machine['name']} {machine['host']}:{machine['port']} ({machine['machine']}{alive})")
         print(f"nckemu fleet: {len(ready)} machine(s) serving (NCK: rack 0 slot 4, PLC: rack 0 slot 2). "
               f"Ctrl-C stops.", flush=True)
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            loop.add_signal_handler(sig, stop.set)
-        except (NotImplementedError, RuntimeError):
-            pass
     try:
-        await stop.wait()
+        await until_signalled()
     finally:
         await fleet.stop()
         if not args.json:
