@@ -263,7 +263,10 @@ class Fleet:
         self.spec = spec
         self.state_dir = Path(state_dir) if state_dir is not None else None
         if self.state_dir is not None and not self.state_dir.is_dir():
-            raise NckConfigError("--state: not a directory (create it first)", path=str(self.state_dir))
+            if self.state_dir.exists() or not self.state_dir.parent.is_dir():
+                raise NckConfigError("--state: not a directory, and cannot be made one (its parent must exist)",
+                                     path=str(self.state_dir))
+            self.state_dir.mkdir()
         machines = _MachineCache()
         self.machines: list[RunningMachine] = []
         for entry in spec.machines:

@@ -16,20 +16,20 @@ from .server import ServerLimits
 EXAMPLE = """\
 examples:
   nckemu fleet fixtures/fleets/lab.toml
-  nckemu fleet --count 100 --base-port 2001 --machine fixtures/machines/bed_ramp.toml --state states/
+  nckemu fleet --count 100 --base-port 21001 --machine fixtures/machines/bed_ramp.toml --state states/
 a fleet file:
   [fleet]                       # defaults for every machine (optional)
   machine = "../machines/bed_ramp.toml"
   [[machine]]
   name = "mill-01"
-  port = 2001                   # or host = "127.0.0.12" and port = 102 (as root)
+  port = 21001                  # or host = "127.0.0.12" and port = 102 (as root)
   [[machine]]
   name = "lathe-02"
-  port = 2002
+  port = 21002
   machine = "../machines/warm_z.toml"
   [[machine]]                   # a living machine: a recording and a PLC program on its own clock
   name = "mill-03"
-  port = 2003
+  port = 21003
   inputs = "../thermal/loop_bed_program_spindle_lag.csv"
   plc = "../plc/bed_only_z.awl"
   speed = "600x"                # also: cycle = "1s", loop = true (the recording starts over)

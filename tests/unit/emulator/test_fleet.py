@@ -27,7 +27,7 @@ def _refused(text: str, tmp_path: Path) -> str:
 def test_the_lab_fixture_resolves_paths_against_the_fleet_file() -> None:
     spec = load_fleet(REPO / "fixtures" / "fleets" / "lab.toml")
     assert [(m.name, m.address) for m in spec.machines] == [
-        ("mill-01", "127.0.0.1:2101"), ("mill-02", "127.0.0.1:2102"), ("lathe-01", "127.0.0.1:2103")]
+        ("mill-01", "127.0.0.1:21101"), ("mill-02", "127.0.0.1:21102"), ("lathe-01", "127.0.0.1:21103")]
     assert Path(spec.machines[0].machine or "").resolve() == (MACHINES / "bed_ramp.toml").resolve()
     assert Path(spec.machines[2].machine or "").resolve() == (MACHINES / "warm_z.toml").resolve()
     assert [m.line for m in spec.machines] == [8, 12, 16]
@@ -100,8 +100,10 @@ def test_machines_of_one_file_share_the_parsed_machine_not_the_state() -> None:
 def test_state_dir_gives_each_machine_its_own_file(tmp_path: Path) -> None:
     fleet = Fleet(quick_fleet(2, 2001), state_dir=tmp_path)
     assert [m.ready()["state"] for m in fleet.machines] == [str(tmp_path / "m001.json"), str(tmp_path / "m002.json")]
+    Fleet(quick_fleet(2, 2001), state_dir=tmp_path / "new")  # made, as its parent exists
+    assert (tmp_path / "new").is_dir()
     with pytest.raises(NckConfigError, match="not a directory"):
-        Fleet(quick_fleet(2, 2001), state_dir=tmp_path / "missing")
+        Fleet(quick_fleet(2, 2001), state_dir=tmp_path / "missing" / "deeper")
 
 
 def test_cli_refuses_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
