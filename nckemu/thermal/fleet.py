@@ -163,7 +163,8 @@ def _connect(scheduler: str | None, workers: int | None, timeout_s: float) -> tu
             reason = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
             raise NckConfigError(f"--scheduler {scheduler}: cannot reach it within {timeout_s:g} s ({reason})") from None
     count = workers or max(1, min(os.cpu_count() or 1, 8))
-    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
+    # the HTTP endpoints on a free loopback port: the default 8787 may be taken (a warning on stderr)
+    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                            host="127.0.0.1")
     return Client(cluster), cluster, f"local cluster, {count} worker(s)"
 
