@@ -19,11 +19,13 @@ from nckemu.errors import NckConfigError, NckError
 
 COMMAND_MODULES = (
     "nckemu.emulator.commands",   # serve, machine show
+    "nckemu.emulator.fleet_commands",  # fleet
     "nckemu.catalogue.commands",  # vars
     "nckemu.clients.commands",    # get, put, pi, comp840c, lec
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
     "nckemu.plcsim.commands",     # plc run, plc stubs
+    "nckemu.plcsim.fleet_live",   # fleet: living machines (inputs/plc in a [[machine]])
 )
 
 log = logging.getLogger(__name__)

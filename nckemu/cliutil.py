@@ -137,3 +137,18 @@ class working:  # noqa: N801 (used as `with working("discover"):`, like a functi
         if self._thread is not None:
             self._stop.set()
             self._thread.join()
+
+
+async def until_signalled() -> None:
+    """Wait on the running loop until SIGINT or SIGTERM (a server's Ctrl-C or kill), then return."""
+    import asyncio
+    import signal
+
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, stop.set)
+        except (NotImplementedError, RuntimeError):
+            pass
+    await stop.wait()

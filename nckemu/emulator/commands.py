@@ -7,12 +7,11 @@ import asyncio
 import errno
 import json
 import logging
-import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from nckemu.cliutil import check_output, listen_port
+from nckemu.cliutil import check_output, listen_port, until_signalled
 from nckemu.errors import NckConfigError, NckError
 
 from .clock import Clock
@@ -215,15 +214,8 @@ async def _serve(server: EmulatorServer, args: argparse.Namespace, faces: Sequen
         for face in started:
             if getattr(face, "ready_line", None):
                 print(f"  {face.ready_line}", flush=True)
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            loop.add_signal_handler(sig, stop.set)
-        except (NotImplementedError, RuntimeError):
-            pass
     try:
-        await stop.wait()
+        await until_signalled()
     finally:
         for face in reversed(started):
             await face.stop()

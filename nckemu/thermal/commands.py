@@ -43,7 +43,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                "discover then says which sensors explain the axis on their own.\n"
                "Several runs (files, a directory, a glob): each run has its own offset, fitted on that run; "
                "everything else is fitted on the other runs, and each run is held out in turn.\n")
-    find.add_argument("recording", help="recording (CSV or Parquet), a directory of them or a glob")
+    find.add_argument("recording", nargs="?", help="recording (CSV or Parquet), a directory of them or a glob "
+                                                   "(or --fleet ROOT)")
     find.add_argument("more", nargs="*", metavar="RUN", help="more runs of the same machine")
     find.add_argument("--model", help="baseline model TOML (default: the recording's sim_<axis>_um column, "
                                       "else a constant offset)")
@@ -56,6 +57,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     find.add_argument("--json-out", metavar="FILE", help="write the findings as JSON to FILE (- for stdout)")
     find.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
     find.add_argument("--write-model", metavar="IMPROVED.toml", help="write the improved model")
+    # fleet discovery (thermal/fleet.py): one Dask task per machine folder
+    find.add_argument("--fleet", metavar="ROOT", help="one folder per machine under ROOT (its runs as CSV or "
+                                                     "Parquet, optionally its model TOML); each machine a Dask task")
+    find.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                      help="with --fleet: a running Dask scheduler (default: a local cluster in this process)")
+    find.add_argument("--workers", type=int, metavar="N", help="with --fleet: local cluster workers (default: cores)")
     find.set_defaults(func=run_discover)
 
 
@@ -89,6 +96,12 @@ def _is_one_file(spec: str) -> bool:
 
 
 def run_discover(args: argparse.Namespace) -> int:
+    if args.fleet or args.scheduler or args.workers:
+        from .fleet_commands import run_fleet_discover
+
+        return run_fleet_discover(args)
+    if args.recording is None:
+        raise NckConfigError("give a recording CSV, or --fleet ROOT")
     from .discover import discover, discover_runs
     from .recording import load_recording, load_runs
     from .report import write_report

@@ -123,7 +123,7 @@ def test_help_example_runs(prog: str, argv: list[str], tmp_path: Path, capture: 
     write_recording(tmp_path / "rec.csv", make_scenario("thermal_gradient").recording)
     with EmulatorThread() as emu:
         argv = _prepare(argv, tmp_path, emu.port, capture)
-        if argv[0] == "serve":
+        if argv[0] in ("serve", "fleet"):  # servers: started, seen ready, stopped
             _run_serve_example(argv, tmp_path)
             return
         monkeypatch.chdir(tmp_path)
@@ -137,7 +137,10 @@ def _run_serve_example(argv: list[str], cwd: Path) -> None:
                                stderr=subprocess.PIPE, text=True)
     try:
         ready = process.stdout.readline() if process.stdout else ""
-        assert ready.startswith("nckemu: machine"), process.stderr.read() if process.stderr else ready
+        # serve's ready line; fleet's first line is its first machine's name and address
+        expected = "nckemu: machine" if argv[0] == "serve" else ""
+        assert ready.startswith(expected) and ("127.0.0.1:" in ready), \
+            process.stderr.read() if process.stderr else ready
     finally:
         process.terminate()
         process.wait(timeout=20)

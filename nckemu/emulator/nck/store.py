@@ -26,6 +26,24 @@ log = logging.getLogger(__name__)
 # Hot addresses are cached; a flood of distinct ones is not.
 MAX_CACHED_ADDRESSES = 4096
 
+# The address index of a variable table (~3 MB for the built-in one: R parameters take one key per
+# column) is the same for every machine serving that table: built once per table object, shared by
+# all stores (a fleet of 100 machines would otherwise hold 100 copies). Specs are immutable; the
+# values stay per store. Keyed by id, holding the table so the id stays its own; the few newest
+# tables only (a process loading many machine files with their own rows keeps no garbage).
+MAX_SHARED_INDEXES = 8
+_SHARED_INDEXES: dict[int, tuple[tuple[VariableSpec, ...], dict[tuple[int, int, int], VariableSpec]]] = {}
+
+
+def _shared_index(specs: tuple[VariableSpec, ...]) -> dict[tuple[int, int, int], VariableSpec]:
+    entry = _SHARED_INDEXES.get(id(specs))
+    if entry is None or entry[0] is not specs:
+        entry = (specs, index_by_address(specs))
+        while len(_SHARED_INDEXES) >= MAX_SHARED_INDEXES:
+            del _SHARED_INDEXES[next(iter(_SHARED_INDEXES))]
+        _SHARED_INDEXES[id(specs)] = entry
+    return entry[1]
+
 
 class VariableStore:
     """Specs by address, values by (name, unit), the retained snapshot of stored values."""
@@ -33,7 +51,7 @@ class VariableStore:
     def __init__(self, specs: Iterable[VariableSpec], units_of: Callable[[VariableSpec], list[int]],
                  limit_violation_return_code: int) -> None:
         self.specs = tuple(specs)
-        self._index = index_by_address(self.specs)
+        self._index = _shared_index(self.specs)
         self._by_name = {spec.name: spec for spec in self.specs}
         self._modules = frozenset(spec.module for spec in self.specs)
         self._limit_rc = limit_violation_return_code

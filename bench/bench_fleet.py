@@ -1,0 +1,186 @@
+"""``nckemu fleet``: memory for 1, 10 and 100 machines in one process, and read throughput spread over
+100 machines against the same clients on one machine, same fleet process, same run.
+
+Memory: the resident set (VmRSS) of ``nckemu fleet --count N`` after every machine has answered one
+NCK read (each then holds a session's worth of state). The anchor, measured in the same run: one
+``nckemu serve`` process, the cost per machine without a fleet (N machines = N such processes).
+Target: 100 machines under 250 MB in all.
+
+Throughput: 8 python-snap7 client processes, each with one connection to every 8th machine of a
+100-machine fleet, reading SD43900[AX4] from its machines in turn; then the same 8 processes with the
+same number of connections each, all to machine 1. The ratio says what spreading the load over many
+machines (many listening sockets, many emulators) costs the one event loop.
+
+Usage: .venv/bin/python bench/bench_fleet.py [--counts 1 10 100] [--seconds 3] [--clients 8]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import random
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from bench.bench_server import NCK_READ_PDU, free_port, process_cpu_s, wait_port
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    raise RuntimeError("no VmRSS (Linux /proc needed)")
+
+
+def free_range(count: int) -> int:
+    """A base port with ``count`` free ports from it on."""
+    for _ in range(200):
+        base = random.randrange(20000, 60000 - count)
+        sockets = []
+        try:
+            for port in range(base, base + count):
+                sock = socket.socket()
+                sockets.append(sock)
+                sock.bind(("127.0.0.1", port))
+            return base
+        except OSError:
+            continue
+        finally:
+            for sock in sockets:
+                sock.close()
+    raise RuntimeError(f"no {count} consecutive free ports")
+
+
+def start_fleet(count: int, base: int) -> tuple[subprocess.Popen[str], list[int]]:
+    process = subprocess.Popen([sys.executable, "-m", "nckemu", "fleet", "--count", str(count), "--base-port",
+                                str(base), "--max-connections", "1024", "--json"], cwd=REPO, stdout=subprocess.PIPE,
+                               stderr=subprocess.DEVNULL, text=True)
+    assert process.stdout is not None
+    ready = json.loads(process.stdout.readline())
+    return process, [machine["port"] for machine in ready["machines"]]
+
+
+def touch(ports: list[int]) -> None:
+    """One NCK read from every machine (python-snap7), so each has served a connection."""
+    import snap7
+
+    for port in ports:
+        client = snap7.Client()
+        client.connect("127.0.0.1", 0, 4, port)
+        client.iso_exchange_buffer(bytearray(NCK_READ_PDU))
+        client.disconnect()
+
+
+def serve_rss_mb() -> float:
+    port = free_port()
+    process = subprocess.Popen([sys.executable, "-m", "nckemu", "serve", "--port", str(port)], cwd=REPO,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        wait_port(port)
+        touch([port])
+        return rss_mb(process.pid)
+    finally:
+        process.terminate()
+        process.wait()
+
+
+def reader(ports: list[int], seconds: float, out: Any, start: Any) -> None:
+    import logging
+
+    import snap7
+
+    logging.disable(logging.CRITICAL)
+    clients = []
+    for port in ports:
+        client = snap7.Client()
+        client.connect("127.0.0.1", 0, 4, port)
+        clients.append(client)
+    request = bytearray(NCK_READ_PDU)
+    start.wait()
+    reads = 0
+    deadline = time.perf_counter() + seconds
+    while time.perf_counter() < deadline:
+        for client in clients:
+            client.iso_exchange_buffer(request)
+        reads += len(clients)
+    for client in clients:
+        client.disconnect()
+    out.put(reads)
+
+
+def throughput(assignments: list[list[int]], seconds: float, server_pid: int) -> dict[str, float]:
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    start = ctx.Barrier(len(assignments) + 1)
+    workers = [ctx.Process(target=reader, args=(ports, seconds, queue, start)) for ports in assignments]
+    for worker in workers:
+        worker.start()
+    start.wait(timeout=120)
+    cpu_before = process_cpu_s(server_pid) or 0.0
+    reads = sum(queue.get(timeout=seconds + 60) for _ in workers)
+    for worker in workers:
+        worker.join()
+    cpu_after = process_cpu_s(server_pid) or 0.0
+    return {"reads_per_s": reads / seconds, "server_cpu_us_per_read": 1e6 * (cpu_after - cpu_before) / reads}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--counts", type=int, nargs="+", default=[1, 10, 100])
+    parser.add_argument("--seconds", type=float, default=3.0)
+    parser.add_argument("--clients", type=int, default=8)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+
+    anchor = serve_rss_mb()
+    memory = []
+    for count in args.counts:
+        process, ports = start_fleet(count, free_range(count))
+        try:
+            touch(ports)
+            memory.append({"machines": count, "rss_mb": rss_mb(process.pid)})
+        finally:
+            process.terminate()
+            process.wait()
+    for row in memory:
+        row["mb_per_machine_over_one"] = (row["rss_mb"] - memory[0]["rss_mb"]) / max(1, row["machines"] - 1)
+        row["separate_serves_mb"] = anchor * row["machines"]
+
+    count = max(args.counts)
+    process, ports = start_fleet(count, free_range(count))
+    try:
+        spread = [ports[i::args.clients] for i in range(args.clients)]
+        one = [[ports[0]] * len(assignment) for assignment in spread]
+        fleet_rate = throughput(spread, args.seconds, process.pid)
+        one_rate = throughput(one, args.seconds, process.pid)
+    finally:
+        process.terminate()
+        process.wait()
+    result = {"serve_rss_mb": anchor, "memory": memory, "machines": count, "clients": args.clients,
+              "connections": sum(len(a) for a in spread), "spread": fleet_rate, "one_machine": one_rate,
+              "ratio_spread_over_one": fleet_rate["reads_per_s"] / one_rate["reads_per_s"]}
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    print(f"anchor: one `nckemu serve` process, one machine: {anchor:.1f} MB RSS")
+    print("machines  fleet RSS MB  MB/extra machine  as separate serves MB")
+    for row in memory:
+        print(f"{row['machines']:8d}  {row['rss_mb']:12.1f}  {row['mb_per_machine_over_one']:16.3f}  "
+              f"{row['separate_serves_mb']:21.0f}")
+    print(f"reads/s, {args.clients} python-snap7 processes, {result['connections']} connections: "
+          f"spread over {count} machines {fleet_rate['reads_per_s']:.0f} "
+          f"({fleet_rate['server_cpu_us_per_read']:.0f} us server CPU/read), all on one machine "
+          f"{one_rate['reads_per_s']:.0f} ({one_rate['server_cpu_us_per_read']:.0f} us); "
+          f"ratio {result['ratio_spread_over_one']:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,64 @@
+"""``nckemu discover --fleet ROOT``: every machine folder's discovery as a Dask task, and the fleet table."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from nckemu.cliutil import check_output, progress, write_json
+from nckemu.errors import NckConfigError
+
+
+def run_fleet_discover(args: argparse.Namespace) -> int:
+    if not args.fleet:
+        raise NckConfigError("--scheduler and --workers go with --fleet ROOT")
+    if args.recording is not None or getattr(args, "more", None):
+        raise NckConfigError(f"give recordings or --fleet, not both ({args.recording})")
+    if getattr(args, "split_runs", False):
+        raise NckConfigError("--split-runs does not go with --fleet (a machine folder's files are its runs)")
+    for option, value in (("--model", args.model), ("--write-model", args.write_model)):
+        if value is not None:
+            raise NckConfigError(f"{option} does not go with --fleet (each machine folder holds its own model)")
+    if args.scheduler and args.workers:
+        raise NckConfigError("--workers sizes the local cluster; a --scheduler's cluster has its own workers")
+    if args.workers is not None and args.workers < 1:
+        raise NckConfigError(f"--workers {args.workers}: at least 1")
+    for option, path in (("--json-out", args.json_out), ("--report", args.report)):
+        check_output(path, option)
+
+    from .fleet import discover_fleet, scan_root, write_fleet_report
+
+    machines = scan_root(args.fleet)
+    quiet = bool(args.json) or args.json_out == "-"
+
+    def bar(finished: object, total: int) -> object:
+        return progress(finished, total=total, description="machines", enabled=not quiet, unit="machine")
+
+    document = discover_fleet(machines, axis=args.axis, scheduler=args.scheduler, workers=args.workers,
+                              progress=bar, root=str(args.fleet))
+    write_json(document, args.json_out)
+    if args.report:
+        write_fleet_report(args.report, document, f"nckemu discover --fleet {Path(args.fleet).name}")
+    if args.json:
+        print(json.dumps(document))
+    else:
+        text = sys.stderr if args.json_out == "-" else sys.stdout
+        for machine in document["machines"]:
+            retried = f" (retried: {machine['worker_losses']} worker(s) lost)" if machine.get("worker_losses") else ""
+            if "error" in machine:
+                print(f"{machine['machine']}: failed: {machine['error']}{retried}", file=text)
+                continue
+            missing = ", ".join(effect["effect"] for effect in machine["findings"]["missing_physics"])
+            print(f"{machine['machine']}: {missing or 'nothing missing'}{retried}", file=text)
+        print(f"fleet of {len(document['machines'])} on {document['engine']}:", file=text)
+        for row in document["table"]:
+            spread = "; ".join(f"{key} {s['median']:.4g} ({s['min']:.4g}..{s['max']:.4g})"
+                               for key, s in row["parameters"].items())
+            print(f"  {row['effect']}: {row['machines']} of {row['of']} machines; {spread}", file=text)
+        if not document["table"]:
+            print("  nothing missing on any machine", file=text)
+    for name, error in document["failed"].items():
+        print(f"nckemu discover: machine {name}: {error}", file=sys.stderr)
+    return 1 if document["failed"] else 0
