@@ -105,7 +105,7 @@ def run_discover(args: argparse.Namespace) -> int:
     from .discover import discover, discover_runs
     from .recording import load_recording, load_runs
     from .report import write_report
-    from .terms import Term, ThermalModel, load_model, render_model
+    from .terms import Term, ThermalModel, load_model
 
     for option, path in (("--json-out", args.json_out), ("--report", args.report),
                          ("--write-model", args.write_model)):
@@ -143,13 +143,9 @@ def run_discover(args: argparse.Namespace) -> int:
     write_json(document, args.json_out)
     if args.report:
         write_report(args.report, result, f"nckemu discover: {Path(args.recording).name}", findings)
-    if args.write_model:
-        note = "" if args.model else f"# baseline: {baseline}\n"
-        Path(args.write_model).write_text(note + render_model(result.improved_model), encoding="utf-8")
-    if args.json:
-        print(json.dumps(document))
+    text = _write_model_and_json(args, document, result, "" if args.model else f"# baseline: {baseline}\n")
+    if text is None:
         return 0
-    text = sys.stderr if args.json_out == "-" else sys.stdout
     print(f"axis {result.axis}: RMS as given {result.baseline_rms_um:.3f} um, recalibrated "
           f"{result.recalibrated_rms_um:.3f} um, held-out {result.heldout_rms_before_um:.3f} -> "
           f"{result.heldout_rms_after_um:.3f} um (before: {result.before_is})", file=text)
@@ -157,6 +153,18 @@ def run_discover(args: argparse.Namespace) -> int:
         print(f"  {heading}: {sentence}", file=text)
     _print_findings(result, text)
     return 0
+
+
+def _write_model_and_json(args: argparse.Namespace, document: dict[str, Any], result: Any, note: str) -> Any:
+    """--write-model and --json; the stream for the text (None when the JSON went to stdout)."""
+    from .terms import render_model
+
+    if args.write_model:
+        Path(args.write_model).write_text(note + render_model(result.improved_model), encoding="utf-8")
+    if args.json:
+        print(json.dumps(document))
+        return None
+    return sys.stderr if args.json_out == "-" else sys.stdout
 
 
 def _print_findings(result: Any, text: Any) -> None:
@@ -169,7 +177,6 @@ def _print_findings(result: Any, text: Any) -> None:
 def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, discover_runs: Any,
                        load_runs: Any) -> int:
     from .report import write_report
-    from .terms import render_model
     from .wording import runs_table
 
     runs = load_runs(specs, args.axis or (model.axis if model is not None else None))
@@ -188,14 +195,11 @@ def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, d
     title = f"nckemu discover: {len(runs)} runs ({', '.join(r.name for r in runs[:3])}{', ...' if len(runs) > 3 else ''})"
     if args.report:
         write_report(args.report, result, title)
-    if args.write_model:
-        note = "" if args.model else "# baseline: each run's own offset\n"
-        Path(args.write_model).write_text(note + "# plus each run's own offset, fitted on that run\n"
-                                          + render_model(result.improved_model), encoding="utf-8")
-    if args.json:
-        print(json.dumps(document))
+    note = ("" if args.model else "# baseline: each run's own offset\n") + \
+        "# plus each run's own offset, fitted on that run\n"
+    text = _write_model_and_json(args, document, result, note)
+    if text is None:
         return 0
-    text = sys.stderr if args.json_out == "-" else sys.stdout
     print(f"axis {result.axis} over {len(runs)} runs: RMS as given {result.baseline_rms_um:.3f} um, held-out "
           f"(each run left out, median over runs) {result.heldout_rms_before_um:.3f} -> "
           f"{result.heldout_rms_after_um:.3f} um (before: {result.before_is})", file=text)

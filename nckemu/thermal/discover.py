@@ -274,6 +274,53 @@ class Discoverer:
         unit = (runs, "runs") if runs > 1 else (len(setup.folds), "blocks of time")
         result.why_nothing = explain.nothing_passed(unit[0], unit[1], result.smallest_detectable_um, words)
 
+    def _per_run(self, result: Discovery, setup: Baseline, path: Path) -> None:
+        """Leave-one-run-out figures per run (before = the like-for-like baseline, after = the improved
+        model), the medians as headline, and which runs the model still fails and when."""
+        problem = self.problem
+        before_cv = setup.given_cv if path.gain_mode else setup.reference_cv
+        after_cv = path.base_cv if result.missing_physics else before_cv
+        residual = _heldout_residual(path.design if result.missing_physics else setup.base_design, self.y, setup.folds)
+        rows = []
+        for index, run in enumerate(problem.runs):
+            recording = run.readings.recording
+            rows.append({"name": run.name, "rows": int(run.mask.sum()), "duration_h": round(recording.duration_s / 3600, 3),
+                         "heldout_rms_before_um": round(before_cv.fold_rms_um[index], 4),
+                         "heldout_rms_after_um": round(after_cv.fold_rms_um[index], 4)})
+        result.runs = rows
+        result.heldout_rms_before_um = float(np.median([r["heldout_rms_before_um"] for r in rows]))
+        result.heldout_rms_after_um = float(np.median([r["heldout_rms_after_um"] for r in rows]))
+        result.before_is += "; median over runs, each held out"
+        median_after = result.heldout_rms_after_um
+        result.mismatch = []
+        for index, (run, row) in enumerate(zip(problem.runs, rows, strict=True)):
+            fails = row["heldout_rms_after_um"] > 2 * median_after or \
+                (result.missing_physics and row["heldout_rms_after_um"] >= row["heldout_rms_before_um"])
+            row["fails"] = bool(fails)
+            if not fails:
+                continue
+            mine = problem.groups == index
+            t_run, r_run = problem.t_s[mine], residual[mine]
+            windows = explain.structured_windows(t_run, r_run, limit=1)
+            start_s, end_s = windows[0] if windows else (float(t_run[0]), float(t_run[-1]))
+            inside = (t_run >= start_s) & (t_run <= end_s)
+            t0 = float(run.readings.recording.t_s[0])
+            row["fails_from_h"], row["fails_to_h"] = round((start_s - t0) / 3600, 2), round((end_s - t0) / 3600, 2)
+            result.mismatch.append({"run": run.name, "t_start_s": start_s, "t_end_s": end_s,
+                                    "why": explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)})
+        library = self.selector.library
+        result.coverage = [{"column": column, "missing_in": lacking, "handled": library.handling(column)}
+                           for column, lacking in library.unavailable.items()]
+        # The report's series: the runs laid end to end, each from its own start.
+        hours, start = [], 0.0
+        for index, run in enumerate(problem.runs):
+            t_run = problem.t_s[problem.groups == index]
+            hours.append(t_run - t_run[0] + start)
+            start += run.readings.recording.duration_s + 1800.0
+        result.series["t_s"] = np.concatenate(hours)
+        result.series["run_index"] = problem.groups.copy()
+        result.series["heldout_residual_um"] = residual
+
     def _finish(self, setup: Baseline, path: Path, preferred: str) -> Discovery:
         problem, given, final = self.problem, setup.given, path.final
         discovered = path.discovered
@@ -337,57 +384,6 @@ def _heldout_residual(design: np.ndarray, y: np.ndarray, folds: list[np.ndarray]
         else:
             out[test] = y[test] - design[test] @ stats.least_squares(design[~test], y[~test])
     return out
-
-
-def _per_run(self: Discoverer, result: Discovery, setup: Baseline, path: Path) -> None:
-    """Leave-one-run-out figures per run (before = the like-for-like baseline, after = the improved
-    model), the medians as headline, and which runs the model still fails and when."""
-    problem = self.problem
-    before_cv = setup.given_cv if path.gain_mode else setup.reference_cv
-    after_cv = path.base_cv if result.missing_physics else before_cv
-    residual = _heldout_residual(path.design if result.missing_physics else setup.base_design, self.y, setup.folds)
-    rows = []
-    for index, run in enumerate(problem.runs):
-        recording = run.readings.recording
-        rows.append({"name": run.name, "rows": int(run.mask.sum()), "duration_h": round(recording.duration_s / 3600, 3),
-                     "heldout_rms_before_um": round(before_cv.fold_rms_um[index], 4),
-                     "heldout_rms_after_um": round(after_cv.fold_rms_um[index], 4)})
-    result.runs = rows
-    result.heldout_rms_before_um = float(np.median([r["heldout_rms_before_um"] for r in rows]))
-    result.heldout_rms_after_um = float(np.median([r["heldout_rms_after_um"] for r in rows]))
-    result.before_is += "; median over runs, each held out"
-    median_after = result.heldout_rms_after_um
-    result.mismatch = []
-    for index, (run, row) in enumerate(zip(problem.runs, rows, strict=True)):
-        fails = row["heldout_rms_after_um"] > 2 * median_after or \
-            (result.missing_physics and row["heldout_rms_after_um"] >= row["heldout_rms_before_um"])
-        row["fails"] = bool(fails)
-        if not fails:
-            continue
-        mine = problem.groups == index
-        t_run, r_run = problem.t_s[mine], residual[mine]
-        windows = explain.structured_windows(t_run, r_run, limit=1)
-        start_s, end_s = windows[0] if windows else (float(t_run[0]), float(t_run[-1]))
-        inside = (t_run >= start_s) & (t_run <= end_s)
-        t0 = float(run.readings.recording.t_s[0])
-        row["fails_from_h"], row["fails_to_h"] = round((start_s - t0) / 3600, 2), round((end_s - t0) / 3600, 2)
-        result.mismatch.append({"run": run.name, "t_start_s": start_s, "t_end_s": end_s,
-                                "why": explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)})
-    library = self.selector.library
-    result.coverage = [{"column": column, "missing_in": lacking, "handled": library.handling(column)}
-                       for column, lacking in library.unavailable.items()]
-    # The report's series: the runs laid end to end, each from its own start.
-    hours, start = [], 0.0
-    for index, run in enumerate(problem.runs):
-        t_run = problem.t_s[problem.groups == index]
-        hours.append(t_run - t_run[0] + start)
-        start += run.readings.recording.duration_s + 1800.0
-    result.series["t_s"] = np.concatenate(hours)
-    result.series["run_index"] = problem.groups.copy()
-    result.series["heldout_residual_um"] = residual
-
-
-Discoverer._per_run = _per_run  # type: ignore[attr-defined]
 
 
 def discover_runs(runs: list[Recording], axis: str | None = None, model: ThermalModel | None = None,

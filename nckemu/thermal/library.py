@@ -208,31 +208,29 @@ class Library:
             self._signals[key] = (t[::step], signal[::step])
         return self._signals[key]
 
-    def lag_column(self, sensor: str, tau_s: float) -> np.ndarray:
+    def _filtered_column(self, key: tuple[object, ...], sensor: str,
+                         lagged: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+        """A filter of ``sensor`` (on its coarse grid) at the gauge samples, less t_ref; zero in a run
+        without the sensor (no contribution there)."""
         def make() -> np.ndarray:
             t_ref = self.t_ref(sensor)
 
             def per_run(run: Run) -> np.ndarray:
                 t_gauge = run.readings.recording.t_s[run.mask]
                 if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
-                    return np.full(len(t_gauge), t_ref)  # centred to zero: no contribution in that run
+                    return np.zeros(len(t_gauge))
                 t_coarse, signal = self._decimated(run, sensor)
-                return np.interp(t_gauge, t_coarse, first_order_lag(t_coarse, signal, tau_s)) - t_ref
+                return np.interp(t_gauge, t_coarse, lagged(t_coarse, signal)) - t_ref
             return self.problem.gauge_column(per_run)
-        return self._cached(("lag", sensor, tau_s), make)
+        return self._cached(key, make)
+
+    def lag_column(self, sensor: str, tau_s: float) -> np.ndarray:
+        return self._filtered_column(("lag", sensor, tau_s), sensor,
+                                     lambda t, signal: first_order_lag(t, signal, tau_s))
 
     def asymmetric_column(self, sensor: str, tau_heat_s: float, tau_cool_s: float) -> np.ndarray:
-        def make() -> np.ndarray:
-            t_ref = self.t_ref(sensor)
-
-            def per_run(run: Run) -> np.ndarray:
-                t_gauge = run.readings.recording.t_s[run.mask]
-                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
-                    return np.full(len(t_gauge), t_ref)  # centred to zero: no contribution in that run
-                t_coarse, signal = self._decimated(run, sensor)
-                return np.interp(t_gauge, t_coarse, asymmetric_lag(t_coarse, signal, tau_heat_s, tau_cool_s)) - t_ref
-            return self.problem.gauge_column(per_run)
-        return self._cached(("hysteresis", sensor, tau_heat_s, tau_cool_s), make)
+        return self._filtered_column(("hysteresis", sensor, tau_heat_s, tau_cool_s), sensor,
+                                     lambda t, signal: asymmetric_lag(t, signal, tau_heat_s, tau_cool_s))
 
     def asymmetric_columns(self, sensor: str, pairs: list[tuple[float, float]]) -> list[np.ndarray]:
         """``asymmetric_column`` for many time-constant pairs, the missing ones in one pass over time."""
@@ -244,7 +242,7 @@ class Library:
             for run in self.problem.runs:
                 t_gauge = run.readings.recording.t_s[run.mask]
                 if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
-                    per_run.append([np.full(len(t_gauge), t_ref) - t_ref] * len(missing))
+                    per_run.append([np.zeros(len(t_gauge))] * len(missing))
                     continue
                 t_coarse, signal = self._decimated(run, sensor)
                 lagged = asymmetric_lags(t_coarse, signal, missing)
