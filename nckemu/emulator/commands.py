@@ -24,6 +24,7 @@ EXAMPLE = """\
 examples:
   nckemu serve --port 1102
   nckemu serve --machine fixtures/machines/warm_z.toml --state state.json --record session.pcapng
+  nckemu serve --port 1102 --opcua 4840      (OPC UA beside S7: uaread -u opc.tcp://127.0.0.1:4840/ ...)
 then, e.g. with python-snap7:
   import snap7; c = snap7.Client(); c.connect("127.0.0.1", 0, 4, 1102); print(c.get_cpu_info())
 """
@@ -49,6 +50,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         help="seconds a begun frame may take to complete")
     parser.add_argument("--loop", choices=("auto", "uvloop", "asyncio"), default="auto",
                         help="event loop: uvloop (faster, libuv) when installed, else asyncio's own (auto)")
+    parser.add_argument("--opcua", type=listen_port, default=None, metavar="PORT",
+                        help="also serve OPC UA (SINUMERIK node ids, same model) on PORT, e.g. 4840 (default off)")
     parser.add_argument("--json", action="store_true", help="print the ready line as JSON on stdout")
     parser.set_defaults(func=run_serve)
 
@@ -159,8 +162,19 @@ async def _serve(server: EmulatorServer, args: argparse.Namespace) -> int:
             print(f"nckemu serve: cannot bind {args.host}:{args.port}: {exc}", file=sys.stderr)
         return 1
     machine_name = getattr(server.emulator.machine, "name", "default")
+    face = None
+    if getattr(args, "opcua", None) is not None:
+        from .opcua import OpcUaFace
+        try:
+            face = await OpcUaFace(server.emulator, args.host, args.opcua).start()
+        except OSError as exc:
+            print(f"nckemu serve: cannot serve OPC UA on {args.host}:{args.opcua}: {exc}", file=sys.stderr)
+            await server.stop()
+            return 1
     ready = {"host": args.host, "port": server.port, "machine": machine_name,
              "state": args.state, "record": args.record}
+    if face is not None:
+        ready["opcua"] = face.url
     if args.json:
         print(json.dumps(ready), flush=True)
     else:
@@ -168,6 +182,9 @@ async def _serve(server: EmulatorServer, args: argparse.Namespace) -> int:
               f"(NCK: rack 0 slot 4, PLC: rack 0 slot 2; any TSAP is accepted). Ctrl-C stops.\n"
               f"  python-snap7: c = snap7.Client(); c.connect('{args.host}', 0, 4, {server.port})\n"
               f"  nckemu get --port {server.port} SD43900[AX4]", flush=True)
+        if face is not None:
+            print(f"  OPC UA: {face.url} (namespace SinumerikVarProvider), e.g. "
+                  f"uaread -u {face.url} -n 'ns=2;s=/Channel/State/progStatus'", flush=True)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -178,6 +195,8 @@ async def _serve(server: EmulatorServer, args: argparse.Namespace) -> int:
     try:
         await stop.wait()
     finally:
+        if face is not None:
+            await face.stop()
         await server.stop()
         print("nckemu: stopped; retained state flushed" if args.state else "nckemu: stopped",
               flush=True)

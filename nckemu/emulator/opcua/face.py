@@ -27,6 +27,7 @@ from typing import Any
 
 from asyncua import Server, ua
 from asyncua.common.utils import ServiceError
+from asyncua.crypto.permission_rules import PermissionRuleset
 from asyncua.crypto.permission_rules import User as UaUser
 from asyncua.crypto.permission_rules import UserRole
 from asyncua.server.address_space import AttributeService, AttributeValue, NodeData
@@ -49,6 +50,14 @@ _ACCESS_RW = ua.AccessLevel.CurrentRead.mask | ua.AccessLevel.CurrentWrite.mask
 
 def _status(name: str) -> ua.DataValue:
     return ua.DataValue(StatusCode_=ua.StatusCode(getattr(ua.StatusCodes, name)))
+
+
+class _RealmRules(PermissionRuleset):
+    """asyncua's service-level rules let everything through: the realm rights decide per variable and
+    method (asyncua's default refuses e.g. ModifySubscription to a non-admin user)."""
+
+    def check_validity(self, user: Any, action_type: Any, body: Any) -> bool:
+        return True
 
 
 class _UserManager:
@@ -100,7 +109,7 @@ class OpcUaFace:
         await server.init()
         server.set_endpoint(f"opc.tcp://{self.host}:{self.port}/")
         server.set_server_name(f"nckemu {self.emulator.machine.name}")
-        server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        server.set_security_policy([ua.SecurityPolicyType.NoSecurity], permission_ruleset=_RealmRules())
         self.namespace = await server.register_namespace(self.settings.namespace_uri)
         iserver = server.iserver
         iserver.aspace._nodes = _LazyNodes(iserver.aspace._nodes, self)
