@@ -3,7 +3,7 @@
 // ops: {"read": "ns=2;s=/Channel/State/progStatus"}
 //      {"write": "ns=2;s=...", "value": 1.5, "type": "Double"}
 //      {"subscribe": "ns=2;s=...", "ms": 1500, "after_ms": 300}   (records changes; prints when done)
-// Prints one JSON line: a list with one result per op ({"status": "Good", "value": ...}).
+// Prints one line "RESULT <json>" (node-opcua logs on stdout too): a list with one result per op ({"status": "Good", "value": ...}).
 "use strict";
 const opcua = require("node-opcua-client");
 
@@ -39,7 +39,7 @@ async function main() {
         const seen = [];
         item.on("changed", (dv) => seen.push(dv.value.value));
         // Tell the test when the subscription is live, so it writes over S7 only then.
-        process.stdout.write(JSON.stringify({ subscribed: true }) + "\n");
+        process.stdout.write("RESULT " + JSON.stringify({ subscribed: true }) + "\n");
         await new Promise((resolve) => setTimeout(resolve, op.ms));
         await subscription.terminate();
         results.push({ status: "Good", values: seen });
@@ -49,10 +49,10 @@ async function main() {
     await session.close();
     await client.disconnect();
   }
-  process.stdout.write(JSON.stringify(results) + "\n");
+  process.stdout.write("RESULT " + JSON.stringify(results) + "\n");
 }
 
 main().catch((err) => {
-  process.stdout.write(JSON.stringify({ error: String(err && err.message ? err.message : err) }) + "\n");
+  process.stdout.write("RESULT " + JSON.stringify({ error: String(err && err.message ? err.message : err) }) + "\n");
   process.exit(1);
 });
