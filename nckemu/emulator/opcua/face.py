@@ -106,6 +106,9 @@ class OpcUaFace:
     # ------------------------------------------------------------------ start / stop
     async def start(self) -> OpcUaFace:
         server = self.server
+        quiet = logging.getLogger("asyncua")
+        if quiet.level == logging.NOTSET:  # its INFO lines (a thousand at init) would drown serve's own
+            quiet.setLevel(logging.WARNING)
         await server.init()
         server.set_endpoint(f"opc.tcp://{self.host}:{self.port}/")
         server.set_server_name(f"nckemu {self.emulator.machine.name}")
