@@ -22,7 +22,7 @@ examples:
   nckemu vars
   nckemu vars 'act*'
   nckemu vars /Channel/State --json
-  nckemu vars '/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'     (an OPC UA node id)
+  nckemu vars '/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'
   nckemu vars --machine fixtures/machines/extra_vars.toml
 """
 

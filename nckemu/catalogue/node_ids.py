@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from nckemu.errors import NckNodeIdUnknown, NckNodeNotConfigured
-from nckemu.protocol.addresses import NckAddress, NckArea, NckType
+from nckemu.protocol.addresses import NckAddress, NckArea
 
 from .table import VariableSpec, load_table
 

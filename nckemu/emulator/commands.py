@@ -24,8 +24,8 @@ EXAMPLE = """\
 examples:
   nckemu serve --port 1102
   nckemu serve --machine fixtures/machines/warm_z.toml --state state.json --record session.pcapng
-  nckemu serve --port 1102 --opcua 4840      (OPC UA beside S7: uaread -u opc.tcp://127.0.0.1:4840/ ...)
-then, e.g. with python-snap7:
+  nckemu serve --port 1102 --opcua 4840
+then, e.g. with python-snap7 (and asyncua's uaread -u opc.tcp://127.0.0.1:4840/ -n 'ns=2;s=/Bag/State/opMode'):
   import snap7; c = snap7.Client(); c.connect("127.0.0.1", 0, 4, 1102); print(c.get_cpu_info())
 """
 

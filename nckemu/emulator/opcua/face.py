@@ -22,14 +22,13 @@ import contextvars
 import logging
 import time
 from collections.abc import Callable
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from typing import Any
 
 from asyncua import Server, ua
 from asyncua.common.utils import ServiceError
-from asyncua.crypto.permission_rules import PermissionRuleset
+from asyncua.crypto.permission_rules import PermissionRuleset, UserRole
 from asyncua.crypto.permission_rules import User as UaUser
-from asyncua.crypto.permission_rules import UserRole
 from asyncua.server.address_space import AttributeService, AttributeValue, NodeData
 
 from nckemu.catalogue.node_ids import NcNodeName, NodeName, node_paths, parse_node_id
@@ -220,6 +219,7 @@ class OpcUaFace:
                 name = self.node_name(path)
             except NckNodeIdError:
                 continue
+            del name  # parsed only to know the node can be made
             node = aspace._nodes[nodeid]  # made by _LazyNodes
             node.references.append(ua.ReferenceDescription(
                 ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasComponent), IsForward=False, NodeId=parent.nodeid,
@@ -233,7 +233,6 @@ class OpcUaFace:
                 ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasComponent), IsForward=True, NodeId=nodeid,
                 BrowseName=ua.QualifiedName(segments[-1], ns), DisplayName=ua.LocalizedText(segments[-1]),
                 NodeClass_=ua.NodeClass.Variable, TypeDefinition=ua.NodeId(ua.ObjectIds.BaseDataVariableType)))
-            del name
 
     # ------------------------------------------------------------------ sessions, rights, limits
     def _wrap_sessions(self, iserver: Any) -> None:
@@ -325,7 +324,7 @@ class OpcUaFace:
     async def sample(self) -> int:
         """Push the monitored values that changed since the last sample; how many were pushed."""
         pushed = 0
-        now = datetime.now(timezone.utc)
+        now = datetime.now(UTC)
         for entry in list(self._monitored.values()):
             node, name, last = entry
             try:
@@ -350,14 +349,14 @@ class OpcUaFace:
         if entry is None:
             return
         entry[2] = variant
-        now = datetime.now(timezone.utc)
+        now = datetime.now(UTC)
         value = ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
         for handle, callback in list(entry[0].attributes[ua.AttributeIds.Value].datachange_callbacks.items()):
             await callback(handle, value)
 
 
 def _data_value(variant: ua.Variant) -> ua.DataValue:
-    now = datetime.now(timezone.utc)
+    now = datetime.now(UTC)
     return ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
 
 
@@ -406,6 +405,9 @@ class _LazyNodes(dict):  # type: ignore[type-arg]
         return default if node is None else node
 
 
+_ADMIN = UaUser(role=UserRole.Admin)  # asyncua's own default: its internal session writes as admin
+
+
 class _SinumerikAttributes(AttributeService):
     """asyncua's attribute service; reads as usual (value callbacks), writes of SINUMERIK variables
     through the model with the session user's rights."""
@@ -433,7 +435,7 @@ class _SinumerikAttributes(AttributeService):
             return _status(exc.ua_status)
         return None
 
-    async def write(self, params: ua.WriteParameters, user: UaUser = UaUser(role=UserRole.Admin)) -> list[ua.StatusCode]:
+    async def write(self, params: ua.WriteParameters, user: UaUser = _ADMIN) -> list[ua.StatusCode]:
         face = self._face
         results: list[ua.StatusCode] = []
         for item in params.NodesToWrite:
