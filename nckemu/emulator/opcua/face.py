@@ -37,7 +37,7 @@ from nckemu.errors import NckNodeIdError
 from ..core import Emulator
 from . import files
 from .settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
-from .values import UaStatus, read_value, variant_type, write_value
+from .values import UaStatus, raw_reader, read_value, variant_from_raw, variant_type, write_value
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +87,8 @@ class OpcUaFace:
         self.server = Server(user_manager=_UserManager(self.settings))
         self.namespace = 2
         self._names: dict[str, NodeName] = {}
-        self._monitored: dict[ua.NodeId, list[Any]] = {}   # node id -> [NodeData, name, last variant]
+        # node id -> [NodeData, name, last variant pushed, raw reader, last raw value]
+        self._monitored: dict[ua.NodeId, list[Any]] = {}
         self._sampler: asyncio.Task[None] | None = None
         self._sessions: list[Any] = []
         self.updates_pushed = 0
@@ -292,7 +293,9 @@ class OpcUaFace:
             if attr == ua.AttributeIds.Value and nodeid.NamespaceIndex == self.namespace and result[0].is_good():
                 name = self._names.get(str(nodeid.Identifier))
                 if name is not None and nodeid not in monitored:
-                    monitored[nodeid] = [aspace._nodes[nodeid], name, None]
+                    reader = raw_reader(self.emulator, name)
+                    # The baseline is the value the monitored item has just read itself.
+                    monitored[nodeid] = [aspace._nodes[nodeid], name, None, reader, _raw_now(reader)]
             return result
 
         def delete_datachange_callback(handle: int) -> None:
@@ -324,20 +327,27 @@ class OpcUaFace:
     async def sample(self) -> int:
         """Push the monitored values that changed since the last sample; how many were pushed."""
         pushed = 0
-        now = datetime.now(UTC)
+        now = None
+        value_attribute = ua.AttributeIds.Value
         for entry in list(self._monitored.values()):
-            node, name, last = entry
+            node, name, _last, reader, last_raw = entry
             try:
-                variant = read_value(self.emulator, name)
-            except UaStatus:
+                raw = reader()
+            except Exception:  # the variable went away (a DB shrank): the client keeps its last value
                 continue
-            if last is not None and last.Value == variant.Value:
+            if raw == last_raw:
+                continue
+            entry[4] = raw
+            try:
+                variant = variant_from_raw(name, raw)
+            except (UaStatus, ValueError, TypeError):
                 continue
             entry[2] = variant
-            if last is None:
-                continue  # the monitored item read its first value itself
-            value = ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
-            for handle, callback in list(node.attributes[ua.AttributeIds.Value].datachange_callbacks.items()):
+            if now is None:
+                now = datetime.now(UTC)
+            # A source timestamp as asyncua's Node.write_value gives (each datetime costs a deepcopy per item).
+            value = ua.DataValue(variant, SourceTimestamp=now)
+            for handle, callback in list(node.attributes[value_attribute].datachange_callbacks.items()):
                 await callback(handle, value)
             pushed += 1
         self.updates_pushed += pushed
@@ -349,10 +359,18 @@ class OpcUaFace:
         if entry is None:
             return
         entry[2] = variant
+        entry[4] = _raw_now(entry[3])  # pushed now: the sampler need not push it again
         now = datetime.now(UTC)
         value = ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
         for handle, callback in list(entry[0].attributes[ua.AttributeIds.Value].datachange_callbacks.items()):
             await callback(handle, value)
+
+
+def _raw_now(reader: Callable[[], object]) -> object:
+    try:
+        return reader()
+    except Exception:  # read errors are the client's to see on its own reads; None: compare afresh
+        return None
 
 
 def _data_value(variant: ua.Variant) -> ua.DataValue:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable
 from typing import Any
 
 from asyncua import ua
@@ -57,7 +58,6 @@ def variant_type(name: NodeName) -> ua.VariantType:
 
 def read_value(emulator: Emulator, name: NodeName) -> ua.Variant:
     """The current value as a variant (an array for a range); raises ``UaStatus``."""
-    kind = variant_type(name)
     try:
         values = _read_nc(emulator, name) if isinstance(name, NcNodeName) else _read_plc(emulator, name)
     except NckObjectDoesNotExist as exc:
@@ -66,6 +66,11 @@ def read_value(emulator: Emulator, name: NodeName) -> ua.Variant:
         raise UaStatus(exc.ua_status, str(exc)) from None
     except NckError as exc:
         raise UaStatus("BadAttributeIdInvalid", str(exc)) from None
+    return _variant(name, values)
+
+
+def _variant(name: NodeName, values: list[object]) -> ua.Variant:
+    kind = variant_type(name)
     if kind == ua.VariantType.Boolean:
         values = [bool(v) for v in values]
     elif kind in (ua.VariantType.Double, ua.VariantType.Float):
@@ -75,6 +80,26 @@ def read_value(emulator: Emulator, name: NodeName) -> ua.Variant:
     if name.array:
         return ua.Variant(list(values), kind, is_array=True)
     return ua.Variant(values[0], kind)
+
+
+def raw_reader(emulator: Emulator, name: NodeName) -> Callable[[], object]:
+    """A function returning the value's raw form now (bytes of PLC memory, the NC lines): cheap to
+    compare, so the sampler builds a variant only for what changed (``variant_from_raw``)."""
+    if isinstance(name, NcNodeName):
+        read, address = emulator.nck.read, name.address
+        return lambda: read(address, _CTX)
+    if name.kind in ("BOOL", "STRING"):
+        return lambda: _read_plc(emulator, name)
+    return emulator.plc.reader(_PLC_AREAS[name.area], name.db, name.byte, name.size_bytes)
+
+
+def variant_from_raw(name: NodeName, raw: object) -> ua.Variant:
+    """The variant of what ``raw_reader`` returned."""
+    if isinstance(name, PlcNodeName) and isinstance(raw, bytes | bytearray):
+        values: list[object] = list(struct.unpack(f">{name.count}{_PLC_FORMATS[name.kind]}", raw))
+    else:
+        values = list(raw)  # type: ignore[call-overload]
+    return _variant(name, values)
 
 
 def _read_nc(emulator: Emulator, name: NcNodeName) -> list[object]:
