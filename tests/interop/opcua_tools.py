@@ -5,15 +5,16 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 from nckemu.emulator.opcua import OpcUaFace
 from nckemu.emulator.runner import EmulatorThread
 
 
 @contextmanager
-def two_faces() -> Iterator[tuple[EmulatorThread, OpcUaFace]]:
+def two_faces(machine: str | Path | None = None) -> Iterator[tuple[EmulatorThread, OpcUaFace]]:
     """S7 on a free port and OPC UA on another, both over one Emulator (as ``serve --opcua``)."""
-    with EmulatorThread() as emulator:
+    with EmulatorThread(machine) as emulator:
         face = OpcUaFace(emulator.emulator, "127.0.0.1", 0)
         loop = emulator._loop  # the server's loop: the face attaches to it as serve does
         asyncio.run_coroutine_threadsafe(face.start(), loop).result(timeout=60)

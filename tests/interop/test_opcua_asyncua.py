@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -239,3 +240,10 @@ def test_limits_sessions_and_publishing_interval() -> None:
         too_many, _interval, sub_limit = run(go())
         assert too_many == "BadTooManySessions"
         assert sub_limit == "BadTooManySubscriptions"
+
+
+def test_machine_file_var_rows_are_served() -> None:
+    machine = Path(__file__).resolve().parents[2] / "fixtures" / "machines" / "extra_vars.toml"
+    with two_faces(machine) as (_, face):
+        target, serial = run(_read(face, "/Nckemu/Channel/shiftTarget", "/NC/_N_NC_TEA_ACX/$MN_HW_SERIAL_NUMBER"))
+        assert target == 120.0 and serial == "MIRROR-0001"
