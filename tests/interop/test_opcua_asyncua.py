@@ -247,3 +247,26 @@ def test_machine_file_var_rows_are_served() -> None:
     with two_faces(machine) as (_, face):
         target, serial = run(_read(face, "/Nckemu/Channel/shiftTarget", "/NC/_N_NC_TEA_ACX/$MN_HW_SERIAL_NUMBER"))
         assert target == 120.0 and serial == "MIRROR-0001"
+
+
+def test_subscription_sees_the_machines_own_dynamics(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    _, face = faces
+    seen: list[Any] = []
+
+    class Handler:
+        def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
+            seen.append(value)
+
+    async def go() -> None:
+        client = await _client(face)
+        try:
+            ns = await client.get_namespace_index(NS_URI)
+            subscription = await client.create_subscription(100, Handler())
+            # the NCK's system time in ms: changes by itself, no client writes it
+            await subscription.subscribe_data_change(client.get_node(ua.NodeId("/Nck/State/sysTimeUdword", ns)))
+            await asyncio.sleep(0.8)
+        finally:
+            await client.disconnect()
+
+    run(go())
+    assert len(set(seen)) >= 3, seen
