@@ -3,9 +3,10 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 PORT   ?= 1102
+OPCUA_PORT ?= 4840
 HOST   ?= 127.0.0.1
 
-.PHONY: serve test tshark chromium lint bench
+.PHONY: serve test tshark chromium npm lint bench
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -20,7 +21,7 @@ $(VENV)/.installed-test: pyproject.toml | $(VENV)/bin/python
 	touch $@ $(VENV)/.installed
 
 serve: $(VENV)/.installed
-	$(VENV)/bin/nckemu serve --host $(HOST) --port $(PORT)
+	$(VENV)/bin/nckemu serve --host $(HOST) --port $(PORT) --opcua $(OPCUA_PORT)
 
 # tshark is the independent decoder the interop tests compare against; install it when we may.
 tshark:
@@ -42,7 +43,14 @@ lint: $(VENV)/.installed-test
 	$(VENV)/bin/ruff check nckemu awlsimhw_nckemu tests bench examples
 	$(VENV)/bin/lint-imports --no-cache
 
-test: $(VENV)/.installed-test tshark chromium lint
+# node-opcua-client, the outside OPC UA client of tests/interop/test_opcua_node.py (skips without npm).
+npm:
+	@if command -v npm >/dev/null 2>&1; then \
+	  (cd tests/interop/node_opcua && npm install --no-audit --no-fund --silent >/dev/null) \
+	  || echo "npm install failed: the node-opcua tests will skip"; \
+	else echo "npm is missing: the node-opcua tests will skip"; fi
+
+test: $(VENV)/.installed-test tshark chromium npm lint
 	$(PY) -m pytest
 
 bench: $(VENV)/.installed-test

@@ -226,3 +226,19 @@ def __getattr__(name: str) -> Any:
 
         return getattr(wire_errors, name)
     raise AttributeError(f"module 'nckemu.errors' has no attribute {name!r}")
+
+
+class NckNodeIdError(NckError):
+    """An OPC UA node id in SINUMERIK syntax that names nothing (``ua_status``: the answer's status)."""
+
+    ua_status = "BadNodeIdUnknown"
+
+
+class NckNodeIdUnknown(NckNodeIdError):
+    """Not a SINUMERIK node id: malformed, or outside the controller's namespaces."""
+
+
+class NckNodeNotConfigured(NckNodeIdError):
+    """A well-formed SINUMERIK variable this machine lacks (the controller answers BadAttributeIdInvalid)."""
+
+    ua_status = "BadAttributeIdInvalid"

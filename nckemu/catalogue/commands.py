@@ -8,9 +8,10 @@ import json
 import tomllib
 from collections.abc import Iterable
 
-from nckemu.errors import NckConfigError
+from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckArea, NckType
 
+from .node_ids import NcNodeName, node_paths, parse_node_id
 from .table import READ_ONLY, VariableSpec, load_table, machine_table
 
 EXAMPLE = """\
@@ -21,6 +22,7 @@ examples:
   nckemu vars
   nckemu vars 'act*'
   nckemu vars /Channel/State --json
+  nckemu vars '/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'
   nckemu vars --machine fixtures/machines/extra_vars.toml
 """
 
@@ -56,7 +58,14 @@ def machine_file_table(path: str) -> tuple[VariableSpec, ...]:
 def matches(spec: VariableSpec, pattern: str) -> bool:
     if not pattern:
         return True
-    texts = (spec.name, spec.number, spec.path)
+    if pattern.startswith("/") and not any(char in pattern for char in "*?"):
+        try:  # an OPC UA node id names its row exactly (/Channel/Parameter/R[u1,10] is R)
+            name = parse_node_id(pattern)
+        except NckError:
+            name = None
+        if isinstance(name, NcNodeName):
+            return name.spec.name == spec.name
+    texts = (spec.name, spec.number, *node_paths(spec))
     lowered = pattern.lower()
     if any(char in pattern for char in "*?["):
         return any(fnmatch.fnmatchcase(text.lower(), lowered) for text in texts if text)
@@ -66,7 +75,7 @@ def matches(spec: VariableSpec, pattern: str) -> bool:
 def describe(spec: VariableSpec) -> dict[str, object]:
     """One catalogue row as plain data (the ``--json`` form)."""
     return {
-        "name": spec.name, "number": spec.number, "path": spec.path,
+        "name": spec.name, "number": spec.number, "path": spec.path, "opcua": node_paths(spec)[0],
         "areas": [NckArea(area).name for area in sorted(spec.areas)],
         "module": spec.module, "column": spec.column, "columns": spec.columns, "lines": spec.lines,
         "type": NckType(spec.nck_type).name,

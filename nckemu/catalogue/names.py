@@ -6,6 +6,8 @@ Accepted forms (case-insensitive):
   R5  R[5]  R[5,C1]   (R parameter 5 of channel 1; line = 5 + r_parameter_line_offset)
   NAME[u4,l2]  NAME[u4,l2,x3]   (explicit unit, line and line count)
   cuttEdgeParam[2,T1,col5]   (column for a variable over several columns: here T5, line 3, TO unit 1)
+  /Channel/State/progStatus[u1]   /NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]   /Channel/Parameter/R[u1,1,5]
+                             (SINUMERIK OPC UA node ids, parsed by ``node_ids``: the OPC UA face's parser)
 A ``Variable`` carries the address and how to decode the value (the NCVar selector's typ/laenge).
 """
 
@@ -17,6 +19,7 @@ from dataclasses import dataclass
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType
 
+from .node_ids import NcNodeName, parse_node_id
 from .table import R_PARAMETER_LINE_OFFSET, display_name, find_by_name, spec_at
 
 _NAME = re.compile(r"^\$?(?:(?:S|M)[ACN]_)?(?P<name>[A-Z_][A-Z0-9_]*?)(?:\[(?P<index>[^\]]*)\])?$", re.IGNORECASE)
@@ -45,9 +48,20 @@ def variable_for_address(address: NckAddress) -> Variable:
     return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)
 
 
+def variable_for_node_id(text: str) -> Variable:
+    """A SINUMERIK OPC UA node id of an NC variable to a ``Variable`` (PLC ids are refused)."""
+    name = parse_node_id(text)
+    if not isinstance(name, NcNodeName):
+        raise NckConfigError(f"{text!r} is PLC memory: read it over OPC UA, or as a DB/M/I/Q address over S7")
+    spec, address = name.spec, name.address
+    return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)
+
+
 def parse_variable(text: str) -> Variable:
-    """A readable name (see the module docstring) to a ``Variable``."""
+    """A readable name or an OPC UA node id (see the module docstring) to a ``Variable``."""
     source = text.strip()
+    if source.startswith("/"):
+        return variable_for_node_id(source)
     short = _R_SHORT.match(source)
     if short:
         source = f"R[{short['number']}]"

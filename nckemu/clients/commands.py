@@ -34,9 +34,12 @@ def _connection_options(parser: argparse.ArgumentParser) -> None:
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     raw = argparse.RawDescriptionHelpFormatter
     get = subparsers.add_parser("get", help="read NCK variables (FB2 GET)", formatter_class=raw,
-                                epilog="example: nckemu get --port 1102 SD43900[AX4] SD43910[AX4] R5\n")
+                                epilog="examples:\n  nckemu get --port 1102 SD43900[AX4] SD43910[AX4] R5\n"
+                                       "  nckemu get --port 1102 '/Channel/State/progStatus[u1]' "
+                                       "'/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'\n")
     get.add_argument("variables", nargs="+", metavar="VAR",
-                     help="e.g. SD43900[AX4], MD32750[AX4], R5 (axis variables need their axis)")
+                     help="e.g. SD43900[AX4], MD32750[AX4], R5 (axis variables need their axis), or an OPC "
+                          "UA node id: '/Channel/State/progStatus[u1]'")
     _connection_options(get)
     get.set_defaults(func=run_get)
 
@@ -162,7 +165,7 @@ def _parse(text: str) -> Variable:
     """A variable name; an axis variable without its axis is refused (it would silently be AX1)."""
     variable = parse_variable(text)
     spec = _spec(variable)
-    if spec is not None and spec.areas == {NckArea.A} and "[" not in text:
+    if spec is not None and spec.areas == {NckArea.A} and "[" not in text and not text.strip().startswith("/"):
         raise NckConfigError(f"{text!r}: {spec.number or spec.name} is an axis variable: say which axis, "
                              f"e.g. {text.strip()}[AX4]")
     return variable

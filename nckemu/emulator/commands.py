@@ -25,7 +25,8 @@ EXAMPLE = """\
 examples:
   nckemu serve --port 1102
   nckemu serve --machine fixtures/machines/warm_z.toml --state state.json --record session.pcapng
-then, e.g. with python-snap7:
+  nckemu serve --port 1102 --opcua 4840
+then, e.g. with python-snap7 (and asyncua's uaread -u opc.tcp://127.0.0.1:4840/ -n 'ns=2;s=/Bag/State/opMode'):
   import snap7; c = snap7.Client(); c.connect("127.0.0.1", 0, 4, 1102); print(c.get_cpu_info())
 """
 
@@ -53,6 +54,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--http", type=listen_port, metavar="PORT",
                         help="also serve a live page of the machine on http://HOST:PORT/ (axes, sensors, "
                              "compensation over time, PLC, clients)")
+    parser.add_argument("--opcua", type=listen_port, default=None, metavar="PORT",
+                        help="also serve OPC UA (SINUMERIK node ids, same model) on PORT, e.g. 4840 (default off)")
     parser.add_argument("--json", action="store_true", help="print the ready line as JSON on stdout")
     parser.set_defaults(func=run_serve)
 
@@ -151,6 +154,10 @@ def run_serve(args: argparse.Namespace, *, clock: Clock | None = None, faces: Se
         from .web import WebFace
 
         built.append(WebFace(emulator, server, host=args.host, port=args.http))
+    if getattr(args, "opcua", None) is not None:
+        from .opcua import OpcUaFace
+
+        built.append(OpcUaFace(emulator, args.host, args.opcua))
     try:
         with asyncio.Runner(loop_factory=loop_factory(args.event_loop)) as runner:
             return runner.run(_serve(server, args, built))

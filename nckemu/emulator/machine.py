@@ -150,6 +150,8 @@ class Machine:
     tools: tuple[Tool, ...] = ()
     tool_settings: ToolSettings = field(default_factory=ToolSettings)
     work_offsets: WorkOffsets = field(default_factory=WorkOffsets)
+    # The [opcua] table as written (users and rights of the OPC UA face; checked by emulator/opcua).
+    opcua: dict[str, Any] = field(default_factory=dict)
 
     def tool(self, number: int) -> Tool | None:
         for tool in self.tools:
@@ -182,7 +184,7 @@ def _get(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: 
 _KNOWN_KEYS: dict[str, frozenset[str]] = {
     "": frozenset({"name", "ipo_cycle_s", "pdu_size_max", "max_amq", "channels", "connection_access_level",
                    "passwords", "settings", "axis", "sensor", "plc", "initial", "var", "tools", "tool",
-                   "work_offsets"}),
+                   "work_offsets", "opcua"}),
     # every setting the dataclass has (a new setting needs no second list)
     "settings.": frozenset(setting.name for setting in fields(Settings)),
     "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
@@ -434,7 +436,14 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         data_blocks=data_blocks, initial=initial,
         variables=machine_table(data["var"], source, text) if "var" in data else (),
         tools=tools, tool_settings=tool_settings, work_offsets=work_offsets,
+        opcua=_opcua_table(data.get("opcua", {}), source),
     )
+
+
+def _opcua_table(table: object, source: str) -> dict[str, Any]:
+    if not isinstance(table, dict):
+        raise NckConfigError("expected a table", path=source, field="opcua")
+    return dict(table)
 
 
 def load_machine(path: str | Path | None = None) -> Machine:

@@ -49,10 +49,10 @@ def test_readme_tour_after_make_serve(tmp_path: Path) -> None:
         pytest.skip("make is not installed")
     clone = tmp_path / "nckemu"
     _fresh_copy(clone)
-    serve_port, record_port = _free_port(), _free_port()
+    serve_port, record_port, opcua_port = _free_port(), _free_port(), _free_port()
     env = {key: value for key, value in os.environ.items() if key not in ("VIRTUAL_ENV", "PYTHONPATH")}
     env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep) if ".venv" not in p)
-    serve = subprocess.Popen(["make", "serve", f"PORT={serve_port}"], cwd=clone, env=env, stdout=subprocess.PIPE,
+    serve = subprocess.Popen(["make", "serve", f"PORT={serve_port}", f"OPCUA_PORT={opcua_port}"], cwd=clone, env=env, stdout=subprocess.PIPE,
                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
         seen = []
@@ -66,13 +66,15 @@ def test_readme_tour_after_make_serve(tmp_path: Path) -> None:
             if line.startswith("nckemu: machine"):
                 break
         block = tour_block((clone / "README.md").read_text(encoding="utf-8"))
-        script = block.replace("1102", str(serve_port)).replace("1103", str(record_port))
+        script = block.replace("1102", str(serve_port)).replace("1103", str(record_port)).replace(
+            "4840", str(opcua_port))
         tour = subprocess.run(["bash", "-e", "-c", script], cwd=clone, env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True, timeout=600)
         assert tour.returncode == 0, tour.stdout[-4000:]
         out = tour.stdout
         assert "CPU 317-2 PN/DP (NCU PLC)" in out                       # python-snap7's get_cpu_info
         assert "SD43900 TEMP_COMP_ABS_VALUE[AX4] = 0.300000 mm" in out   # get after put
+        assert "\n0.3\n" in out                                           # uaread: the same value over OPC UA
         assert "SD43900 TEMP_COMP_ABS_VALUE[AX4] := 0.300000 mm" in out  # trace show of the recording
         assert "0 values differ" in out                                  # trace replay
         assert "FB3 PUT jobs" in out and "TC of axis 4" in out           # plc run (awlsim after make serve)

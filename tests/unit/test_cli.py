@@ -111,6 +111,7 @@ def _prepare(argv: list[str], workdir: Path, port: int, capture_path: Path) -> l
         port = 0  # a server of its own on any free port (102 needs root)
         if "--port" not in argv:
             argv = [*argv, "--port", "1102"]
+        argv = ["0" if a == "4840" else a for a in argv]  # the OPC UA face on any free port too
     argv = [str(port) if a == "1102" else a.replace("127.0.0.1:1102", f"127.0.0.1:{port}") for a in argv]
     return argv
 

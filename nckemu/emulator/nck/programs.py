@@ -11,6 +11,8 @@ class Programs:
     def __init__(self) -> None:
         self.paths: set[str] = set(DEFAULT_PROGRAMS)
         self.selected = ""
+        # Program texts by path, where a client stored one (OPC UA CopyFileToServer); others are names only.
+        self.texts: dict[str, bytes] = {}
 
     def add(self, path: str) -> None:
         self.paths.add(path)
@@ -26,3 +28,4 @@ class Programs:
         if path == self.selected:
             raise NckPiStateError(f"{path} is selected")
         self.paths.discard(path)
+        self.texts.pop(path, None)

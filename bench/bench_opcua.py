@@ -1,0 +1,186 @@
+"""OPC UA face against asyncua's own server (the anchor), in the same run.
+
+Each server runs in its own process with 1000 variables whose values change every 100 ms: on ours PLC
+words /Plc/DB200.DBW0..1998 written into the model (as a PLC program or an S7 client would), on the
+anchor plain asyncua variables written with ``write_attribute_value``. Then
+  1. one client process monitors all 1000 at 100 ms: updates delivered/s, lost updates, server CPU;
+  2. 8 client processes read 10 values per request: values read/s.
+usage: python bench/bench_opcua.py [--seconds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ITEMS = 1000
+CYCLE_S = 0.1
+READERS = 8
+HERE = Path(__file__).resolve()
+
+
+def _ids(kind: str) -> list[str]:
+    if kind == "ours":
+        return [f"/Plc/DB200.DBW{2 * i}" for i in range(ITEMS)]
+    return [f"plain{i}" for i in range(ITEMS)]
+
+
+async def serve(kind: str, port: int) -> None:
+    from asyncua import Server, ua
+
+    if kind == "ours":
+        from nckemu.emulator.core import Emulator
+        from nckemu.emulator.machine import parse_machine
+        from nckemu.emulator.opcua import OpcUaFace
+
+        emulator = Emulator(parse_machine('name = "bench"\n[plc]\ndata_blocks = { 200 = 4096 }\n'))
+        face = await OpcUaFace(emulator, "127.0.0.1", port).start()
+        print(json.dumps({"port": face.port}), flush=True)
+        cycle = 0
+        while True:  # every cycle every word changes: what a PLC program writing 1000 words does
+            cycle += 1
+            emulator.plc.write(0x84, 200, 0, (cycle & 0xFFFF).to_bytes(2, "big") * ITEMS)
+            await asyncio.sleep(CYCLE_S)
+    server = Server()
+    await server.init()
+    server.set_endpoint(f"opc.tcp://127.0.0.1:{port}/")
+    ns = await server.register_namespace("anchor")
+    folder = await server.nodes.objects.add_folder(ua.NodeId("plain", ns), "plain")
+    nodes = [await folder.add_variable(ua.NodeId(name, ns), name, ua.Variant(0, ua.VariantType.UInt16))
+             for name in _ids("anchor")]
+    await server.start()
+    print(json.dumps({"port": port}), flush=True)
+    cycle = 0
+    while True:  # asyncua's documented way: Node.write_value (one DataValue with a source timestamp each)
+        cycle += 1
+        variant = ua.Variant(cycle & 0xFFFF, ua.VariantType.UInt16)
+        for node in nodes:
+            await node.write_value(variant)
+        await asyncio.sleep(CYCLE_S)
+
+
+async def subscribe(url: str, kind: str, seconds: float) -> None:
+    from asyncua import Client, ua
+
+    counts = {"updates": 0}
+
+    class Handler:
+        def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
+            counts["updates"] += 1
+
+    async with Client(url, timeout=30) as client:
+        ns = 2
+        subscription = await client.create_subscription(100, Handler())
+        nodes = [client.get_node(ua.NodeId(i, ns)) for i in _ids(kind)]
+        await subscription.subscribe_data_change(nodes, queuesize=10, sampling_interval=100)
+        await asyncio.sleep(1.0)
+        counts["updates"] = 0
+        start = time.monotonic()
+        await asyncio.sleep(seconds)
+        elapsed = time.monotonic() - start
+    print(json.dumps({"updates_per_s": counts["updates"] / elapsed}), flush=True)
+
+
+async def read(url: str, kind: str, seconds: float) -> None:
+    from asyncua import Client, ua
+
+    async with Client(url, timeout=30) as client:
+        ids = [ua.NodeId(i, 2) for i in _ids(kind)[:10]]
+        params = ua.ReadParameters()
+        params.NodesToRead = [ua.ReadValueId(NodeId_=i, AttributeId=ua.AttributeIds.Value) for i in ids]
+        values = 0
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            results = await client.uaclient.read(params)
+            values += len(results)
+    print(json.dumps({"values_per_s": values / seconds}), flush=True)
+
+
+def _cpu_s(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def measure(kind: str, seconds: float) -> dict[str, float]:
+    port = _free_port()
+    server = subprocess.Popen([sys.executable, str(HERE), "--serve", kind, "--port", str(port)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert server.stdout is not None
+        port = json.loads(server.stdout.readline())["port"]
+        url = f"opc.tcp://127.0.0.1:{port}/"
+        subscriber = subprocess.Popen([sys.executable, str(HERE), "--subscribe", url, "--kind", kind,
+                                       "--seconds", str(seconds)], stdout=subprocess.PIPE, text=True)
+        time.sleep(1.5)  # connected, monitored, first values through
+        cpu0, t0 = _cpu_s(server.pid), time.monotonic()
+        out, _ = subscriber.communicate(timeout=120)
+        cpu_share = (_cpu_s(server.pid) - cpu0) / (time.monotonic() - t0)
+        updates = json.loads(out.strip().splitlines()[-1])["updates_per_s"]
+        readers = [subprocess.Popen([sys.executable, str(HERE), "--read", url, "--kind", kind,
+                                     "--seconds", str(seconds)], stdout=subprocess.PIPE, text=True)
+                   for _ in range(READERS)]
+        reads = sum(json.loads(r.communicate(timeout=120)[0].strip().splitlines()[-1])["values_per_s"]
+                    for r in readers)
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+    return {"server_cpu": cpu_share, "updates_per_s": updates, "expected_per_s": ITEMS / CYCLE_S,
+            "reads_per_s": reads}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--serve", choices=("ours", "anchor"))
+    parser.add_argument("--subscribe")
+    parser.add_argument("--read")
+    parser.add_argument("--kind", default="ours")
+    parser.add_argument("--port", type=int, default=0)
+    args = parser.parse_args()
+    if args.serve:
+        asyncio.run(serve(args.serve, args.port))
+        return 0
+    if args.subscribe:
+        asyncio.run(subscribe(args.subscribe, args.kind, args.seconds))
+        return 0
+    if args.read:
+        asyncio.run(read(args.read, args.kind, args.seconds))
+        return 0
+    results = {kind: measure(kind, args.seconds) for kind in ("anchor", "ours")}
+    anchor, ours = results["anchor"], results["ours"]
+    print(f"{ITEMS} monitored items, values changing every {CYCLE_S * 1000:.0f} ms, publishing 100 ms; "
+          f"{READERS} reader processes x 10 values per request; {args.seconds:g} s each")
+    print(f"{'':28}{'anchor (asyncua plain)':>24}{'nckemu OPC UA face':>22}{'ratio':>8}")
+    for key, label in (("server_cpu", "server CPU (cores)"), ("updates_per_s", "updates delivered/s"),
+                       ("reads_per_s", "values read/s (8 procs)")):
+        ratio = ours[key] / anchor[key] if anchor[key] else float("nan")
+        print(f"{label:28}{anchor[key]:>24.2f}{ours[key]:>22.2f}{ratio:>8.2f}")
+    per_update = [r["server_cpu"] / r["updates_per_s"] * 1e6 if r["updates_per_s"] else float("nan")
+                  for r in (anchor, ours)]
+    print(f"{'server CPU us per update':28}{per_update[0]:>24.1f}{per_update[1]:>22.1f}"
+          f"{per_update[1] / per_update[0]:>8.2f}")
+    print(f"{'updates expected/s':28}{anchor['expected_per_s']:>24.0f}{ours['expected_per_s']:>22.0f}")
+    print(f"target: CPU ratio <= 1.2 ({'met' if ours['server_cpu'] <= 1.2 * anchor['server_cpu'] else 'NOT met'}), "
+          f"no lost updates ({'met' if ours['updates_per_s'] >= 0.99 * ours['expected_per_s'] else 'NOT met'})")
+    print("(updates short of the expected count on both servers: the one Python subscriber process and the "
+          "shared cores bound what is delivered; compare CPU per update delivered)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,501 @@
+"""The OPC UA face: an asyncua server in SINUMERIK naming over one ``Emulator`` (the S7 face's model).
+
+``face = OpcUaFace(emulator, "127.0.0.1", 4840); await face.start(); ...; await face.stop()`` on the
+running event loop; any number of faces may share a loop (a fleet).
+
+How it sits on asyncua (its address space is a plain dict ``NodeId -> NodeData``):
+- Browsing: folders under ``Objects/Sinumerik`` hold one variable per catalogue row, first unit and
+  line only, as the controller shows them.
+- Any other id in the namespace (``R[u1,56]``, ``/Plc/DB2.DBD0:REAL[10]``) is parsed by the catalogue
+  and its node made when a service first asks for it (``_LazyNodes``), so open-ended ids need no nodes
+  made in advance. Values are read from the model on every read (a value callback).
+- Writes go through ``_SinumerikAttributes.write`` with the session's user: rights, limits, then the
+  model, as an S7 write would.
+- Subscriptions: asyncua's value callbacks do not feed monitored items, so a sampler reads only the
+  monitored nodes every ``sample_interval_ms`` and pushes changed values to their callbacks.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextvars
+import logging
+import time
+from collections.abc import Callable
+from datetime import UTC, datetime
+from typing import Any
+
+from asyncua import Server, ua
+from asyncua.common.utils import ServiceError
+from asyncua.crypto.permission_rules import PermissionRuleset, UserRole
+from asyncua.crypto.permission_rules import User as UaUser
+from asyncua.server.address_space import AttributeService, AttributeValue, NodeData
+
+from nckemu.catalogue.node_ids import NcNodeName, NodeName, node_paths, parse_node_id
+from nckemu.errors import NckNodeIdError
+
+from ..core import Emulator
+from . import files
+from .settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
+from .values import UaStatus, raw_reader, read_value, variant_from_raw, variant_type, write_value
+
+log = logging.getLogger(__name__)
+
+# The rights of the session whose request is being served (set per request on the serving task).
+_RIGHTS: contextvars.ContextVar[frozenset[str]] = contextvars.ContextVar("nckemu_opcua_rights", default=frozenset())
+_USER: contextvars.ContextVar[str] = contextvars.ContextVar("nckemu_opcua_user", default="")
+_ACCESS_RW = ua.AccessLevel.CurrentRead.mask | ua.AccessLevel.CurrentWrite.mask
+
+
+def _status(name: str) -> ua.DataValue:
+    return ua.DataValue(StatusCode_=ua.StatusCode(getattr(ua.StatusCodes, name)))
+
+
+class _RealmRules(PermissionRuleset):
+    """asyncua's service-level rules let everything through: the realm rights decide per variable and
+    method (asyncua's default refuses e.g. ModifySubscription to a non-admin user)."""
+
+    def check_validity(self, user: Any, action_type: Any, body: Any) -> bool:
+        return True
+
+
+class _UserManager:
+    """Users of the machine file; an unknown user or a wrong password is refused at activation."""
+
+    def __init__(self, settings: OpcUaSettings) -> None:
+        self.settings = settings
+
+    def get_user(self, iserver: Any, username: str | None = None, password: str | None = None,
+                 certificate: Any = None) -> UaUser | None:
+        if not username:
+            return UaUser(role=UserRole.User, name=None)  # asyncua refuses reads to its Anonymous role
+        user = self.settings.users.get(username)
+        if user is None or user.password != password:
+            return None
+        return UaUser(role=UserRole.User, name=username)
+
+
+class OpcUaFace:
+    """One machine's OPC UA server; ``start()``/``stop()`` on the running loop."""
+
+    def __init__(self, emulator: Emulator, host: str = "127.0.0.1", port: int = 4840,
+                 settings: OpcUaSettings | None = None) -> None:
+        self.emulator = emulator
+        self.host = host
+        self.port = port
+        self.settings = settings or OpcUaSettings.from_machine(emulator.machine.opcua, emulator.machine.source)
+        self.server = Server(user_manager=_UserManager(self.settings))
+        self.namespace = 2
+        self._names: dict[str, NodeName] = {}
+        # node id -> [NodeData, name, last variant pushed, raw reader, last raw value]
+        self._monitored: dict[ua.NodeId, list[Any]] = {}
+        self._sampler: asyncio.Task[None] | None = None
+        self._sessions: list[Any] = []
+        self.updates_pushed = 0
+
+    @property
+    def specs(self) -> tuple[Any, ...]:
+        return tuple(self.emulator.nck.store.specs)
+
+    def rights_of(self, user: str | None) -> frozenset[str]:
+        if not user:
+            return self.settings.anonymous
+        entry = self.settings.users.get(user)
+        return entry.rights if entry is not None else frozenset()
+
+    # ------------------------------------------------------------------ start / stop
+    async def start(self) -> OpcUaFace:
+        server = self.server
+        quiet = logging.getLogger("asyncua")
+        if quiet.level == logging.NOTSET:  # its INFO lines (a thousand at init) would drown serve's own
+            quiet.setLevel(logging.WARNING)
+        await server.init()
+        server.set_endpoint(f"opc.tcp://{self.host}:{self.port}/")
+        server.set_server_name(f"nckemu {self.emulator.machine.name}")
+        server.set_security_policy([ua.SecurityPolicyType.NoSecurity], permission_ruleset=_RealmRules())
+        self.namespace = await server.register_namespace(self.settings.namespace_uri)
+        iserver = server.iserver
+        iserver.aspace._nodes = _LazyNodes(iserver.aspace._nodes, self)
+        iserver.attribute_service = _SinumerikAttributes(iserver.aspace, self)
+        self._wrap_datachange(iserver.aspace)
+        self._wrap_sessions(iserver)
+        await self._build_browse_tree()
+        await files.add_methods(self, server)
+        await server.start()
+        if self.port == 0:
+            self.port = self.bound_port()
+        self._sampler = asyncio.get_running_loop().create_task(self._sample_forever())
+        log.info("OPC UA face on opc.tcp://%s:%d/ (namespace %s = ns=%d)", self.host, self.port,
+                 self.settings.namespace_uri, self.namespace)
+        return self
+
+    def bound_port(self) -> int:
+        sockets = self.server.bserver._server.sockets  # type: ignore[union-attr]
+        return int(sockets[0].getsockname()[1])
+
+    @property
+    def url(self) -> str:
+        return f"opc.tcp://{self.host}:{self.port}/"
+
+    # what `nckemu serve` reads of a face (emulator/live.py Face)
+    what = "OPC UA"
+
+    @property
+    def ready(self) -> dict[str, Any]:
+        return {"opcua": self.url}
+
+    @property
+    def ready_line(self) -> str:
+        return (f"OPC UA: {self.url} (namespace {self.settings.namespace_uri}), e.g. "
+                f"uaread -u {self.url} -n 'ns={self.namespace};s=/Channel/State/progStatus'")
+
+    async def stop(self) -> None:
+        if self._sampler is not None:
+            self._sampler.cancel()
+            try:
+                await self._sampler
+            except asyncio.CancelledError:
+                pass
+            self._sampler = None
+        await self.server.stop()
+
+    # ------------------------------------------------------------------ address space
+    def node_name(self, identifier: str) -> NodeName:
+        """The parsed name of a node id string (cached; raises the catalogue's typed errors)."""
+        name = self._names.get(identifier)
+        if name is None:
+            name = parse_node_id(identifier, self.specs)
+            if len(self._names) < 100_000:
+                self._names[identifier] = name
+        return name
+
+    def make_node(self, nodeid: ua.NodeId, name: NodeName) -> NodeData:
+        """A variable node for a parsed id, its value read from the model on every read."""
+        node = NodeData(nodeid)
+        text = str(nodeid.Identifier)
+        kind = variant_type(name)
+        writable = not (isinstance(name, NcNodeName) and name.spec.read_only)
+        access = _ACCESS_RW if writable else ua.AccessLevel.CurrentRead.mask
+        attributes = {
+            ua.AttributeIds.NodeId: ua.Variant(nodeid, ua.VariantType.NodeId),
+            ua.AttributeIds.NodeClass: ua.Variant(ua.NodeClass.Variable, ua.VariantType.Int32),
+            ua.AttributeIds.BrowseName: ua.Variant(ua.QualifiedName(text.rsplit("/", 1)[-1], nodeid.NamespaceIndex)),
+            ua.AttributeIds.DisplayName: ua.Variant(ua.LocalizedText(text.rsplit("/", 1)[-1])),
+            ua.AttributeIds.Description: ua.Variant(ua.LocalizedText(
+                name.spec.description if isinstance(name, NcNodeName) else text)),
+            ua.AttributeIds.WriteMask: ua.Variant(0, ua.VariantType.UInt32),
+            ua.AttributeIds.UserWriteMask: ua.Variant(0, ua.VariantType.UInt32),
+            ua.AttributeIds.DataType: ua.Variant(ua.NodeId(kind.value), ua.VariantType.NodeId),
+            ua.AttributeIds.ValueRank: ua.Variant(1 if name.array else -1, ua.VariantType.Int32),
+            ua.AttributeIds.ArrayDimensions: ua.Variant([name.count] if name.array else [], ua.VariantType.UInt32),
+            ua.AttributeIds.AccessLevel: ua.Variant(access, ua.VariantType.Byte),
+            ua.AttributeIds.UserAccessLevel: ua.Variant(access, ua.VariantType.Byte),
+            ua.AttributeIds.MinimumSamplingInterval: ua.Variant(float(ALLOWED_INTERVALS_MS[0]), ua.VariantType.Double),
+            ua.AttributeIds.Historizing: ua.Variant(False, ua.VariantType.Boolean),
+        }
+        for attribute, variant in attributes.items():
+            node.attributes[attribute] = AttributeValue(ua.DataValue(variant))
+        value = AttributeValue(None)  # type: ignore[arg-type]
+        value.value_callback = self._reader(name)
+        node.attributes[ua.AttributeIds.Value] = value
+        return node
+
+    def _reader(self, name: NodeName) -> Callable[[ua.NodeId, ua.AttributeIds], ua.DataValue]:
+        def read(_nodeid: ua.NodeId, _attr: ua.AttributeIds) -> ua.DataValue:
+            if not may(_RIGHTS.get(), name.realm, write=False):
+                return _status("BadUserAccessDenied")
+            try:
+                return _data_value(read_value(self.emulator, name))
+            except UaStatus as status:
+                return ua.DataValue(StatusCode_=status.code)
+        return read
+
+    async def _build_browse_tree(self) -> None:
+        objects = self.server.nodes.objects
+        ns = self.namespace
+        root = await objects.add_folder(ua.NodeId("Sinumerik", ns), ua.QualifiedName("Sinumerik", ns))
+        folders: dict[str, Any] = {"": root}
+        aspace = self.server.iserver.aspace
+        paths = [(path, spec) for spec in self.specs for path in node_paths(spec)[:1]]
+        paths += [(f"/Plc/{item}", None) for item in ("MB0", "IB0", "QB0")]
+        paths += [(f"/Plc/DB{db}.DBB0", None) for db in sorted(self.emulator.machine.data_blocks)]
+        for path, _spec in paths:
+            parent = root
+            segments = path.strip("/").split("/")
+            for depth in range(1, len(segments)):
+                key = "/" + "/".join(segments[:depth])
+                if key not in folders:
+                    folders[key] = await parent.add_folder(ua.NodeId(key, ns), ua.QualifiedName(segments[depth - 1], ns))
+                parent = folders[key]
+            nodeid = ua.NodeId(path, ns)
+            try:
+                name = self.node_name(path)
+            except NckNodeIdError:
+                continue
+            del name  # parsed only to know the node can be made
+            node = aspace._nodes[nodeid]  # made by _LazyNodes
+            node.references.append(ua.ReferenceDescription(
+                ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasComponent), IsForward=False, NodeId=parent.nodeid,
+                BrowseName=ua.QualifiedName(segments[-2] if len(segments) > 1 else "Sinumerik", ns),
+                NodeClass_=ua.NodeClass.Object, TypeDefinition=ua.NodeId(ua.ObjectIds.FolderType)))
+            node.references.append(ua.ReferenceDescription(
+                ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasTypeDefinition), IsForward=True,
+                NodeId=ua.NodeId(ua.ObjectIds.BaseDataVariableType), NodeClass_=ua.NodeClass.VariableType,
+                BrowseName=ua.QualifiedName("BaseDataVariableType", 0)))
+            aspace._nodes[parent.nodeid].references.append(ua.ReferenceDescription(
+                ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasComponent), IsForward=True, NodeId=nodeid,
+                BrowseName=ua.QualifiedName(segments[-1], ns), DisplayName=ua.LocalizedText(segments[-1]),
+                NodeClass_=ua.NodeClass.Variable, TypeDefinition=ua.NodeId(ua.ObjectIds.BaseDataVariableType)))
+
+    # ------------------------------------------------------------------ sessions, rights, limits
+    def _wrap_sessions(self, iserver: Any) -> None:
+        create = iserver.create_session
+
+        def create_session(*args: Any, **kwargs: Any) -> Any:
+            session = create(*args, **kwargs)
+            self._sessions = [s for s in self._sessions if s.state.name != "Closed"]
+            self._sessions.append(session)
+            self._wrap_session(session)
+            return session
+
+        iserver.create_session = create_session
+
+    def _wrap_session(self, session: Any) -> None:
+        face = self
+        activate, read, call, subscribe = (session.activate_session, session.read, session.call,
+                                           session.create_subscription)
+
+        def activate_session(params: Any, peer_certificate: Any) -> Any:
+            active = sum(1 for s in face._sessions if s is not session and s.state.name == "Activated")
+            if session.state.name == "Created" and active >= face.settings.max_sessions:
+                raise ServiceError(ua.StatusCodes.BadTooManySessions)
+            return activate(params, peer_certificate)
+
+        def bind() -> None:
+            user = getattr(session.user, "name", None)
+            _RIGHTS.set(face.rights_of(user))
+            _USER.set(user or "")
+
+        async def read_as_user(params: Any) -> Any:
+            bind()
+            return await read(params)
+
+        async def call_as_user(params: Any) -> Any:
+            bind()
+            return await call(params)
+
+        async def create_subscription(params: Any, callback: Any, request_callback: Any = None) -> Any:
+            if len(session.subscription_service.subscriptions) >= face.settings.max_subscriptions:
+                raise ServiceError(ua.StatusCodes.BadTooManySubscriptions)
+            params.RequestedPublishingInterval = _allowed_interval(params.RequestedPublishingInterval)
+            return await subscribe(params, callback, request_callback)
+
+        session.activate_session = activate_session
+        session.read = read_as_user
+        session.call = call_as_user
+        session.create_subscription = create_subscription
+
+    # ------------------------------------------------------------------ subscriptions
+    def _wrap_datachange(self, aspace: Any) -> None:
+        add, delete = aspace.add_datachange_callback, aspace.delete_datachange_callback
+        monitored = self._monitored
+
+        def add_datachange_callback(nodeid: ua.NodeId, attr: ua.AttributeIds, callback: Callable) -> Any:
+            result = add(nodeid, attr, callback)
+            if attr == ua.AttributeIds.Value and nodeid.NamespaceIndex == self.namespace and result[0].is_good():
+                name = self._names.get(str(nodeid.Identifier))
+                if name is not None and nodeid not in monitored:
+                    reader = raw_reader(self.emulator, name)
+                    # The baseline is the value the monitored item has just read itself.
+                    monitored[nodeid] = [aspace._nodes[nodeid], name, None, reader, _raw_now(reader)]
+            return result
+
+        def delete_datachange_callback(handle: int) -> None:
+            where = aspace._handle_to_attribute_map.get(handle)
+            delete(handle)
+            if where is not None and where[0] in monitored:
+                node = aspace._nodes.get(where[0])
+                if node is None or not node.attributes[ua.AttributeIds.Value].datachange_callbacks:
+                    del monitored[where[0]]
+
+        aspace.add_datachange_callback = add_datachange_callback
+        aspace.delete_datachange_callback = delete_datachange_callback
+
+    async def _sample_forever(self) -> None:
+        interval_s = self.settings.sample_interval_ms / 1000.0
+        next_s = time.monotonic()
+        while True:
+            next_s += interval_s
+            try:
+                await self.sample()
+            except Exception:  # a sampler must keep sampling; the fault is logged
+                log.exception("OPC UA sampler")
+            delay = next_s - time.monotonic()
+            if delay < 0:
+                next_s = time.monotonic()
+                delay = 0
+            await asyncio.sleep(delay)
+
+    async def sample(self) -> int:
+        """Push the monitored values that changed since the last sample; how many were pushed."""
+        pushed = 0
+        now = None
+        value_attribute = ua.AttributeIds.Value
+        for entry in list(self._monitored.values()):
+            node, name, _last, reader, last_raw = entry
+            try:
+                raw = reader()
+            except Exception:  # the variable went away (a DB shrank): the client keeps its last value
+                continue
+            if raw == last_raw:
+                continue
+            entry[4] = raw
+            try:
+                variant = variant_from_raw(name, raw)
+            except (UaStatus, ValueError, TypeError):
+                continue
+            entry[2] = variant
+            if now is None:
+                now = datetime.now(UTC)
+            # A source timestamp as asyncua's Node.write_value gives (each datetime costs a deepcopy per item).
+            value = ua.DataValue(variant, SourceTimestamp=now)
+            for handle, callback in list(node.attributes[value_attribute].datachange_callbacks.items()):
+                await callback(handle, value)
+            pushed += 1
+        self.updates_pushed += pushed
+        return pushed
+
+    async def push_now(self, nodeid: ua.NodeId, variant: ua.Variant) -> None:
+        """After a write over OPC UA: monitored items see it without waiting for the sampler."""
+        entry = self._monitored.get(nodeid)
+        if entry is None:
+            return
+        entry[2] = variant
+        entry[4] = _raw_now(entry[3])  # pushed now: the sampler need not push it again
+        now = datetime.now(UTC)
+        value = ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
+        for handle, callback in list(entry[0].attributes[ua.AttributeIds.Value].datachange_callbacks.items()):
+            await callback(handle, value)
+
+
+def _raw_now(reader: Callable[[], object]) -> object:
+    try:
+        return reader()
+    except Exception:  # read errors are the client's to see on its own reads; None: compare afresh
+        return None
+
+
+def _data_value(variant: ua.Variant) -> ua.DataValue:
+    now = datetime.now(UTC)
+    return ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
+
+
+def _allowed_interval(requested_ms: float) -> float:
+    """The smallest allowed interval at or above the request (the controller revises to its set)."""
+    for allowed in ALLOWED_INTERVALS_MS:
+        if requested_ms <= allowed:
+            return float(allowed)
+    return float(ALLOWED_INTERVALS_MS[-1])
+
+
+class _LazyNodes(dict):  # type: ignore[type-arg]
+    """asyncua's node dict, making a SINUMERIK variable node when a service first names its id."""
+
+    def __init__(self, nodes: dict[ua.NodeId, NodeData], face: OpcUaFace) -> None:
+        super().__init__(nodes)
+        self._face = face
+
+    def _make(self, nodeid: object) -> NodeData | None:
+        face = self._face
+        if not isinstance(nodeid, ua.NodeId) or nodeid.NamespaceIndex != face.namespace \
+                or not isinstance(nodeid.Identifier, str):
+            return None
+        try:
+            name = face.node_name(nodeid.Identifier)
+        except NckNodeIdError:
+            return None
+        node = face.make_node(nodeid, name)
+        if len(self) < 200_000:  # a client naming endless distinct ids cannot grow the server without bound
+            dict.__setitem__(self, nodeid, node)
+        return node
+
+    def __missing__(self, nodeid: ua.NodeId) -> NodeData:
+        node = self._make(nodeid)
+        if node is None:
+            raise KeyError(nodeid)
+        return node
+
+    def __contains__(self, nodeid: object) -> bool:
+        return dict.__contains__(self, nodeid) or self._make(nodeid) is not None
+
+    def get(self, nodeid: Any, default: Any = None) -> Any:
+        node = dict.get(self, nodeid)
+        if node is None:
+            node = self._make(nodeid)
+        return default if node is None else node
+
+
+_ADMIN = UaUser(role=UserRole.Admin)  # asyncua's own default: its internal session writes as admin
+
+
+class _SinumerikAttributes(AttributeService):
+    """asyncua's attribute service; reads as usual (value callbacks), writes of SINUMERIK variables
+    through the model with the session user's rights."""
+
+    def __init__(self, aspace: Any, face: OpcUaFace) -> None:
+        super().__init__(aspace)
+        self._face = face
+
+    def read(self, params: ua.ReadParameters) -> list[ua.DataValue]:
+        results = []
+        for item in params.NodesToRead:
+            status = self._unknown(item.NodeId)
+            results.append(status if status is not None else self._aspace.read_attribute_value(item.NodeId, item.AttributeId))
+        return results
+
+    def _unknown(self, nodeid: ua.NodeId) -> ua.DataValue | None:
+        """BadAttributeIdInvalid for a well-formed variable this machine lacks (asyncua would say unknown)."""
+        face = self._face
+        if nodeid.NamespaceIndex != face.namespace or not isinstance(nodeid.Identifier, str) \
+                or dict.__contains__(self._aspace._nodes, nodeid):
+            return None
+        try:
+            face.node_name(nodeid.Identifier)
+        except NckNodeIdError as exc:
+            return _status(exc.ua_status)
+        return None
+
+    async def write(self, params: ua.WriteParameters, user: UaUser = _ADMIN) -> list[ua.StatusCode]:
+        face = self._face
+        results: list[ua.StatusCode] = []
+        for item in params.NodesToWrite:
+            nodeid = item.NodeId
+            ours = nodeid.NamespaceIndex == face.namespace and isinstance(nodeid.Identifier, str)
+            if not ours:
+                results.extend(await super().write(ua.WriteParameters(NodesToWrite=[item]), user))
+                continue
+            unknown = self._unknown(nodeid)
+            if unknown is not None:
+                results.append(unknown.StatusCode)  # type: ignore[arg-type]
+                continue
+            try:
+                name = face.node_name(nodeid.Identifier)
+            except NckNodeIdError:
+                results.append(ua.StatusCode(ua.StatusCodes.BadNotWritable))  # a folder
+                continue
+            if item.AttributeId != ua.AttributeIds.Value:
+                results.append(ua.StatusCode(ua.StatusCodes.BadNotWritable))
+                continue
+            if not may(face.rights_of(getattr(user, "name", None)), name.realm, write=True):
+                results.append(ua.StatusCode(ua.StatusCodes.BadUserAccessDenied))
+                continue
+            try:
+                if write_value(face.emulator, name, item.Value.Value if item.Value else None):
+                    face.emulator.persist()
+                variant = read_value(face.emulator, name)
+            except UaStatus as status:
+                results.append(status.code)
+                continue
+            await face.push_now(nodeid, variant)
+            results.append(ua.StatusCode())
+        return results

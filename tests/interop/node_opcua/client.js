@@ -1,0 +1,58 @@
+// A small node-opcua client for nckemu's interop tests.
+// usage: node client.js '<json>'   with {"url": ..., "user": ..., "password": ..., "ops": [...]}
+// ops: {"read": "ns=2;s=/Channel/State/progStatus"}
+//      {"write": "ns=2;s=...", "value": 1.5, "type": "Double"}
+//      {"subscribe": "ns=2;s=...", "ms": 1500, "after_ms": 300}   (records changes; prints when done)
+// Prints one line "RESULT <json>" (node-opcua logs on stdout too): a list with one result per op ({"status": "Good", "value": ...}).
+"use strict";
+const opcua = require("node-opcua-client");
+
+async function main() {
+  const job = JSON.parse(process.argv[2]);
+  const client = opcua.OPCUAClient.create({ endpointMustExist: false, connectionStrategy: { maxRetry: 1 } });
+  await client.connect(job.url);
+  const identity = job.user
+    ? { type: opcua.UserTokenType.UserName, userName: job.user, password: job.password }
+    : { type: opcua.UserTokenType.Anonymous };
+  const session = await client.createSession(identity);
+  const results = [];
+  try {
+    for (const op of job.ops) {
+      if (op.read) {
+        const dv = await session.read({ nodeId: op.read, attributeId: opcua.AttributeIds.Value });
+        let value = dv.value ? dv.value.value : null;
+        if (value && typeof value === "object" && value.length !== undefined) value = Array.from(value);
+        results.push({ status: dv.statusCode.name, value });
+      } else if (op.write) {
+        const status = await session.write({
+          nodeId: op.write, attributeId: opcua.AttributeIds.Value,
+          value: { value: { dataType: opcua.DataType[op.type], value: op.value } },
+        });
+        results.push({ status: status.name });
+      } else if (op.subscribe) {
+        const subscription = await session.createSubscription2({
+          requestedPublishingInterval: 100, requestedMaxKeepAliveCount: 10, publishingEnabled: true,
+        });
+        const item = await subscription.monitor(
+          { nodeId: op.subscribe, attributeId: opcua.AttributeIds.Value },
+          { samplingInterval: 100, queueSize: 10, discardOldest: true }, opcua.TimestampsToReturn.Both);
+        const seen = [];
+        item.on("changed", (dv) => seen.push(dv.value.value));
+        // Tell the test when the subscription is live, so it writes over S7 only then.
+        process.stdout.write("RESULT " + JSON.stringify({ subscribed: true }) + "\n");
+        await new Promise((resolve) => setTimeout(resolve, op.ms));
+        await subscription.terminate();
+        results.push({ status: "Good", values: seen });
+      }
+    }
+  } finally {
+    await session.close();
+    await client.disconnect();
+  }
+  process.stdout.write("RESULT " + JSON.stringify(results) + "\n");
+}
+
+main().catch((err) => {
+  process.stdout.write("RESULT " + JSON.stringify({ error: String(err && err.message ? err.message : err) }) + "\n");
+  process.exit(1);
+});

@@ -1,0 +1,109 @@
+"""The OPC UA face with an outside client: node-opcua-client (npm, installed by ``make test``)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import snap7
+
+from nckemu.clients import NckClient
+from nckemu.emulator.opcua import OpcUaFace
+from nckemu.emulator.runner import EmulatorThread
+
+from .opcua_tools import two_faces
+
+HERE = Path(__file__).parent / "node_opcua"
+NODE = shutil.which("node")
+pytestmark = [
+    pytest.mark.timeout(180),
+    pytest.mark.skipif(NODE is None, reason="node is not installed (node-opcua tests need Node.js and npm)"),
+    pytest.mark.skipif(not (HERE / "node_modules" / "node-opcua-client").is_dir(),
+                       reason="node-opcua-client is not installed: run `make npm` (make test does)"),
+]
+SD43900_AX4 = "ns=2;s=/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]"
+
+
+@pytest.fixture(scope="module")
+def faces() -> Iterator[tuple[EmulatorThread, OpcUaFace]]:
+    with two_faces() as pair:
+        yield pair
+
+
+def node_client(face: OpcUaFace, ops: list[dict[str, Any]], user: str | None = None,
+                password: str | None = None) -> Any:
+    job = {"url": face.url, "user": user, "password": password, "ops": ops}
+    done = subprocess.run([str(NODE), str(HERE / "client.js"), json.dumps(job)], capture_output=True, text=True,
+                          timeout=120, cwd=HERE)
+    return _result(done.stdout.splitlines())
+
+
+def _result(lines: list[str]) -> Any:
+    """The client's "RESULT <json>" line (node-opcua writes its own warnings to stdout)."""
+    for line in reversed(lines):
+        if line.startswith("RESULT "):
+            return json.loads(line[len("RESULT "):])
+    raise AssertionError(f"no result from node client.js: {lines[-5:]}")
+
+
+def test_reads(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    _, face = faces
+    results = node_client(face, [{"read": "ns=2;s=/Channel/State/progStatus"},
+                                 {"read": "ns=2;s=/Channel/Parameter/R[u1, 1, #4]"},
+                                 {"read": "ns=2;s=/Bag/State/opMode"}])
+    assert [r["status"] for r in results] == ["Good"] * 3
+    assert results[1]["value"] == [0.0] * 4
+
+
+def test_write_then_s7_and_back(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    emulator, face = faces
+    results = node_client(face, [{"write": SD43900_AX4, "value": 0.375, "type": "Double"}], "nckemu", "SUNRISE")
+    assert results == [{"status": "Good"}]
+    with NckClient("127.0.0.1", emulator.port) as nck:
+        assert nck.get("SD43900[AX4]") == [pytest.approx(0.375)]
+        nck.put({"SD43900[AX4]": 0.125})
+    assert node_client(face, [{"read": SD43900_AX4}])[0]["value"] == pytest.approx(0.125)
+
+
+def test_errors_and_user_rules(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    _, face = faces
+    results = node_client(face, [{"read": "ns=2;s=Channel/State/progStatus"},
+                                 {"read": "ns=2;s=/Nck/Spindle/driveLoad[u1, 3]"},
+                                 {"write": SD43900_AX4, "value": 0.5, "type": "Double"}])
+    assert [r["status"] for r in results] == ["BadNodeIdUnknown", "BadAttributeIdInvalid", "BadUserAccessDenied"]
+    results = node_client(face, [{"write": SD43900_AX4, "value": 5000.0, "type": "Double"}], "nckemu", "SUNRISE")
+    assert results[0]["status"] == "BadOutOfRange"
+    refused = node_client(face, [{"read": "ns=2;s=/Channel/State/progStatus"}], "nckemu", "wrong")
+    assert "error" in refused
+
+
+def test_subscription_sees_an_s7_write(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    emulator, face = faces
+    job = {"url": face.url, "user": None, "password": None,
+           "ops": [{"subscribe": "ns=2;s=/Plc/DB130.DBW40", "ms": 1500}]}
+    process = subprocess.Popen([str(NODE), str(HERE / "client.js"), json.dumps(job)], stdout=subprocess.PIPE,
+                               text=True, cwd=HERE)
+    assert process.stdout is not None
+    first = process.stdout.readline()
+    while first and not first.startswith("RESULT "):
+        first = process.stdout.readline()
+    assert _result([first]) == {"subscribed": True}, first
+
+    def write_over_s7() -> None:
+        plc = snap7.Client()
+        plc.connect("127.0.0.1", 0, 2, emulator.port)
+        plc.db_write(130, 40, bytearray(b"\x00\x2a"))
+        plc.disconnect()
+
+    timer = threading.Timer(0.3, write_over_s7)
+    timer.start()
+    out, _ = process.communicate(timeout=60)
+    timer.join()
+    values = _result(out.splitlines())[0]["values"]
+    assert 42 in values, values
