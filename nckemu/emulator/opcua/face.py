@@ -84,6 +84,9 @@ class OpcUaFace:
         self.host = host
         self.port = port
         self.settings = settings or OpcUaSettings.from_machine(emulator.machine.opcua, emulator.machine.source)
+        quiet = logging.getLogger("asyncua")
+        if quiet.level == logging.NOTSET:  # its INFO lines (a thousand at init) would drown serve's own
+            quiet.setLevel(logging.WARNING)
         self.server = Server(user_manager=_UserManager(self.settings))
         self.namespace = 2
         self._names: dict[str, NodeName] = {}
@@ -106,9 +109,6 @@ class OpcUaFace:
     # ------------------------------------------------------------------ start / stop
     async def start(self) -> OpcUaFace:
         server = self.server
-        quiet = logging.getLogger("asyncua")
-        if quiet.level == logging.NOTSET:  # its INFO lines (a thousand at init) would drown serve's own
-            quiet.setLevel(logging.WARNING)
         await server.init()
         server.set_endpoint(f"opc.tcp://{self.host}:{self.port}/")
         server.set_server_name(f"nckemu {self.emulator.machine.name}")
@@ -121,7 +121,15 @@ class OpcUaFace:
         self._wrap_sessions(iserver)
         await self._build_browse_tree()
         await files.add_methods(self, server)
-        await server.start()
+        # A port in use reaches the caller as OSError (serve says so in one line); asyncua would also
+        # log it with a traceback.
+        starting = logging.getLogger("asyncua.server.server")
+        level = starting.level
+        starting.setLevel(logging.CRITICAL)
+        try:
+            await server.start()
+        finally:
+            starting.setLevel(level)
         if self.port == 0:
             self.port = self.bound_port()
         self._sampler = asyncio.get_running_loop().create_task(self._sample_forever())
