@@ -9,10 +9,10 @@ import json
 import logging
 import sys
 from collections.abc import Callable, Sequence
-from pathlib import Path
 
 from nckemu.cliutil import check_output, listen_port, until_signalled
 from nckemu.errors import NckConfigError, NckError
+from nckemu.textfile import read_text
 
 from .clock import Clock
 from .core import Emulator
@@ -122,12 +122,7 @@ def loop_factory(choice: str = "auto") -> Callable[[], asyncio.AbstractEventLoop
 
 
 def _read_program(path: str) -> str:
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise NckConfigError(f"cannot read: {exc.strerror}", path=path) from None
-    except UnicodeDecodeError:
-        raise NckConfigError("not a text file (an NC program is text)", path=path) from None
+    return read_text(path, "an NC program is text")
 
 
 # Builds a further face of a served machine (a living machine, an OPC UA face) from the emulator and

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from nckemu.errors import NckConfigError
+from nckemu.textfile import read_text
 
 from .clock import Clock
 from .core import Emulator
@@ -185,13 +186,7 @@ def parse_fleet(text: str, source: str, base: Path | None = None) -> FleetSpec:
 
 def load_fleet(path: str | Path) -> FleetSpec:
     path = Path(path)
-    try:
-        text = path.read_text("utf-8")
-    except OSError as exc:
-        raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
-    except UnicodeDecodeError:
-        raise NckConfigError("not a text file (a fleet is TOML text in UTF-8)", path=str(path)) from None
-    return parse_fleet(text, str(path), path.parent)
+    return parse_fleet(read_text(path, "a fleet is TOML text"), str(path), path.parent)
 
 
 def quick_fleet(count: int, base_port: int, machine: str | None = None, host: str = DEFAULT_HOST) -> FleetSpec:

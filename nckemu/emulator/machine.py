@@ -16,6 +16,7 @@ from typing import Any
 
 from nckemu.catalogue.table import VariableSpec, machine_table, row_lines
 from nckemu.errors import NckConfigError
+from nckemu.textfile import read_text
 
 from .plc.memory import AREA_BYTES
 
@@ -451,11 +452,4 @@ def load_machine(path: str | Path | None = None) -> Machine:
     if path is None:
         text = resources.files("nckemu.emulator").joinpath("machines/default.toml").read_text("utf-8")
         return parse_machine(text, "default.toml (built in)")
-    path = Path(path)
-    try:
-        text = path.read_text("utf-8")
-    except OSError as exc:
-        raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
-    except UnicodeDecodeError:
-        raise NckConfigError("not a text file (a machine is TOML text in UTF-8)", path=str(path)) from None
-    return parse_machine(text, str(path))
+    return parse_machine(read_text(path, "a machine is TOML text"), str(path))

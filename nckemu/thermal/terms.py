@@ -18,6 +18,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from nckemu.errors import NckConfigError
+from nckemu.textfile import read_text
 
 from .recording import Recording
 
@@ -195,14 +196,7 @@ def parse_model(text: str, source: str = "<model>") -> ThermalModel:
 
 
 def load_model(path: str | Path) -> ThermalModel:
-    path = Path(path)
-    try:
-        text = path.read_text("utf-8")
-    except OSError as exc:
-        raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
-    except UnicodeDecodeError:
-        raise NckConfigError("not a text file (a model is TOML text in UTF-8)", path=str(path)) from None
-    return parse_model(text, str(path))
+    return parse_model(read_text(path, "a model is TOML text"), str(path))
 
 
 def _toml_value(value: Any) -> str:
