@@ -147,6 +147,46 @@ def test_subscription_sees_an_s7_write_within_two_publishing_intervals(
     assert changed[0][0] - written <= 0.2 + 0.1  # two publishing intervals (+ scheduling slack)
 
 
+def test_every_s7_write_reaches_a_monitored_item_however_fast(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """Writes 5 ms apart, twenty per publishing interval: a sampler would see one in twenty; the face
+    pushes each write, so the item's queue holds them all, in order (PLC words and an NC setting)."""
+    emulator, face = faces
+    seen: dict[str, list[Any]] = {"plc": [], "nc": []}
+
+    class Handler:
+        def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
+            seen["nc" if "TEMP_COMP" in str(node.nodeid.Identifier) else "plc"].append(value)
+
+    async def go() -> None:
+        client = await _client(face)
+        try:
+            ns = await client.get_namespace_index(NS_URI)
+            subscription = await client.create_subscription(100, Handler())
+            nodes = [client.get_node(ua.NodeId(i, ns)) for i in ("/Plc/DB130.DBW40", SD43900_AX4)]
+            await subscription.subscribe_data_change(nodes, queuesize=100)
+            await asyncio.sleep(0.3)
+            await asyncio.to_thread(write_fast)
+            await asyncio.sleep(0.5)
+        finally:
+            await client.disconnect()
+
+    def write_fast() -> None:
+        plc = snap7.Client()
+        plc.connect("127.0.0.1", 0, 2, emulator.port)
+        try:
+            with NckClient("127.0.0.1", emulator.port) as nck:
+                for step in range(1, 41):
+                    plc.db_write(130, 40, bytearray(step.to_bytes(2, "big")))
+                    nck.put({"SD43900[AX4]": step / 1000})
+                    time.sleep(0.005)
+        finally:
+            plc.disconnect()
+
+    run(go())
+    assert seen["plc"][-40:] == list(range(1, 41)), seen["plc"]
+    assert seen["nc"][-40:] == [pytest.approx(step / 1000) for step in range(1, 41)], seen["nc"]
+
+
 def test_errors_as_the_controller(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
     _, face = faces
     assert run(_status_of_read(face, "Channel/State/progStatus")) == "BadNodeIdUnknown"  # no leading slash
@@ -240,6 +280,43 @@ def test_limits_sessions_and_publishing_interval() -> None:
         too_many, _interval, sub_limit = run(go())
         assert too_many == "BadTooManySessions"
         assert sub_limit == "BadTooManySubscriptions"
+
+
+def test_samples_per_second_cap_refuses_the_item_past_it() -> None:
+    """At 100 ms an item costs 10 samples/s: a cap of 25 takes two, refuses the third, and has room
+    again once one is deleted; at 1000 ms the same cap takes 25 items."""
+    from dataclasses import replace
+
+    class Quiet:
+        def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
+            pass
+
+    with two_faces() as (_, face):
+        face.settings = replace(face.settings, max_samples_per_s=25)
+
+        async def go() -> tuple[list[str], str, int]:
+            client = await _client(face)
+            try:
+                ns = await client.get_namespace_index(NS_URI)
+                fast = await client.create_subscription(100, Quiet())
+                nodes = [client.get_node(ua.NodeId(f"/Plc/DB130.DBW{2 * i}", ns)) for i in range(3)]
+                handles = await fast.subscribe_data_change(nodes)
+                statuses = [h.name if isinstance(h, ua.StatusCode) else "Good" for h in handles]
+                await fast.unsubscribe(handles[0])
+                again = await fast.subscribe_data_change([nodes[2]])
+                await fast.delete()
+                slow = await client.create_subscription(1000, Quiet())
+                many = await slow.subscribe_data_change(
+                    [client.get_node(ua.NodeId(f"/Plc/DB130.DBW{2 * i}", ns)) for i in range(26)])
+                return statuses, "Good" if isinstance(again[0], int) else again[0].name, \
+                    sum(isinstance(h, int) for h in many)
+            finally:
+                await client.disconnect()
+
+        statuses, again, slow_taken = run(go())
+    assert statuses == ["Good", "Good", "BadTooManyMonitoredItems"]
+    assert again == "Good"
+    assert slow_taken == 25
 
 
 def test_machine_file_var_rows_are_served() -> None:

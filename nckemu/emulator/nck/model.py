@@ -90,6 +90,9 @@ class NckModel:
         if machine.tool_settings.active_t:
             self.select_tool(machine.tool_settings.active_t, machine.tool_settings.active_d)
         self._power_on_hooks: list[Callable[[], None]] = []
+        # Told of every accepted write (after it landed): one write can move other variables (a
+        # compensation value moves the axis' positions), so listeners get the address only as a hint.
+        self.write_listeners: list[Callable[[NckAddress], None]] = []
 
     @staticmethod
     def _finder(specs: Sequence[VariableSpec]) -> Callable[[str], VariableSpec | None]:
@@ -153,10 +156,16 @@ class NckModel:
             if not bound.writable:
                 raise NckAccessDenied(f"{spec.name} is read only")
             bound.write_lines(self, unit, address.column, address.line, checked)
+            self._tell_written(address)
             return False
         self.compensation.advance_all()
         self.store.write_lines(spec, unit, address.line, checked)
+        self._tell_written(address)
         return spec.retained
+
+    def _tell_written(self, address: NckAddress) -> None:
+        for listener in self.write_listeners:
+            listener(address)
 
     def pi_service(self, service: str, arguments: Sequence[str], ctx: AccessContext) -> None:
         pi_services.run_service(self, service, arguments, ctx)

@@ -18,8 +18,11 @@ How it sits on asyncua (its address space is a plain dict ``NodeId -> NodeData``
 from __future__ import annotations
 
 import asyncio
+import bisect
 import contextvars
+import dataclasses
 import logging
+import threading
 import time
 from collections.abc import Callable
 from datetime import UTC, datetime
@@ -31,13 +34,14 @@ from asyncua.crypto.permission_rules import PermissionRuleset, UserRole
 from asyncua.crypto.permission_rules import User as UaUser
 from asyncua.server.address_space import AttributeService, AttributeValue, NodeData
 
-from nckemu.catalogue.node_ids import NcNodeName, NodeName, node_paths, parse_node_id
+from nckemu.catalogue.node_ids import NcNodeName, NodeName, PlcNodeName, node_paths, parse_node_id
 from nckemu.errors import NckNodeIdError
+from nckemu.protocol.addresses import S7Area
 
 from ..core import Emulator
 from . import files
 from .settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
-from .values import UaStatus, raw_reader, read_value, variant_from_raw, variant_type, write_value
+from .values import PLC_AREAS, UaStatus, raw_reader, read_value, variant_from_raw, variant_type, write_value
 
 log = logging.getLogger(__name__)
 
@@ -90,8 +94,13 @@ class OpcUaFace:
         self.server = Server(user_manager=_UserManager(self.settings))
         self.namespace = 2
         self._names: dict[str, NodeName] = {}
-        # node id -> [NodeData, name, last variant pushed, raw reader, last raw value]
-        self._monitored: dict[ua.NodeId, list[Any]] = {}
+        self._monitored: dict[ua.NodeId, _Monitored] = {}
+        self._plc_index: _PlcIndex | None = None  # rebuilt after the monitored set changed
+        self._dirty: set[_Monitored] = set()
+        self._push_scheduled = False
+        self._pushes: set[asyncio.Task[int]] = set()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._loop_thread = 0
         self._sampler: asyncio.Task[None] | None = None
         self._sessions: list[Any] = []
         self.updates_pushed = 0
@@ -119,6 +128,7 @@ class OpcUaFace:
         iserver.attribute_service = _SinumerikAttributes(iserver.aspace, self)
         self._wrap_datachange(iserver.aspace)
         self._wrap_sessions(iserver)
+        self._cap_samples(iserver.subscription_service)
         await self._build_browse_tree()
         await files.add_methods(self, server)
         # A port in use reaches the caller as OSError (serve says so in one line); asyncua would also
@@ -132,6 +142,7 @@ class OpcUaFace:
             starting.setLevel(level)
         if self.port == 0:
             self.port = self.bound_port()
+        self._listen()
         self._sampler = asyncio.get_running_loop().create_task(self._sample_forever())
         log.info("OPC UA face on opc.tcp://%s:%d/ (namespace %s = ns=%d)", self.host, self.port,
                  self.settings.namespace_uri, self.namespace)
@@ -158,6 +169,7 @@ class OpcUaFace:
                 f"uaread -u {self.url} -n 'ns={self.namespace};s=/Channel/State/progStatus'")
 
     async def stop(self) -> None:
+        self._unlisten()
         if self._sampler is not None:
             self._sampler.cancel()
             try:
@@ -303,6 +315,40 @@ class OpcUaFace:
         session.call = call_as_user
         session.create_subscription = create_subscription
 
+    def samples_per_s(self, subscriptions: Any) -> float:
+        """What the data-change items of all subscriptions cost, in samples per second."""
+        return sum(len(sub.monitored_item_srv._monitored_datachange) * 1000.0 / max(
+            sub.data.RevisedPublishingInterval, ALLOWED_INTERVALS_MS[0]) for sub in subscriptions.values())
+
+    def _cap_samples(self, service: Any) -> None:
+        """Items past ``max_samples_per_s`` are refused one by one; the others are created."""
+        create = service.create_monitored_items
+        face = self
+
+        async def create_monitored_items(params: ua.CreateMonitoredItemsParameters) -> Any:
+            subscription = service.subscriptions.get(params.SubscriptionId)
+            if subscription is None:
+                return await create(params)
+            each = 1000.0 / max(subscription.data.RevisedPublishingInterval, ALLOWED_INTERVALS_MS[0])
+            budget = face.settings.max_samples_per_s - face.samples_per_s(service.subscriptions)
+            taken: list[Any] = []
+            refused: set[int] = set()
+            for position, item in enumerate(params.ItemsToCreate):
+                if item.ItemToMonitor.AttributeId == ua.AttributeIds.Value:
+                    if budget + 1e-9 < each:
+                        refused.add(position)
+                        continue
+                    budget -= each
+                taken.append(item)
+            if not refused:
+                return await create(params)
+            created = iter(await create(dataclasses.replace(params, ItemsToCreate=taken)) if taken else [])
+            too_many = ua.StatusCode(ua.StatusCodes.BadTooManyMonitoredItems)
+            return [ua.MonitoredItemCreateResult(StatusCode_=too_many) if position in refused else next(created)
+                    for position in range(len(params.ItemsToCreate))]
+
+        service.create_monitored_items = create_monitored_items
+
     # ------------------------------------------------------------------ subscriptions
     def _wrap_datachange(self, aspace: Any) -> None:
         add, delete = aspace.add_datachange_callback, aspace.delete_datachange_callback
@@ -313,9 +359,9 @@ class OpcUaFace:
             if attr == ua.AttributeIds.Value and nodeid.NamespaceIndex == self.namespace and result[0].is_good():
                 name = self._names.get(str(nodeid.Identifier))
                 if name is not None and nodeid not in monitored:
-                    reader = raw_reader(self.emulator, name)
                     # The baseline is the value the monitored item has just read itself.
-                    monitored[nodeid] = [aspace._nodes[nodeid], name, None, reader, _raw_now(reader)]
+                    monitored[nodeid] = _Monitored(aspace._nodes[nodeid], name, raw_reader(self.emulator, name))
+                    self._plc_index = None
             return result
 
         def delete_datachange_callback(handle: int) -> None:
@@ -325,9 +371,57 @@ class OpcUaFace:
                 node = aspace._nodes.get(where[0])
                 if node is None or not node.attributes[ua.AttributeIds.Value].datachange_callbacks:
                     del monitored[where[0]]
+                    self._plc_index = None
 
         aspace.add_datachange_callback = add_datachange_callback
         aspace.delete_datachange_callback = delete_datachange_callback
+
+    # A write to the model pushes what it changed at the next turn of the loop (once per turn however
+    # many writes came), so every change a writer makes between two publishes reaches the queue of the
+    # monitored item. The sampler still runs for what changes without a write (the machine's own
+    # dynamics, sensors, PI services, the PLC program's memory).
+    def _listen(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._loop_thread = threading.get_ident()
+        self.emulator.plc.write_listeners.append(self._plc_written)
+        self.emulator.nck.write_listeners.append(self._nc_written)
+
+    def _unlisten(self) -> None:
+        for listeners, listener in ((self.emulator.plc.write_listeners, self._plc_written),
+                                    (self.emulator.nck.write_listeners, self._nc_written)):
+            if listener in listeners:
+                listeners.remove(listener)
+
+    def _plc_written(self, area: int, db_number: int, start_byte: int, size_bytes: int) -> None:
+        if self._plc_index is None:
+            self._plc_index = _PlcIndex(self._monitored.values())
+        touched = self._plc_index.touched(area, db_number, start_byte, start_byte + size_bytes)
+        if touched:
+            self._dirty.update(touched)
+            self._schedule_push()
+
+    def _nc_written(self, _address: Any) -> None:
+        # One NC write can move other NC values (a compensation value moves positions): all NC items.
+        touched = [entry for entry in self._monitored.values() if entry.nc]
+        if touched:
+            self._dirty.update(touched)
+            self._schedule_push()
+
+    def _schedule_push(self) -> None:
+        if self._push_scheduled or self._loop is None:
+            return
+        self._push_scheduled = True
+        if threading.get_ident() == self._loop_thread:
+            self._loop.call_soon(self._start_push)
+        else:  # a writer on another thread (a test driving the model directly)
+            self._loop.call_soon_threadsafe(self._start_push)
+
+    def _start_push(self) -> None:
+        self._push_scheduled = False
+        dirty, self._dirty = self._dirty, set()
+        task = self._loop.create_task(self._push_changed(dirty))  # type: ignore[union-attr]
+        self._pushes.add(task)
+        task.add_done_callback(self._pushes.discard)
 
     async def _sample_forever(self) -> None:
         interval_s = self.settings.sample_interval_ms / 1000.0
@@ -345,45 +439,103 @@ class OpcUaFace:
             await asyncio.sleep(delay)
 
     async def sample(self) -> int:
-        """Push the monitored values that changed since the last sample; how many were pushed."""
+        """Push the monitored values that changed since they were last pushed; how many were pushed."""
+        return await self._push_changed(list(self._monitored.values()))
+
+    async def _push_changed(self, entries: Any) -> int:
         pushed = 0
+        value: ua.DataValue | None = None
         now = None
         value_attribute = ua.AttributeIds.Value
-        for entry in list(self._monitored.values()):
-            node, name, _last, reader, last_raw = entry
+        for entry in entries:
             try:
-                raw = reader()
+                raw = entry.reader()
             except Exception:  # the variable went away (a DB shrank): the client keeps its last value
                 continue
-            if raw == last_raw:
+            if raw == entry.raw:
                 continue
-            entry[4] = raw
+            entry.raw = raw
             try:
-                variant = variant_from_raw(name, raw)
+                variant = variant_from_raw(entry.name, raw)
             except (UaStatus, ValueError, TypeError):
                 continue
-            entry[2] = variant
             if now is None:
                 now = datetime.now(UTC)
             # A source timestamp as asyncua's Node.write_value gives (each datetime costs a deepcopy per item).
-            value = ua.DataValue(variant, SourceTimestamp=now)
-            for handle, callback in list(node.attributes[value_attribute].datachange_callbacks.items()):
+            value = _PushedValue(variant, SourceTimestamp=now)
+            for handle, callback in list(entry.node.attributes[value_attribute].datachange_callbacks.items()):
                 await callback(handle, value)
             pushed += 1
         self.updates_pushed += pushed
         return pushed
 
     async def push_now(self, nodeid: ua.NodeId, variant: ua.Variant) -> None:
-        """After a write over OPC UA: monitored items see it without waiting for the sampler."""
+        """After a write over OPC UA: the item written is pushed with the write's server timestamp (the
+        model's write listeners push every other item the write touched)."""
         entry = self._monitored.get(nodeid)
         if entry is None:
             return
-        entry[2] = variant
-        entry[4] = _raw_now(entry[3])  # pushed now: the sampler need not push it again
+        entry.raw = _raw_now(entry.reader)  # pushed now: neither the listener nor the sampler push it again
+        self._dirty.discard(entry)
         now = datetime.now(UTC)
-        value = ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
-        for handle, callback in list(entry[0].attributes[ua.AttributeIds.Value].datachange_callbacks.items()):
+        value = _PushedValue(variant, SourceTimestamp=now, ServerTimestamp=now)
+        for handle, callback in list(entry.node.attributes[ua.AttributeIds.Value].datachange_callbacks.items()):
             await callback(handle, value)
+
+
+class _PushedValue(ua.DataValue):
+    """A value pushed to monitored items. asyncua deep-copies every value it is handed, once per
+    monitored item, so that the writer cannot change it afterwards; the face builds a new one for each
+    push and never changes it, so the copy may be the value itself (the copy cost more than the rest
+    of a push together)."""
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> _PushedValue:
+        return self
+
+
+class _Monitored:
+    """A monitored SINUMERIK variable: its node, parsed name, a raw reader and the raw value last pushed."""
+
+    __slots__ = ("node", "name", "reader", "raw", "nc", "block", "first_byte", "end_byte")
+
+    def __init__(self, node: NodeData, name: NodeName, reader: Callable[[], object]) -> None:
+        self.node, self.name, self.reader = node, name, reader
+        self.raw = _raw_now(reader)
+        self.nc = isinstance(name, NcNodeName)
+        self.block: tuple[int, int] | None = None
+        self.first_byte = self.end_byte = 0
+        if isinstance(name, PlcNodeName):
+            area = PLC_AREAS[name.area]
+            self.block = (area, name.db if area == S7Area.DB else 0)
+            self.first_byte = name.byte
+            self.end_byte = name.byte + (_STRING_BYTES if name.kind == "STRING" else max(1, name.size_bytes))
+
+
+_STRING_BYTES = 256  # an S7 string: maximum length, length, up to 254 characters
+
+
+class _PlcIndex:
+    """Monitored PLC items by memory block and byte range, to find what a write touched."""
+
+    def __init__(self, entries: Any) -> None:
+        by_block: dict[tuple[int, int], list[_Monitored]] = {}
+        for entry in entries:
+            if entry.block is not None:
+                by_block.setdefault(entry.block, []).append(entry)
+        self._blocks: dict[tuple[int, int], tuple[list[int], list[_Monitored], int]] = {}
+        for block, items in by_block.items():
+            items.sort(key=lambda item: item.first_byte)
+            longest = max(item.end_byte - item.first_byte for item in items)
+            self._blocks[block] = ([item.first_byte for item in items], items, longest)
+
+    def touched(self, area: int, db_number: int, first_byte: int, end_byte: int) -> list[_Monitored]:
+        found = self._blocks.get((area, db_number if area == S7Area.DB else 0))
+        if found is None:
+            return []
+        starts, items, longest = found
+        low = bisect.bisect_left(starts, first_byte - longest + 1)
+        high = bisect.bisect_left(starts, end_byte)
+        return [item for item in items[low:high] if item.end_byte > first_byte]
 
 
 def _raw_now(reader: Callable[[], object]) -> object:

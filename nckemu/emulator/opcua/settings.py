@@ -5,6 +5,7 @@
 anonymous = ["SinuReadAll"]          # rights of an anonymous session ([] as a new controller)
 max_sessions = 10                    # 840D sl: 10 (828D: 5)
 max_subscriptions = 10
+max_samples_per_s = 1000             # 840D sl: 1000 (828D: 500); items x 1000 / interval_ms, summed
 [opcua.users.nckemu]
 password = "SUNRISE"
 rights = ["SinuReadAll", "SinuWriteAll"]   # or realms: StateRead, SeaWrite, PlcRead, ...
@@ -24,7 +25,7 @@ RIGHTS = frozenset({f"{realm}{what}" for realm in REALMS for what in ("Read", "W
 # The controller's allowed sampling and publishing intervals (840D sl manual).
 ALLOWED_INTERVALS_MS = (100, 250, 500, 1000, 2500, 5000)
 _KEYS = frozenset({"anonymous", "users", "max_sessions", "max_subscriptions", "sample_interval_ms",
-                   "namespace_uri"})
+                   "namespace_uri", "max_samples_per_s"})
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,10 @@ class OpcUaSettings:
     namespace_uri: str = "SinumerikVarProvider"
     max_sessions: int = 10
     max_subscriptions: int = 10
+    # The controller's cap on samples per second over all monitored items (each costs 1000 / its
+    # interval in ms). What the controller does past it is not in our sources: the face refuses the
+    # item that would exceed it with BadTooManyMonitoredItems (docs/assumptions.md).
+    max_samples_per_s: int = 1000
     # How often monitored variables are read from the model and changes pushed to subscriptions: the
     # controller's smallest publishing interval, so a change is seen within two of them.
     sample_interval_ms: int = 100
@@ -69,7 +74,7 @@ class OpcUaSettings:
                 raise NckConfigError("expected password = \"...\" and rights = [...]", path=source, field=where)
             users[name] = User(name, entry["password"], _rights(entry.get("rights", []), source, f"{where}.rights"))
         limits = {}
-        for key in ("max_sessions", "max_subscriptions", "sample_interval_ms"):
+        for key in ("max_sessions", "max_subscriptions", "sample_interval_ms", "max_samples_per_s"):
             if key in table:
                 value = table[key]
                 if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 100_000:

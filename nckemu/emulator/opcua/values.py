@@ -30,7 +30,7 @@ PLC_VARIANTS = {"BOOL": ua.VariantType.Boolean, "BYTE": ua.VariantType.Byte, "WO
                 "INT": ua.VariantType.Int16, "DWORD": ua.VariantType.UInt32, "DINT": ua.VariantType.Int32,
                 "REAL": ua.VariantType.Float, "STRING": ua.VariantType.String}
 _PLC_FORMATS = {"BYTE": "B", "WORD": "H", "INT": "h", "DWORD": "I", "DINT": "i", "REAL": "f"}
-_PLC_AREAS = {"I": S7Area.I, "Q": S7Area.Q, "M": S7Area.M, "DB": S7Area.DB}
+PLC_AREAS = {"I": S7Area.I, "Q": S7Area.Q, "M": S7Area.M, "DB": S7Area.DB}
 _INTEGER_RANGES = {ua.VariantType.Byte: (0, 0xFF), ua.VariantType.UInt16: (0, 0xFFFF),
                    ua.VariantType.Int16: (-0x8000, 0x7FFF), ua.VariantType.UInt32: (0, 0xFFFFFFFF),
                    ua.VariantType.Int32: (-0x80000000, 0x7FFFFFFF),
@@ -90,7 +90,7 @@ def raw_reader(emulator: Emulator, name: NodeName) -> Callable[[], object]:
         return lambda: read(address, _CTX)
     if name.kind in ("BOOL", "STRING"):
         return lambda: _read_plc(emulator, name)
-    return emulator.plc.reader(_PLC_AREAS[name.area], name.db, name.byte, name.size_bytes)
+    return emulator.plc.reader(PLC_AREAS[name.area], name.db, name.byte, name.size_bytes)
 
 
 def variant_from_raw(name: NodeName, raw: object) -> ua.Variant:
@@ -113,7 +113,7 @@ def _plc_string(emulator: Emulator, area: int, name: PlcNodeName) -> list[object
 
 
 def _read_plc(emulator: Emulator, name: PlcNodeName) -> list[object]:
-    area = _PLC_AREAS[name.area]
+    area = PLC_AREAS[name.area]
     if name.kind == "BOOL":
         return [emulator.plc.read_bit(area, name.db, name.byte, name.bit or 0)]
     if name.kind == "STRING":
@@ -180,7 +180,7 @@ def write_value(emulator: Emulator, name: NodeName, variant: ua.Variant | None) 
 
 
 def _write_plc(emulator: Emulator, name: PlcNodeName, values: list[Any]) -> None:
-    area = _PLC_AREAS[name.area]
+    area = PLC_AREAS[name.area]
     if name.kind == "BOOL":
         emulator.plc.write_bit(area, name.db, name.byte, name.bit or 0, bool(values[0]))
     elif name.kind == "STRING":

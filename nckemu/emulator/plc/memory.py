@@ -73,6 +73,9 @@ class PlcModel:
         self.areas: dict[int, bytearray] = {S7Area.I: bytearray(AREA_BYTES), S7Area.Q: bytearray(AREA_BYTES),
                                             S7Area.M: bytearray(AREA_BYTES)}
         self.running = True
+        # Told of every write (area, DB number, first byte, byte count) after it landed: the OPC UA face
+        # pushes each change to its subscriptions instead of hoping a periodic sample catches it.
+        self.write_listeners: list[Callable[[int, int, int, int], None]] = []
         self._sensor_inputs: dict[int, Any] = {}
         for sensor in getattr(machine, "sensors", ()) if machine is not None else ():
             if sensor.plc_input:
@@ -145,6 +148,11 @@ class PlcModel:
         if area == S7Area.DB and db_number == db41.CHANNEL_DB and \
                 start_byte <= db41.OFFSET_HANDSHAKE < start_byte + len(data):
             self._run_channel()
+        if self.write_listeners:
+            if area == S7Area.DI:
+                area = S7Area.DB  # one memory: an instance DB is a DB
+            for listener in self.write_listeners:
+                listener(area, db_number, start_byte, len(data))
 
     def read_bit(self, area: int, db_number: int, byte: int, bit: int) -> bool:
         return bool(self.read(area, db_number, byte, 1)[0] >> bit & 1)
