@@ -206,11 +206,11 @@ def main() -> int:
     print(f"{'changes not delivered':28}{lost[0]:>24.1%}{lost[1]:>22.1%}")
     print(f"load average: {os.getloadavg()[0]:.2f} (2 cores)")
     print(f"target: CPU ratio <= 1.2 ({'met' if ours['server_cpu'] <= 1.2 * anchor['server_cpu'] else 'NOT met'}), "
-          f"no lost updates ({'met' if lost[1] <= 0.01 else 'NOT met'}, "
-          f"and {'no' if ours['changes_per_s'] >= 0.99 * ours['expected_per_s'] else 'fewer'} changes short of "
-          f"the expected rate)")
-    print("(a change the server made but no notification carried is lost; a server slower than the 100 ms "
-          "cycle makes fewer changes, which shows as changes made/s below the expected rate)")
+          f"no lost updates ({'met' if lost[1] <= 0.001 else 'NOT met'})")
+    made = [r["changes_per_s"] / r["expected_per_s"] for r in (anchor, ours)]
+    print(f"changes made against the 100 ms cycle's: anchor {made[0]:.0%}, face {made[1]:.0%} (a server process "
+          "too busy to keep its writer's time makes fewer changes; those are not lost updates)")
+    print("(a change the server made but no notification carried is lost)")
     return 0
 
 
