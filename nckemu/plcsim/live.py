@@ -118,7 +118,7 @@ class LiveMachine:
         self.server = server
         self.cycle_s = float(cycle_s)
         self.on_minute = on_minute
-        recording = load_recording(inputs) if isinstance(inputs, str | Path) else inputs
+        recording = load_recording(inputs, need_errors=False) if isinstance(inputs, str | Path) else inputs
         self.drive = RecordingDrive(emulator.machine, recording, cycle_s, warmup_s=warmup_s, loop=loop) \
             if recording is not None else None
         self.program = Path(plc) if plc is not None else None

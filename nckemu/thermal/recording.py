@@ -85,8 +85,10 @@ def _column_kind(name: str) -> tuple[str, str] | None:
     return None
 
 
-def _column_kinds(header: Sequence[str], source: str, line: int | None) -> dict[str, tuple[str, str]]:
-    """The kind of every column; the header must hold t_s and an err_ column, each name once."""
+def _column_kinds(header: Sequence[str], source: str, line: int | None,
+                  need_errors: bool = True) -> dict[str, tuple[str, str]]:
+    """The kind of every column; the header must hold t_s and (unless ``need_errors`` is false) an err_
+    column, each name once."""
     kinds: dict[str, tuple[str, str]] = {}
     for name in header:
         kind = _column_kind(name)
@@ -97,7 +99,7 @@ def _column_kinds(header: Sequence[str], source: str, line: int | None) -> dict[
         kinds[name] = kind
     if "t_s" not in kinds:
         raise NckConfigError("no t_s column", path=source, line=line, field="t_s")
-    if not any(kind == "err" for kind, _ in kinds.values()):
+    if need_errors and not any(kind == "err" for kind, _ in kinds.values()):
         raise NckConfigError("no err_<axis>_um column", path=source, line=line)
     return kinds
 
@@ -151,7 +153,7 @@ def _assemble(source: str, kinds: dict[str, tuple[str, str]], columns: dict[str,
     return recording
 
 
-def _parse_csv(data: bytes, source: str) -> Recording:
+def _parse_csv(data: bytes, source: str, need_errors: bool = True) -> Recording:
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -164,7 +166,7 @@ def _parse_csv(data: bytes, source: str) -> Recording:
             header = [h.strip() for h in next(reader)]
         except StopIteration:
             raise NckConfigError("empty file, expected a header line", path=source, line=1) from None
-        kinds = _column_kinds(header, source, 1)
+        kinds = _column_kinds(header, source, 1, need_errors)
         cells: list[list[float]] = [[] for _ in header]
         lines: list[int] = []
         nullable = [kinds[name][0] in ("err", "sim") for name in header]
@@ -220,7 +222,7 @@ def _parquet_column(column: object, name: str, source: str) -> np.ndarray:
     return values
 
 
-def _parse_parquet(data: bytes, source: str) -> Recording:
+def _parse_parquet(data: bytes, source: str, need_errors: bool = True) -> Recording:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -236,7 +238,7 @@ def _parse_parquet(data: bytes, source: str) -> Recording:
         header = [str(name) for name in table.column_names]
     except damaged as exc:
         raise refusal(exc) from None
-    kinds = _column_kinds(header, source, None)
+    kinds = _column_kinds(header, source, None, need_errors)
     try:
         columns = {name: _parquet_column(table.column(index), name, source) for index, name in enumerate(header)}
     except NckConfigError:
@@ -251,9 +253,10 @@ def is_parquet(path: str | Path) -> bool:
     return any(suffix.lower() in PARQUET_SUFFIXES for suffix in Path(path).suffixes)
 
 
-def load_recording(path: str | Path) -> Recording:
+def load_recording(path: str | Path, *, need_errors: bool = True) -> Recording:
     """Read and check a recording (CSV, or Parquet by its name or its magic bytes); every refusal names
-    the file, and the line (CSV) or row (Parquet) and the column."""
+    the file, and the line (CSV) or row (Parquet) and the column. ``need_errors=False`` accepts a
+    recording without ``err_`` columns (inputs to play back: sensors, positions, spindle speed)."""
     path = Path(path)
     source = str(path)
     try:
@@ -263,8 +266,8 @@ def load_recording(path: str | Path) -> Recording:
     except OSError as exc:
         raise NckConfigError(f"cannot read: {exc.strerror}", path=source) from None
     if is_parquet(path) or data[:4] == _PARQUET_MAGIC:
-        return _parse_parquet(data, source)
-    return _parse_csv(data, source)
+        return _parse_parquet(data, source, need_errors)
+    return _parse_csv(data, source, need_errors)
 
 
 def _columns(recording: Recording) -> dict[str, np.ndarray]:

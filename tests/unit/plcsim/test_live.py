@@ -131,6 +131,20 @@ def test_live_machine_needs_a_live_clock_and_a_server(tmp_path: Path) -> None:
         LiveMachine(Emulator(MACHINE, clock=LiveClock()), plc=PROGRAM)
 
 
+def test_inputs_to_play_back_need_no_gauge_column(tmp_path: Path) -> None:
+    """A recording of sensors, speed and positions only (no err_ column: nothing was gauged) drives a
+    living machine; the thermal commands still ask for the gauge column."""
+    full = write_recording(tmp_path / "full.csv", hours=0.2)
+    lines = full.read_text(encoding="utf-8").splitlines()
+    inputs_only = tmp_path / "inputs.csv"
+    inputs_only.write_text("\n".join(line.rsplit(",", 1)[0] for line in lines) + "\n", encoding="utf-8")
+    with pytest.raises(NckConfigError, match="no err_"):
+        load_recording(inputs_only)
+    live = LiveMachine(Emulator(MACHINE, clock=LiveClock()), inputs=inputs_only)
+    assert live.drive is not None
+    assert dict(live.drive.inputs(0).sensors_C)["bed"] == pytest.approx(25.0, abs=0.01)
+
+
 # ---------------------------------------------------------------------- bad input: one line, exit 1
 @pytest.mark.parametrize("case", ["missing_column", "speed_0", "no_ob1", "loop_alone", "http_in_use", "bad_awl"])
 def test_serve_bad_input_one_line(case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
