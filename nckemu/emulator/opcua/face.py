@@ -282,8 +282,8 @@ class OpcUaFace:
 
     def _wrap_session(self, session: Any) -> None:
         face = self
-        activate, read, call, subscribe = (session.activate_session, session.read, session.call,
-                                           session.create_subscription)
+        activate, read, call, subscribe, monitor = (session.activate_session, session.read, session.call,
+                                                    session.create_subscription, session.create_monitored_items)
 
         def activate_session(params: Any, peer_certificate: Any) -> Any:
             active = sum(1 for s in face._sessions if s is not session and s.state.name == "Activated")
@@ -310,10 +310,17 @@ class OpcUaFace:
             params.RequestedPublishingInterval = _allowed_interval(params.RequestedPublishingInterval)
             return await subscribe(params, callback, request_callback)
 
+        async def monitor_as_user(params: ua.CreateMonitoredItemsParameters) -> Any:
+            # The item's first value is read as this user, and an item on a variable the user may not
+            # read is refused: pushes later would otherwise carry values its reads are denied.
+            bind()
+            return await face._monitor_with_rights(params, monitor)
+
         session.activate_session = activate_session
         session.read = read_as_user
         session.call = call_as_user
         session.create_subscription = create_subscription
+        session.create_monitored_items = monitor_as_user
 
     def samples_per_s(self, subscriptions: Any) -> float:
         """What the data-change items of all subscriptions cost, in samples per second."""
@@ -348,6 +355,29 @@ class OpcUaFace:
                     for position in range(len(params.ItemsToCreate))]
 
         service.create_monitored_items = create_monitored_items
+
+    async def _monitor_with_rights(self, params: ua.CreateMonitoredItemsParameters,
+                                   create: Callable[[ua.CreateMonitoredItemsParameters], Any]) -> Any:
+        rights = _RIGHTS.get()
+        denied: set[int] = set()
+        for position, item in enumerate(params.ItemsToCreate):
+            nodeid = item.ItemToMonitor.NodeId
+            if item.ItemToMonitor.AttributeId != ua.AttributeIds.Value or nodeid.NamespaceIndex != self.namespace \
+                    or not isinstance(nodeid.Identifier, str):
+                continue
+            try:
+                name = self.node_name(nodeid.Identifier)
+            except NckNodeIdError:
+                continue  # asyncua answers for ids that are no variable
+            if not may(rights, name.realm, write=False):
+                denied.add(position)
+        if not denied:
+            return await create(params)
+        taken = [item for position, item in enumerate(params.ItemsToCreate) if position not in denied]
+        created = iter(await create(dataclasses.replace(params, ItemsToCreate=taken)) if taken else [])
+        refusal = ua.StatusCode(ua.StatusCodes.BadUserAccessDenied)
+        return [ua.MonitoredItemCreateResult(StatusCode_=refusal) if position in denied else next(created)
+                for position in range(len(params.ItemsToCreate))]
 
     # ------------------------------------------------------------------ subscriptions
     def _wrap_datachange(self, aspace: Any) -> None:
@@ -461,8 +491,7 @@ class OpcUaFace:
                 continue
             if now is None:
                 now = datetime.now(UTC)
-            # A source timestamp as asyncua's Node.write_value gives (each datetime costs a deepcopy per item).
-            value = _PushedValue(variant, SourceTimestamp=now)
+            value = _PushedValue(variant, SourceTimestamp=now, ServerTimestamp=now)
             for handle, callback in list(entry.node.attributes[value_attribute].datachange_callbacks.items()):
                 await callback(handle, value)
             pushed += 1
