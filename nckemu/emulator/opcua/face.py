@@ -387,7 +387,10 @@ class OpcUaFace:
         def add_datachange_callback(nodeid: ua.NodeId, attr: ua.AttributeIds, callback: Callable) -> Any:
             result = add(nodeid, attr, callback)
             if attr == ua.AttributeIds.Value and nodeid.NamespaceIndex == self.namespace and result[0].is_good():
-                name = self._names.get(str(nodeid.Identifier))
+                try:  # parsed again if the name cache was full when the node was made
+                    name: NodeName | None = self.node_name(str(nodeid.Identifier))
+                except NckNodeIdError:
+                    name = None  # a folder
                 if name is not None and nodeid not in monitored:
                     # The baseline is the value the monitored item has just read itself.
                     monitored[nodeid] = _Monitored(aspace._nodes[nodeid], name, raw_reader(self.emulator, name))
