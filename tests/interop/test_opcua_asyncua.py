@@ -322,55 +322,45 @@ def test_samples_per_second_cap_refuses_the_item_past_it() -> None:
     assert slow_taken == 25
 
 
-def test_a_monitored_item_starts_with_the_value_and_needs_the_read_right() -> None:
-    """The first notification is the variable's value read with the session's rights; an item on a
-    variable the session may not read is refused (later pushes would carry what its reads are denied)."""
-    from dataclasses import replace
-
+async def _first_notifications(face: OpcUaFace, ids: list[str]) -> tuple[list[str], dict[str, Any]]:
+    """Subscribe to ``ids`` anonymously: each item's create status and its first notification."""
     first: dict[str, Any] = {}
 
     class Handler:
         def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
             first.setdefault(str(node.nodeid.Identifier), (value, data.monitored_item.Value.StatusCode.name))
 
+    client = await _client(face)
+    try:
+        ns = await client.get_namespace_index(NS_URI)
+        subscription = await client.create_subscription(100, Handler())
+        handles = await subscription.subscribe_data_change([client.get_node(ua.NodeId(i, ns)) for i in ids])
+        await asyncio.sleep(0.4)
+        return [h.name if isinstance(h, ua.StatusCode) else "Good" for h in handles], first
+    finally:
+        await client.disconnect()
+
+
+def test_a_monitored_item_starts_with_the_value_and_needs_the_read_right() -> None:
+    """The first notification is the variable's value read with the session's rights; an item on a
+    variable the session may not read is refused (later pushes would carry what its reads are denied)."""
+    from dataclasses import replace
+
+    ids = ["/Channel/State/progStatus", "/Plc/DB130.DBW60"]
     with two_faces() as (emulator, face):
         face.settings = replace(face.settings, anonymous=frozenset({"StateRead"}))
         emulator.emulator.plc.write(0x84, 130, 60, b"\x00\x2a")
-
-        async def go() -> list[str]:
-            client = await _client(face)
-            try:
-                ns = await client.get_namespace_index(NS_URI)
-                subscription = await client.create_subscription(100, Handler())
-                handles = await subscription.subscribe_data_change(
-                    [client.get_node(ua.NodeId(i, ns)) for i in ("/Channel/State/progStatus", "/Plc/DB130.DBW60")])
-                await asyncio.sleep(0.4)
-                return [h.name if isinstance(h, ua.StatusCode) else "Good" for h in handles]
-            finally:
-                await client.disconnect()
-
-        statuses = run(go())
-        expected_status = emulator.emulator.nck.read(parse_node_id("/Channel/State/progStatus",
-                                                                   face.specs).address, HIGHEST)[0]
+        statuses, first = run(_first_notifications(face, ids))
+        expected_status = emulator.emulator.nck.read(parse_node_id(ids[0], face.specs).address, HIGHEST)[0]
     assert statuses == ["Good", "BadUserAccessDenied"]
-    assert first["/Channel/State/progStatus"] == (expected_status, "Good")
-    assert "/Plc/DB130.DBW60" not in first
+    assert first[ids[0]] == (expected_status, "Good")
+    assert ids[1] not in first
 
     with two_faces() as (emulator, face):  # SinuReadAll (the default machine's anonymous): the value
         emulator.emulator.plc.write(0x84, 130, 60, b"\x00\x2a")
-
-        async def plc_first() -> None:
-            client = await _client(face)
-            try:
-                ns = await client.get_namespace_index(NS_URI)
-                subscription = await client.create_subscription(100, Handler())
-                await subscription.subscribe_data_change(client.get_node(ua.NodeId("/Plc/DB130.DBW60", ns)))
-                await asyncio.sleep(0.4)
-            finally:
-                await client.disconnect()
-
-        run(plc_first())
-    assert first["/Plc/DB130.DBW60"] == (42, "Good")
+        statuses, first = run(_first_notifications(face, ids))
+    assert statuses == ["Good", "Good"]
+    assert first[ids[1]] == (42, "Good")
 
 
 def test_machine_file_var_rows_are_served() -> None:
