@@ -24,7 +24,7 @@ import dataclasses
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, MutableMapping
 from datetime import UTC, datetime
 from typing import Any
 
@@ -40,6 +40,7 @@ from nckemu.protocol.addresses import S7Area
 
 from ..core import Emulator
 from . import files
+from . import shelf as address_cache
 from .settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
 from .values import PLC_AREAS, UaStatus, raw_reader, read_value, variant_from_raw, variant_type, write_value
 
@@ -117,8 +118,8 @@ class OpcUaFace:
 
     # ------------------------------------------------------------------ start / stop
     async def start(self) -> OpcUaFace:
+        await self._init_server()
         server = self.server
-        await server.init()
         server.set_endpoint(f"opc.tcp://{self.host}:{self.port}/")
         server.set_server_name(f"nckemu {self.emulator.machine.name}")
         server.set_security_policy([ua.SecurityPolicyType.NoSecurity], permission_ruleset=_RealmRules())
@@ -147,6 +148,23 @@ class OpcUaFace:
         log.info("OPC UA face on opc.tcp://%s:%d/ (namespace %s = ns=%d)", self.host, self.port,
                  self.settings.namespace_uri, self.namespace)
         return self
+
+    async def _init_server(self) -> None:
+        """asyncua's standard address space from the shared shelf (built by the first face to start)."""
+        shelf = address_cache.ready_shelf()
+        if shelf is not None:
+            try:
+                await self.server.init(shelf)
+                return
+            except Exception as exc:  # a damaged cache costs the time to build it again, nothing else
+                log.warning("OPC UA: the address-space cache %s did not load (%s); building it again",
+                            shelf.parent, exc)
+                address_cache.discard(shelf)
+                self.server = Server(user_manager=_UserManager(self.settings))
+        building = address_cache.new_shelf()
+        await self.server.init(building)
+        if building is not None:
+            address_cache.publish(building)
 
     def bound_port(self) -> int:
         sockets = self.server.bserver._server.sockets  # type: ignore[union-attr]
@@ -593,14 +611,23 @@ def _allowed_interval(requested_ms: float) -> float:
 class _LazyNodes(dict):  # type: ignore[type-arg]
     """asyncua's node dict, making a SINUMERIK variable node when a service first names its id."""
 
-    def __init__(self, nodes: dict[ua.NodeId, NodeData], face: OpcUaFace) -> None:
-        super().__init__(nodes)
+    def __init__(self, nodes: MutableMapping[ua.NodeId, NodeData], face: OpcUaFace) -> None:
+        super().__init__(nodes)  # what asyncua has made so far (from a shelf: only the nodes it touched)
+        self._standard = nodes   # the standard address space, read from the shelf as nodes are first named
         self._face = face
 
     def _make(self, nodeid: object) -> NodeData | None:
         face = self._face
-        if not isinstance(nodeid, ua.NodeId) or nodeid.NamespaceIndex != face.namespace \
-                or not isinstance(nodeid.Identifier, str):
+        if not isinstance(nodeid, ua.NodeId):
+            return None
+        if nodeid.NamespaceIndex == 0:
+            try:
+                node = self._standard[nodeid]
+            except KeyError:
+                return None
+            dict.__setitem__(self, nodeid, node)
+            return node
+        if nodeid.NamespaceIndex != face.namespace or not isinstance(nodeid.Identifier, str):
             return None
         try:
             name = face.node_name(nodeid.Identifier)
