@@ -11,7 +11,10 @@ Throughput: 8 python-snap7 client processes, each with one connection to every 8
 same number of connections each, all to machine 1. The ratio says what spreading the load over many
 machines (many listening sockets, many emulators) costs the one event loop.
 
-Usage: .venv/bin/python bench/bench_fleet.py [--counts 1 10 100] [--seconds 3] [--clients 8]
+OPC UA: the same fleet with an OPC UA face on each machine (``--opcua-base-port``), its RSS and the time
+until every face listens, for ``--opcua`` machines (0 skips), against one ``nckemu serve --opcua``.
+
+Usage: .venv/bin/python bench/bench_fleet.py [--counts 1 10 100] [--seconds 3] [--clients 8] [--opcua 5]
 """
 
 from __future__ import annotations
@@ -58,10 +61,10 @@ def free_range(count: int) -> int:
     raise RuntimeError(f"no {count} consecutive free ports")
 
 
-def start_fleet(count: int, base: int) -> tuple[subprocess.Popen[str], list[int]]:
+def start_fleet(count: int, base: int, *extra: str) -> tuple[subprocess.Popen[str], list[int]]:
     process = subprocess.Popen([sys.executable, "-m", "nckemu", "fleet", "--count", str(count), "--base-port",
-                                str(base), "--max-connections", "1024", "--json"], cwd=REPO, stdout=subprocess.PIPE,
-                               stderr=subprocess.DEVNULL, text=True)
+                                str(base), "--max-connections", "1024", "--json", *extra], cwd=REPO,
+                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     assert process.stdout is not None
     ready = json.loads(process.stdout.readline())
     return process, [machine["port"] for machine in ready["machines"]]
@@ -89,6 +92,35 @@ def serve_rss_mb() -> float:
     finally:
         process.terminate()
         process.wait()
+
+
+def opcua_figures(count: int) -> dict[str, float]:
+    """RSS and seconds to ready: a fleet of ``count`` machines with OPC UA faces, one ``serve --opcua``."""
+    base = free_range(2 * count)
+    started = time.monotonic()
+    process, ports = start_fleet(count, base, "--opcua-base-port", str(base + count))
+    try:
+        fleet_s = time.monotonic() - started
+        touch(ports)
+        fleet_mb = rss_mb(process.pid)
+    finally:
+        process.terminate()
+        process.wait()
+    port, ua_port = free_port(), free_port()
+    started = time.monotonic()
+    serve = subprocess.Popen([sys.executable, "-m", "nckemu", "serve", "--port", str(port), "--opcua", str(ua_port),
+                              "--json"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        assert serve.stdout is not None
+        serve.stdout.readline()
+        serve_s = time.monotonic() - started
+        touch([port])
+        serve_mb = rss_mb(serve.pid)
+    finally:
+        serve.terminate()
+        serve.wait()
+    return {"machines": count, "fleet_rss_mb": fleet_mb, "fleet_ready_s": fleet_s, "serve_rss_mb": serve_mb,
+            "serve_ready_s": serve_s}
 
 
 def reader(ports: list[int], seconds: float, out: Any, start: Any) -> None:
@@ -136,6 +168,7 @@ def main() -> int:
     parser.add_argument("--counts", type=int, nargs="+", default=[1, 10, 100])
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--clients", type=int, default=8)
+    parser.add_argument("--opcua", type=int, default=5, help="machines of the OPC UA fleet (0: skip)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
 
@@ -166,6 +199,8 @@ def main() -> int:
     result = {"serve_rss_mb": anchor, "memory": memory, "machines": count, "clients": args.clients,
               "connections": sum(len(a) for a in spread), "spread": fleet_rate, "one_machine": one_rate,
               "ratio_spread_over_one": fleet_rate["reads_per_s"] / one_rate["reads_per_s"]}
+    if args.opcua > 0:
+        result["opcua"] = opcua_figures(args.opcua)
     if args.json:
         print(json.dumps(result))
         return 0
@@ -179,6 +214,12 @@ def main() -> int:
           f"({fleet_rate['server_cpu_us_per_read']:.0f} us server CPU/read), all on one machine "
           f"{one_rate['reads_per_s']:.0f} ({one_rate['server_cpu_us_per_read']:.0f} us); "
           f"ratio {result['ratio_spread_over_one']:.2f}")
+    if "opcua" in result:
+        ua = result["opcua"]
+        print(f"with an OPC UA face each: {ua['machines']} machines {ua['fleet_rss_mb']:.0f} MB RSS, ready in "
+              f"{ua['fleet_ready_s']:.1f} s ({(ua['fleet_rss_mb'] - memory[0]['rss_mb']) / ua['machines']:.0f} MB "
+              f"per machine over a plain one-machine fleet); anchor: one `serve --opcua` {ua['serve_rss_mb']:.0f} MB, "
+              f"ready in {ua['serve_ready_s']:.1f} s")
     return 0
 
 

@@ -33,7 +33,7 @@ from .server import EmulatorServer, ServerLimits
 
 log = logging.getLogger(__name__)
 
-MACHINE_KEYS = frozenset({"name", "port", "host", "machine", "inputs", "plc", "speed", "cycle", "loop"})
+MACHINE_KEYS = frozenset({"name", "port", "host", "machine", "inputs", "plc", "speed", "cycle", "loop", "opcua"})
 FLEET_KEYS = frozenset({"host", "machine"})
 DEFAULT_HOST = "127.0.0.1"
 
@@ -52,6 +52,7 @@ class FleetMachine:
     speed: str | None = None     # the living machine's simulated time per real time ("60x")
     cycle: str | None = None     # its PLC and recording cycle ("1s")
     loop: bool = False           # its recording starts over at its end
+    opcua: int | None = None     # the port of its OPC UA face (same host); None: S7 only
 
     @property
     def address(self) -> str:
@@ -110,13 +111,13 @@ def _host(value: str | None, source: str, line: int | None) -> str:
     return value
 
 
-def _port(row: Mapping[str, Any], source: str, line: int | None) -> int:
-    port = row.get("port")
+def _port(row: Mapping[str, Any], source: str, line: int | None, key: str = "port") -> int:
+    port = row.get(key)
     if port is None:
         raise NckConfigError("missing (a TCP port, 1..65535; 102 needs root or its own address)",
-                             path=source, line=line, field="port")
+                             path=source, line=line, field=key)
     if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
-        raise NckConfigError(f"{port!r} is not a TCP port (1..65535)", path=source, line=line, field="port")
+        raise NckConfigError(f"{port!r} is not a TCP port (1..65535)", path=source, line=line, field=key)
     return port
 
 
@@ -165,11 +166,15 @@ def parse_fleet(text: str, source: str, base: Path | None = None) -> FleetSpec:
         names[name] = line
         host = _host(_text(row, "host", source, line), source, line) if "host" in row else default_host
         port = _port(row, source, line)
-        holder = addresses.get((host, port))
-        if holder is not None:
-            raise NckConfigError(f"{host}:{port} is already taken by machine {holder!r}", path=source, line=line,
-                                 field="port")
-        addresses[(host, port)] = name
+        opcua = _port(row, source, line, "opcua") if "opcua" in row else None
+        for key, taken in (("port", port), ("opcua", opcua)):
+            if taken is None:
+                continue
+            holder = addresses.get((host, taken))
+            if holder is not None:
+                raise NckConfigError(f"{host}:{taken} is already taken by {holder}", path=source, line=line,
+                                     field=key)
+            addresses[(host, taken)] = f"machine {name!r}" + (" (its OPC UA face)" if key == "opcua" else "")
         speed = row.get("speed")
         if speed is not None and (isinstance(speed, bool) or not isinstance(speed, str | int | float)):
             raise NckConfigError("expected a speed such as \"60x\" or 60", path=source, line=line, field="speed")
@@ -180,7 +185,8 @@ def parse_fleet(text: str, source: str, base: Path | None = None) -> FleetSpec:
             name=name, host=host, port=port, line=line,
             machine=_path(row, "machine", source, line, base, default_machine),
             inputs=_path(row, "inputs", source, line, base), plc=_path(row, "plc", source, line, base),
-            speed=None if speed is None else str(speed), cycle=_text(row, "cycle", source, line), loop=loop))
+            speed=None if speed is None else str(speed), cycle=_text(row, "cycle", source, line), loop=loop,
+            opcua=opcua))
     return FleetSpec(source, tuple(machines))
 
 
@@ -189,18 +195,24 @@ def load_fleet(path: str | Path) -> FleetSpec:
     return parse_fleet(read_text(path, "a fleet is TOML text"), str(path), path.parent)
 
 
-def quick_fleet(count: int, base_port: int, machine: str | None = None, host: str = DEFAULT_HOST) -> FleetSpec:
-    """``--count N --base-port P``: machines m001.. on ports P, P+1, ... all of one machine file."""
+def quick_fleet(count: int, base_port: int, machine: str | None = None, host: str = DEFAULT_HOST,
+                opcua_base_port: int | None = None) -> FleetSpec:
+    """``--count N --base-port P [--opcua-base-port U]``: machines m001.. on ports P, P+1, ... all of one
+    machine file, with OPC UA faces on U, U+1, ... when given."""
     if count < 1:
         raise NckConfigError(f"--count {count}: at least one machine")
-    if base_port < 1 or base_port + count - 1 > 65535:
-        raise NckConfigError(f"--base-port {base_port}: ports {base_port}..{base_port + count - 1} are not all "
-                             f"in 1..65535")
+    for option, first in (("--base-port", base_port), ("--opcua-base-port", opcua_base_port)):
+        if first is not None and (first < 1 or first + count - 1 > 65535):
+            raise NckConfigError(f"{option} {first}: ports {first}..{first + count - 1} are not all in 1..65535")
+    if opcua_base_port is not None and opcua_base_port < base_port + count and base_port < opcua_base_port + count:
+        raise NckConfigError(f"--opcua-base-port {opcua_base_port}: its ports overlap the S7 ports "
+                             f"{base_port}..{base_port + count - 1}")
     if machine is not None and not Path(machine).is_file():
         raise NckConfigError("no such file", path=machine, field="--machine")
     width = max(3, len(str(count)))
     return FleetSpec(f"--count {count}", tuple(
-        FleetMachine(name=f"m{number:0{width}d}", host=host, port=base_port + number - 1, machine=machine)
+        FleetMachine(name=f"m{number:0{width}d}", host=host, port=base_port + number - 1, machine=machine,
+                     opcua=None if opcua_base_port is None else opcua_base_port + number - 1)
         for number in range(1, count + 1)))
 
 
@@ -236,6 +248,7 @@ class RunningMachine:
     emulator: Emulator
     server: EmulatorServer
     face: Face | None = None
+    opcua: Face | None = None     # its OPC UA face (an ``OpcUaFace``)
 
     @property
     def port(self) -> int:
@@ -244,7 +257,8 @@ class RunningMachine:
     def ready(self) -> dict[str, Any]:
         return {"name": self.entry.name, "host": self.entry.host, "port": self.port,
                 "machine": self.emulator.machine.name, "state": str(self.emulator.store.path)
-                if self.emulator.store is not None else None, "living": self.face is not None}
+                if self.emulator.store is not None else None, "living": self.face is not None,
+                **(self.opcua.ready if self.opcua is not None else {})}
 
 
 class Fleet:
@@ -282,7 +296,16 @@ class Fleet:
                                      field="name") from None
             server = EmulatorServer(emulator, host=entry.host, port=entry.port, limits=limits)
             face = make_face(emulator, server) if make_face is not None else None
-            self.machines.append(RunningMachine(entry, emulator, server, face))
+            opcua: Face | None = None
+            if entry.opcua is not None:
+                from .opcua import OpcUaFace  # asyncua is imported only by fleets that serve OPC UA
+
+                try:
+                    opcua = OpcUaFace(emulator, entry.host, entry.opcua)
+                except NckConfigError as exc:
+                    raise NckConfigError(f"machine {entry.name!r}: {exc}", path=spec.source, line=entry.line,
+                                         field="opcua") from None
+            self.machines.append(RunningMachine(entry, emulator, server, face, opcua))
 
     def __getitem__(self, name: str) -> RunningMachine:
         for machine in self.machines:
@@ -313,11 +336,24 @@ class Fleet:
                 await self._stop(started)
                 raise NckConfigError(f"machine {machine.entry.name!r}: the living machine did not start: {exc}",
                                      path=self.spec.source, line=machine.entry.line) from None
+        with_opcua = [machine for machine in self.machines if machine.opcua is not None]
+        for index, machine in enumerate(with_opcua):
+            assert machine.opcua is not None
+            try:
+                await machine.opcua.start()
+            except OSError as exc:
+                for unstarted in with_opcua[index:]:
+                    unstarted.opcua = None
+                await self._stop(started)
+                entry = machine.entry
+                raise NckConfigError(self._bind_error(entry, exc, entry.opcua).replace(
+                    "cannot bind", "OPC UA face cannot bind"), path=self.spec.source, line=entry.line,
+                    field="opcua") from None
         return self
 
     @staticmethod
-    def _bind_error(entry: FleetMachine, exc: OSError) -> str:
-        where = f"machine {entry.name!r}: cannot bind {entry.address}"
+    def _bind_error(entry: FleetMachine, exc: OSError, port: int | None = None) -> str:
+        where = f"machine {entry.name!r}: cannot bind {entry.host}:{port or entry.port}"
         if exc.errno in (errno.EACCES, errno.EPERM):
             return f"{where} (permission denied: ports below 1024 need root)"
         if exc.errno == errno.EADDRINUSE:
@@ -334,6 +370,8 @@ class Fleet:
     async def _stop(machines: list[RunningMachine]) -> None:
         for machine in machines:
             try:
+                if machine.opcua is not None:
+                    await machine.opcua.stop()
                 if machine.face is not None:
                     await machine.face.stop()
                 await machine.server.stop()

@@ -17,12 +17,14 @@ EXAMPLE = """\
 examples:
   nckemu fleet fixtures/fleets/lab.toml
   nckemu fleet --count 100 --base-port 21001 --machine fixtures/machines/bed_ramp.toml --state states/
+  nckemu fleet --count 5 --base-port 21001 --opcua-base-port 24841   # and an OPC UA face each
 a fleet file:
   [fleet]                       # defaults for every machine (optional)
   machine = "../machines/bed_ramp.toml"
   [[machine]]
   name = "mill-01"
   port = 21001                  # or host = "127.0.0.12" and port = 102 (as root)
+  opcua = 24841                 # optional: its OPC UA face (about 55 MB and 1.5 s to start each)
   [[machine]]
   name = "lathe-02"
   port = 21002
@@ -45,6 +47,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("fleet", nargs="?", help="fleet TOML ([[machine]] tables: name, port, host, machine)")
     parser.add_argument("--count", type=int, help="instead of a fleet file: this many machines")
     parser.add_argument("--base-port", type=port_number, help="with --count: the first machine's port")
+    parser.add_argument("--opcua-base-port", type=port_number,
+                        help="with --count: an OPC UA face for each machine, the first on this port")
     parser.add_argument("--machine", help="with --count: machine TOML (default: the built-in default machine)")
     parser.add_argument("--host", default="127.0.0.1", help="with --count: address to bind (default 127.0.0.1)")
     parser.add_argument("--state", metavar="DIR", help="keep each machine's retained data in DIR/<name>.json")
@@ -64,10 +68,11 @@ def run_fleet(args: argparse.Namespace, *, living: LivingHook | None = None) -> 
     if args.fleet is None:
         if args.count is None or args.base_port is None:
             raise NckConfigError("give a fleet file, or --count N --base-port P")
-        spec = quick_fleet(args.count, args.base_port, args.machine, args.host)
+        spec = quick_fleet(args.count, args.base_port, args.machine, args.host, args.opcua_base_port)
     else:
-        if args.machine is not None or args.base_port is not None:
-            raise NckConfigError("--machine and --base-port go with --count; a fleet file names its own")
+        if args.machine is not None or args.base_port is not None or args.opcua_base_port is not None:
+            raise NckConfigError("--machine, --base-port and --opcua-base-port go with --count; a fleet file "
+                                 "names its own")
         spec = load_fleet(args.fleet)
     if args.max_connections < 1:
         raise NckConfigError(f"--max-connections {args.max_connections}: at least 1")
@@ -88,7 +93,8 @@ async def _serve(fleet: Fleet, args: argparse.Namespace) -> int:
     else:
         for machine in ready:
             alive = ", living" if machine["living"] else ""
-            print(f"{machine['name']} {machine['host']}:{machine['port']} ({machine['machine']}{alive})")
+            opcua = f", OPC UA {machine['opcua']}" if "opcua" in machine else ""
+            print(f"{machine['name']} {machine['host']}:{machine['port']} ({machine['machine']}{alive}{opcua})")
         print(f"nckemu fleet: {len(ready)} machine(s) serving (NCK: rack 0 slot 4, PLC: rack 0 slot 2). "
               f"Ctrl-C stops.", flush=True)
     try:

@@ -34,6 +34,25 @@ def _free_ports(count: int) -> list[int]:
             sock.close()
 
 
+def _consecutive_free(count: int, avoid: range = range(0)) -> int:
+    """A first port of ``count`` consecutive free ports (outside ``avoid``)."""
+    for _ in range(100):
+        base = _free_ports(1)[0]
+        if base + count > 65535 or base in avoid or base + count - 1 in avoid:
+            continue
+        sockets = [socket.socket() for _ in range(count)]
+        try:
+            for offset, sock in enumerate(sockets):
+                sock.bind(("127.0.0.1", base + offset))
+            return base
+        except OSError:
+            continue
+        finally:
+            for sock in sockets:
+                sock.close()
+    raise RuntimeError(f"no {count} consecutive free ports")
+
+
 async def test_a_write_on_one_machine_is_never_seen_on_another() -> None:
     fleet = await Fleet(_spec(3)).start()
     try:
@@ -123,6 +142,53 @@ def test_cli_one_line_per_machine_then_state_survives_a_restart(tmp_path: Path) 
     finally:
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=20) == 0
+
+
+async def test_each_machine_has_its_own_opcua_face_over_its_own_model() -> None:
+    """An S7 write on one machine is read over that machine's OPC UA face and not over another's."""
+    from asyncua import Client, ua
+
+    spec = FleetSpec("test", tuple(FleetMachine(f"m{i}", "127.0.0.1", 0, opcua=0) for i in (1, 2)))
+    fleet = await Fleet(spec).start()
+    try:
+        first, second = fleet.machines
+        assert first.ready()["opcua"] != second.ready()["opcua"]
+        async with AsyncNckClient("127.0.0.1", first.port) as client:
+            await client.put({"SD43900[AX4]": 0.3})
+        values = []
+        for machine in (first, second):
+            async with Client(machine.ready()["opcua"], timeout=10) as ua_client:
+                ns = await ua_client.get_namespace_index("SinumerikVarProvider")
+                node = ua_client.get_node(ua.NodeId("/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]", ns))
+                values.append(await node.read_value())
+        assert values == [0.3, 0.0]
+    finally:
+        await fleet.stop()
+
+
+def test_cli_opcua_faces_one_line_each_and_a_taken_port_named(tmp_path: Path) -> None:
+    s7 = _consecutive_free(2)
+    opcua = _consecutive_free(2, avoid=range(s7 - 1, s7 + 3))
+    process = _fleet("--count", "2", "--base-port", str(s7), "--opcua-base-port", str(opcua), "--json")
+    try:
+        assert process.stdout is not None
+        ready = json.loads(process.stdout.readline())
+        assert [m["opcua"] for m in ready["machines"]] == [f"opc.tcp://127.0.0.1:{p}/" for p in (opcua, opcua + 1)]
+    finally:
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0
+    with socket.socket() as taken:
+        taken.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        fleet = tmp_path / "fleet.toml"
+        fleet.write_text(f'[[machine]]\nname = "ua"\nport = {_free_ports(1)[0]}\nopcua = {port}\n', encoding="utf-8")
+        process = _fleet(str(fleet))
+        out, err = process.communicate(timeout=60)
+    assert process.returncode == 1, (out, err)
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"line 1, field 'opcua': machine 'ua': OPC UA face cannot bind 127.0.0.1:{port}: already in use" in err
 
 
 def test_cli_port_in_use_is_one_line_naming_the_machine(tmp_path: Path) -> None:

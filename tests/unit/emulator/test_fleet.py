@@ -54,6 +54,11 @@ def test_loopback_addresses_with_port_102_are_distinct_machines() -> None:
     ('[machines]\n', "field 'machines': unknown table or key"),
     ('# nothing\n', "no [[machine]] in it"),
     ('[[machine]\n', "fleet.toml: "),
+    ('[[machine]]\nname = "a"\nport = 2001\nopcua = "4840"\n', "fleet.toml, line 1, field 'opcua': '4840' is not a TCP"),
+    ('[[machine]]\nname = "a"\nport = 2001\nopcua = 2001\n',
+     "fleet.toml, line 1, field 'opcua': 127.0.0.1:2001 is already taken by machine 'a'"),
+    ('[[machine]]\nname = "a"\nport = 2001\nopcua = 4840\n\n[[machine]]\nname = "b"\nport = 4840\n',
+     "fleet.toml, line 6, field 'port': 127.0.0.1:4840 is already taken by machine 'a' (its OPC UA face)"),
 ])
 def test_bad_fleet_files_are_refused_naming_line_and_field(tmp_path: Path, text: str, expected: str) -> None:
     assert expected in _refused(text, tmp_path)
@@ -86,6 +91,11 @@ def test_quick_fleet_numbers_machines_and_ports() -> None:
         quick_fleet(10, 65530)
     with pytest.raises(NckConfigError, match="at least one machine"):
         quick_fleet(0, 2001)
+    with_opcua = quick_fleet(3, 2001, opcua_base_port=4841)
+    assert [m.opcua for m in with_opcua.machines] == [4841, 4842, 4843]
+    assert [m.opcua for m in spec.machines] == [None] * 3
+    with pytest.raises(NckConfigError, match="overlap the S7 ports 2001..2003"):
+        quick_fleet(3, 2001, opcua_base_port=2003)
 
 
 def test_machines_of_one_file_share_the_parsed_machine_not_the_state() -> None:
