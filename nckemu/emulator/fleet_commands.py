@@ -17,7 +17,7 @@ EXAMPLE = """\
 examples:
   nckemu fleet fixtures/fleets/lab.toml
   nckemu fleet --count 100 --base-port 21001 --machine fixtures/machines/bed_ramp.toml --state states/
-  nckemu fleet --count 5 --base-port 21001 --opcua-base-port 24841   # and an OPC UA face each
+  nckemu fleet --count 5 --base-port 21001 --opcua-base-port 24841
 a fleet file:
   [fleet]                       # defaults for every machine (optional)
   machine = "../machines/bed_ramp.toml"
