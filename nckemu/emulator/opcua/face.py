@@ -97,9 +97,9 @@ class OpcUaFace:
         self._names: dict[str, NodeName] = {}
         self._monitored: dict[ua.NodeId, _Monitored] = {}
         self._plc_index: _PlcIndex | None = None  # rebuilt after the monitored set changed
-        self._dirty: set[_Monitored] = set()
+        self._pending: list[tuple[_Monitored, object]] = []  # captured at the write, pushed in order
         self._push_scheduled = False
-        self._pushes: set[asyncio.Task[int]] = set()
+        self._pusher: asyncio.Task[None] | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._loop_thread = 0
         self._sampler: asyncio.Task[None] | None = None
@@ -188,6 +188,8 @@ class OpcUaFace:
 
     async def stop(self) -> None:
         self._unlisten()
+        if self._pusher is not None:
+            self._pusher.cancel()
         if self._sampler is not None:
             self._sampler.cancel()
             try:
@@ -427,10 +429,12 @@ class OpcUaFace:
         aspace.add_datachange_callback = add_datachange_callback
         aspace.delete_datachange_callback = delete_datachange_callback
 
-    # A write to the model pushes what it changed at the next turn of the loop (once per turn however
-    # many writes came), so every change a writer makes between two publishes reaches the queue of the
-    # monitored item. The sampler still runs for what changes without a write (the machine's own
-    # dynamics, sensors, PI services, the PLC program's memory).
+    # A write to the model captures, there and then, the new raw value of every monitored item it
+    # touched; one pusher task hands the captured values to the monitored items in the order they were
+    # written. Capturing at the write (not reading at the push) keeps each value even when the next
+    # write lands before the pusher runs, so every change a writer makes reaches the item's queue. The
+    # sampler captures what changes without a write (the machine's own dynamics, sensors, PI services,
+    # the PLC program's memory).
     def _listen(self) -> None:
         self._loop = asyncio.get_running_loop()
         self._loop_thread = threading.get_ident()
@@ -448,19 +452,31 @@ class OpcUaFace:
             self._plc_index = _PlcIndex(self._monitored.values())
         touched = self._plc_index.touched(area, db_number, start_byte, start_byte + size_bytes)
         if touched:
-            self._dirty.update(touched)
-            self._schedule_push()
+            self._capture(touched)
 
     def _nc_written(self, _address: Any) -> None:
         # One NC write can move other NC values (a compensation value moves positions): all NC items.
-        touched = [entry for entry in self._monitored.values() if entry.nc]
-        if touched:
-            self._dirty.update(touched)
+        self._capture([entry for entry in self._monitored.values() if entry.nc])
+
+    def _capture(self, entries: Any) -> int:
+        """Queue the raw value of each entry that differs from the one queued last; how many."""
+        captured = 0
+        for entry in entries:
+            try:
+                raw = entry.reader()
+            except Exception:  # the variable went away (a DB shrank): the client keeps its last value
+                continue
+            if raw != entry.raw:
+                entry.raw = raw
+                self._pending.append((entry, raw))
+                captured += 1
+        if captured:
             self._schedule_push()
+        return captured
 
     def _schedule_push(self) -> None:
-        if self._push_scheduled or self._loop is None:
-            return
+        if self._push_scheduled or self._pusher is not None or self._loop is None:
+            return  # a pusher running takes what was queued meanwhile before it ends
         self._push_scheduled = True
         if threading.get_ident() == self._loop_thread:
             self._loop.call_soon(self._start_push)
@@ -469,10 +485,18 @@ class OpcUaFace:
 
     def _start_push(self) -> None:
         self._push_scheduled = False
-        dirty, self._dirty = self._dirty, set()
-        task = self._loop.create_task(self._push_changed(dirty))  # type: ignore[union-attr]
-        self._pushes.add(task)
-        task.add_done_callback(self._pushes.discard)
+        if self._pusher is None and self._loop is not None:
+            self._pusher = self._loop.create_task(self._drain())
+
+    async def _drain(self) -> None:
+        try:
+            while self._pending:
+                batch, self._pending = self._pending, []
+                await self._push(batch)
+        except Exception:  # a pusher must not die silently; what it could not push is dropped, logged
+            log.exception("OPC UA pusher")
+        finally:
+            self._pusher = None
 
     async def _sample_forever(self) -> None:
         interval_s = self.settings.sample_interval_ms / 1000.0
@@ -480,7 +504,7 @@ class OpcUaFace:
         while True:
             next_s += interval_s
             try:
-                await self.sample()
+                self.sample()
             except Exception:  # a sampler must keep sampling; the fault is logged
                 log.exception("OPC UA sampler")
             delay = next_s - time.monotonic()
@@ -489,48 +513,24 @@ class OpcUaFace:
                 delay = 0
             await asyncio.sleep(delay)
 
-    async def sample(self) -> int:
-        """Push the monitored values that changed since they were last pushed; how many were pushed."""
-        return await self._push_changed(list(self._monitored.values()))
+    def sample(self) -> int:
+        """Queue the monitored values that changed since they were last queued; how many."""
+        return self._capture(list(self._monitored.values()))
 
-    async def _push_changed(self, entries: Any) -> int:
-        pushed = 0
-        value: ua.DataValue | None = None
-        now = None
+    async def _push(self, batch: list[tuple[_Monitored, object]]) -> None:
+        now = datetime.now(UTC)
         value_attribute = ua.AttributeIds.Value
-        for entry in entries:
-            try:
-                raw = entry.reader()
-            except Exception:  # the variable went away (a DB shrank): the client keeps its last value
-                continue
-            if raw == entry.raw:
-                continue
-            entry.raw = raw
+        pushed = 0
+        for entry, raw in batch:
             try:
                 variant = variant_from_raw(entry.name, raw)
             except (UaStatus, ValueError, TypeError):
                 continue
-            if now is None:
-                now = datetime.now(UTC)
             value = _PushedValue(variant, SourceTimestamp=now, ServerTimestamp=now)
             for handle, callback in list(entry.node.attributes[value_attribute].datachange_callbacks.items()):
                 await callback(handle, value)
             pushed += 1
         self.updates_pushed += pushed
-        return pushed
-
-    async def push_now(self, nodeid: ua.NodeId, variant: ua.Variant) -> None:
-        """After a write over OPC UA: the item written is pushed with the write's server timestamp (the
-        model's write listeners push every other item the write touched)."""
-        entry = self._monitored.get(nodeid)
-        if entry is None:
-            return
-        entry.raw = _raw_now(entry.reader)  # pushed now: neither the listener nor the sampler push it again
-        self._dirty.discard(entry)
-        now = datetime.now(UTC)
-        value = _PushedValue(variant, SourceTimestamp=now, ServerTimestamp=now)
-        for handle, callback in list(entry.node.attributes[ua.AttributeIds.Value].datachange_callbacks.items()):
-            await callback(handle, value)
 
 
 class _PushedValue(ua.DataValue):
@@ -711,10 +711,8 @@ class _SinumerikAttributes(AttributeService):
             try:
                 if write_value(face.emulator, name, item.Value.Value if item.Value else None):
                     face.emulator.persist()
-                variant = read_value(face.emulator, name)
             except UaStatus as status:
                 results.append(status.code)
                 continue
-            await face.push_now(nodeid, variant)
-            results.append(ua.StatusCode())
+            results.append(ua.StatusCode())  # monitored items: the model's write listener pushes the value
         return results
