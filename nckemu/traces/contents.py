@@ -29,8 +29,17 @@ class Contents:
 Subscriptions = dict[tuple[int, int], tuple[Address, ...]]
 
 
+@dataclass
+class UserdataState:
+    """What a capture's userdata PDUs leave for later ones: cyclic subscriptions (their items name the
+    values of later pushes) and SZL lists answered in several parts (named whole at the last part)."""
+
+    subscriptions: Subscriptions = field(default_factory=dict)
+    szl_parts: dict[int, list[bytes]] = field(default_factory=dict)  # connection -> the bodies so far
+
+
 def userdata_contents(header: userdata.UserdataParameter, data: bytes, stage: str, connection: int,
-                      subscriptions: Subscriptions, request: userdata.UserdataParameter | None = None,
+                      state: UserdataState, request: userdata.UserdataParameter | None = None,
                       request_data: bytes = b"") -> Contents | None:
     """The contents of one userdata PDU's data part (``stage``: request, response or push; a response
     comes with its request's parameter and data). None where there is nothing to name."""
@@ -38,20 +47,18 @@ def userdata_contents(header: userdata.UserdataParameter, data: bytes, stage: st
         return None  # an error answer (0A 00 00 00) or no data: the header says it all
     body = data[4:4 + int.from_bytes(data[2:4], "big")]
     try:
-        return _contents(header, data, body, stage, connection, subscriptions, request, request_data)
+        return _contents(header, data, body, stage, connection, state, request, request_data)
     except (NckError, ValueError, IndexError) as exc:
         return Contents(f"contents not decoded ({exc})")
 
 
 def _contents(header: userdata.UserdataParameter, data: bytes, body: bytes, stage: str, connection: int,
-              subscriptions: Subscriptions, request: userdata.UserdataParameter | None,
+              state: UserdataState, request: userdata.UserdataParameter | None,
               request_data: bytes) -> Contents | None:
     group, subfunction = header.group, header.subfunction
     if group == userdata.GROUP_CPU:
         if subfunction == szl.SUBFUNCTION_READ_SZL and stage == RESPONSE:
-            if request is not None and szl.is_next_part_request(request):
-                return Contents(f"{len(body)} more bytes of the SZL")
-            return Contents(szl.describe_szl_list(szl.parse_szl_list(body), complete=not header.last_data_unit))
+            return _szl_part(header, body, connection, state, request)
         if subfunction == alarms.SUBFUNCTION_DIAGNOSTIC_MESSAGE and stage != RESPONSE:
             return Contents(alarms.describe_diagnostic_message(alarms.parse_diagnostic_message(body)))
         if subfunction == 0x02:  # message service
@@ -63,7 +70,7 @@ def _contents(header: userdata.UserdataParameter, data: bytes, body: bytes, stag
             return Contents(alarms.describe_alarm_message(message))
         return None
     if group == userdata.GROUP_CYCLIC:
-        return _cyclic(header, body, stage, connection, subscriptions, request, request_data)
+        return _cyclic(header, body, stage, connection, state.subscriptions, request, request_data)
     if group == userdata.GROUP_BLOCK and stage == RESPONSE:
         if subfunction == szl.SUBFUNCTION_LIST_BLOCKS:
             return Contents(szl.describe_block_counts(szl.parse_block_counts(data)))
@@ -80,6 +87,28 @@ def _contents(header: userdata.UserdataParameter, data: bytes, body: bytes, stag
                                          or (stage == REQUEST and subfunction in (0x02, 0x04))):
         return Contents(szl.parse_clock(data).isoformat(sep=" ", timespec="milliseconds"))
     return None
+
+
+def _szl_part(header: userdata.UserdataParameter, body: bytes, connection: int, state: UserdataState,
+              request: userdata.UserdataParameter | None) -> Contents:
+    """An SZL answer; of one in several parts, the first names what it holds, the middle ones their
+    size, and the last the whole list (the parts of a connection's one long answer follow each other)."""
+    more = bool(header.last_data_unit)
+    if request is not None and szl.is_next_part_request(request):
+        parts = state.szl_parts.get(connection)
+        if parts is None:
+            return Contents(f"{len(body)} more bytes of the SZL")
+        parts.append(body)
+        if more:
+            return Contents(f"{len(body)} more bytes of the SZL (part {len(parts)})")
+        del state.szl_parts[connection]
+        whole = szl.describe_szl_list(szl.parse_szl_list(b"".join(parts)))
+        return Contents(f"last of {len(parts)} parts: {whole}")
+    if more:
+        state.szl_parts[connection] = [body]
+    else:
+        state.szl_parts.pop(connection, None)
+    return Contents(szl.describe_szl_list(szl.parse_szl_list(body), complete=not more))
 
 
 def _cyclic(header: userdata.UserdataParameter, body: bytes, stage: str, connection: int,

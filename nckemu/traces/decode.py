@@ -15,7 +15,7 @@ from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, desc
 from nckemu.protocol.values import decode_nck_values, nck_value_format, nck_value_reader
 
 from .contents import PUSH as PUSH_STAGE
-from .contents import REQUEST, RESPONSE, Contents, Subscriptions, userdata_contents
+from .contents import REQUEST, RESPONSE, Contents, UserdataState, userdata_contents
 from .reader import Capture, Gap, TracePdu, collector_paused
 
 FUNCTION_NAMES = {0x04: "read", 0x05: "write", 0x28: "PI", 0x29: "PLC stop", 0xF0: "setup", 0x00: "CPU services",
@@ -292,7 +292,7 @@ def _decode(capture: Capture) -> list[Exchange]:
     open_jobs: dict[tuple[int, int], Exchange] = {}
     exchanges: list[Exchange] = []
     s7comm_plus: dict[int, list[Any]] = {}  # connection -> [its exchange, frame count]
-    subscriptions: Subscriptions = {}
+    userdata_state = UserdataState()
     for pdu in capture.pdus:
         if pdu.kind != "s7":
             continue
@@ -329,7 +329,7 @@ def _decode(capture: Capture) -> list[Exchange]:
         # negative: both sides number their own jobs.
         side = pdu.connection if pdu.from_client else -pdu.connection
         if parsed.rosctr == s7.Rosctr.USERDATA:
-            exchange, answered = _describe_userdata(pdu, parsed, capture, subscriptions)
+            exchange, answered = _describe_userdata(pdu, parsed, capture, userdata_state)
             if exchange is not None:
                 open_jobs[(side, parsed.pdu_ref)] = exchange
                 exchanges.append(exchange)
@@ -346,13 +346,13 @@ def _decode(capture: Capture) -> list[Exchange]:
             capture.problems.append(f"frame {pdu.frame}: answer without a job (PDU ref {parsed.pdu_ref})")
             continue
         waiting.answer = pdu
-        _describe_answer(waiting, parsed, capture, subscriptions)
+        _describe_answer(waiting, parsed, capture, userdata_state)
     for plus, count in s7comm_plus.values():
         plus.detail = f"protocol 0x72, not decoded ({count} frame{'s' if count != 1 else ''})"
     return exchanges
 
 
-def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture, subscriptions: Subscriptions
+def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture, state: UserdataState
                        ) -> tuple[Exchange | None, userdata.UserdataParameter | None]:
     """A userdata request or push as a new exchange, or (None, its parameter) for a response."""
     try:
@@ -378,7 +378,7 @@ def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture, subscr
         exchange.detail = f"next part of sequence {header.sequence}"
     else:
         stage = PUSH_STAGE if header.type == userdata.TYPE_PUSH else REQUEST
-        _apply_contents(exchange, userdata_contents(header, parsed.data, stage, pdu.connection, subscriptions),
+        _apply_contents(exchange, userdata_contents(header, parsed.data, stage, pdu.connection, state),
                         answer=False)
     return exchange, None
 
@@ -433,7 +433,7 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
 
 
 def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture,
-                     subscriptions: Subscriptions | None = None) -> None:
+                     state: UserdataState | None = None) -> None:
     if parsed.error_class or parsed.error_code:
         exchange.header_error = describe_header_error(parsed.error_class, parsed.error_code)
         return
@@ -462,7 +462,7 @@ def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture,
                 return
             request = s7.parse_pdu(exchange.job.data)
             _apply_contents(exchange, userdata_contents(
-                header, parsed.data, RESPONSE, exchange.connection, {} if subscriptions is None else subscriptions,
+                header, parsed.data, RESPONSE, exchange.connection, UserdataState() if state is None else state,
                 userdata.parse_userdata_parameter(request.parameter), request.data), answer=True)
             if header.last_data_unit:
                 exchange.detail += f"{' ' if exchange.detail else ''}-> more follows (sequence {header.sequence})"

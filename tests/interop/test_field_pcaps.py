@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import collections
 import re
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -79,7 +80,8 @@ def test_pairs_what_tshark_pairs_and_shows_pushes(path: Path) -> None:
 def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
     """Alarm event IDs, diagnostic event IDs and block counts as our lines name them, by frame (the
     request's part of an exchange's text at the job's frame, the answer's part at the answer's)."""
-    found: dict[str, dict[int, list[str]]] = {"alarm": {}, "diagnostic": {}, "blocks": {}, "szl": {}, "job": {}}
+    found: dict[str, dict[int, list[str]]] = {"alarm": {}, "diagnostic": {}, "blocks": {}, "szl": {}, "job": {},
+                                              "szl_first_part": {}}
     for exchange in decode(read_capture(path)):
         head, _, tail = (" " + exchange.detail).partition(" -> ")
         parts = [(exchange.job.frame, head)]
@@ -92,7 +94,8 @@ def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
                 exchange.service_name and "of type" not in exchange.service_name else []
             szl_ids = re.findall(r"SZL 0x([0-9A-F]{4}) index", text)
             jobs = re.findall(r"JobID=(\d+)", text)
-            for kind, values in (("alarm", alarm), ("diagnostic", diagnostic), ("blocks", blocks), ("szl", szl_ids),
+            szl_kind = "szl_first_part" if " in this part" in text else "szl"
+            for kind, values in (("alarm", alarm), ("diagnostic", diagnostic), ("blocks", blocks), (szl_kind, szl_ids),
                                  ("job", jobs)):
                 if values:
                     found[kind].setdefault(frame, []).extend(int(v) if kind in ("blocks", "job") else int(v, 16)
@@ -116,8 +119,9 @@ def test_contents_as_tshark_reads_them(path: Path) -> None:
                       for row in rows if "JobID=" in row[name]}
         else:
             theirs = {int(row["frame.number"]): [int(v, 0) for v in row[name].split(",")] for row in rows if row[name]}
-        if kind == "szl":  # an answer in parts: tshark names the SZL at the last part, we at the first
-            assert sorted(v for values in ours[kind].values() for v in values) \
-                == sorted(v for values in theirs.values() for v in values)
+        if kind == "szl":  # an answer in parts: tshark names the SZL at the last part, we there and at the first
+            assert {f: sorted(v) for f, v in ours[kind].items()} == {f: sorted(v) for f, v in theirs.items()}, kind
+            first_parts = Counter(v for values in ours["szl_first_part"].values() for v in values)
+            assert not first_parts - Counter(v for values in theirs.values() for v in values), "a part without its end"
             continue
         assert {f: sorted(v) for f, v in ours[kind].items()} == {f: sorted(v) for f, v in theirs.items()}, kind

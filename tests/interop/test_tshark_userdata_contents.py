@@ -73,3 +73,23 @@ def test_names_match_tshark(recorded: Path) -> None:
     (counts,) = [row["s7comm.blockinfo.block_count"] for row in rows if row["s7comm.blockinfo.block_count"]]
     ours = re.search(r"OB \d+(, \w+ \d+)+", answers)
     assert ours is not None and [int(n) for n in re.findall(r"\d+", ours.group())] == [int(c) for c in counts.split(",")]
+
+
+def test_an_szl_in_several_parts_is_named_whole_at_its_last_part(tmp_path: Path) -> None:
+    """python-snap7 with a 240-byte PDU gets SZL 0x001C (9 records, 314 bytes) in two parts: the first
+    names its own records, the next-part answer names all nine."""
+    path = tmp_path / "parts.pcapng"
+    with EmulatorThread(record_path=path) as emu:
+        client = snap7.Client()
+        client.set_param(snap7.type.Parameter.PDURequest, 240)
+        client.connect("127.0.0.1", 0, 2, emu.port)
+        try:
+            whole = client.read_szl(0x001C, 0)
+        finally:
+            client.disconnect()
+    assert whole.Header.NDR == 9
+    details = [e.detail for e in decode(read_capture(path)) if e.function == "userdata"]
+    assert "records in this part" in details[0] and "component identification" in details[0]
+    assert details[1].startswith("next part of sequence")
+    assert "-> last of 2 parts: component identification (SZL 0x001C index 0x0000): 9 records" in details[1]
+    assert "index 10: " in details[1]  # the ninth record, carried by the second part only
