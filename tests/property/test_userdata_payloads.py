@@ -13,7 +13,7 @@ from nckemu.errors import NckError
 from nckemu.protocol import alarms, cyclic, szl, userdata
 from nckemu.protocol.addresses import S7AnyAddress, UnsupportedAddress
 from nckemu.protocol.s7 import DataItem
-from nckemu.traces.contents import PUSH, REQUEST, RESPONSE, userdata_contents
+from nckemu.traces.contents import PUSH, REQUEST, RESPONSE, UserdataState, userdata_contents
 
 u8 = st.integers(0, 0xFF)
 u16 = st.integers(0, 0xFFFF)
@@ -145,7 +145,7 @@ def test_contents_never_raise(group: int, subfunction: int, stage: str, payload:
     """Whatever a userdata PDU carries, naming its contents gives a text or nothing, never an exception."""
     header = userdata.UserdataParameter(0x12, 8, group, subfunction, 1, long)
     data = bytes([0xFF, 0x09]) + len(payload).to_bytes(2, "big") + payload
-    userdata_contents(header, data, stage, 1, {}, header if stage == RESPONSE else None, data)
+    userdata_contents(header, data, stage, 1, UserdataState(), header if stage == RESPONSE else None, data)
 
 
 @st.composite
