@@ -39,7 +39,7 @@ from nckemu.errors import NckNodeIdError
 from nckemu.protocol.addresses import S7Area
 
 from ..core import Emulator
-from . import files
+from . import files, security
 from . import shelf as address_cache
 from .settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
 from .values import PLC_AREAS, UaStatus, raw_reader, read_value, variant_from_raw, variant_type, write_value
@@ -73,6 +73,8 @@ class _UserManager:
     def get_user(self, iserver: Any, username: str | None = None, password: str | None = None,
                  certificate: Any = None) -> UaUser | None:
         if not username:
+            if not self.settings.allow_anonymous:
+                return None
             return UaUser(role=UserRole.User, name=None)  # asyncua refuses reads to its Anonymous role
         user = self.settings.users.get(username)
         if user is None or user.password != password:
@@ -122,7 +124,7 @@ class OpcUaFace:
         server = self.server
         server.set_endpoint(f"opc.tcp://{self.host}:{self.port}/")
         server.set_server_name(f"nckemu {self.emulator.machine.name}")
-        server.set_security_policy([ua.SecurityPolicyType.NoSecurity], permission_ruleset=_RealmRules())
+        await security.apply(server, self.emulator, self.settings, _RealmRules())
         self.namespace = await server.register_namespace(self.settings.namespace_uri)
         iserver = server.iserver
         iserver.aspace._nodes = _LazyNodes(iserver.aspace._nodes, self)

@@ -6,6 +6,10 @@ anonymous = ["SinuReadAll"]          # rights of an anonymous session ([] as a n
 max_sessions = 10                    # 840D sl: 10 (828D: 5)
 max_subscriptions = 10
 max_samples_per_s = 1000             # 840D sl: 1000 (828D: 500); items x 1000 / interval_ms, summed
+security = ["None", "Basic256Sha256_SignAndEncrypt", ...]   # endpoints offered (default: all, see SECURITY)
+allow_anonymous = true               # false: no anonymous logins at all (the endpoints do not offer them)
+accept_certificates = true           # false: only client certificates in trusted_certificates (a directory)
+# certificate = "server.der" and private_key = "server.pem": the server's own (default: made at first start)
 [opcua.users.nckemu]
 password = "SUNRISE"
 rights = ["SinuReadAll", "SinuWriteAll"]   # or realms: StateRead, SeaWrite, PlcRead, ...
@@ -15,6 +19,7 @@ rights = ["SinuReadAll", "SinuWriteAll"]   # or realms: StateRead, SeaWrite, Plc
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from nckemu.errors import NckConfigError
@@ -25,7 +30,12 @@ RIGHTS = frozenset({f"{realm}{what}" for realm in REALMS for what in ("Read", "W
 # The controller's allowed sampling and publishing intervals (840D sl manual).
 ALLOWED_INTERVALS_MS = (100, 250, 500, 1000, 2500, 5000)
 _KEYS = frozenset({"anonymous", "users", "max_sessions", "max_subscriptions", "sample_interval_ms",
-                   "namespace_uri", "max_samples_per_s"})
+                   "namespace_uri", "max_samples_per_s", "security", "allow_anonymous", "accept_certificates",
+                   "trusted_certificates", "certificate", "private_key"})
+# The controller offers "encryption None, 128 bit or 256 bit": None; 128 bit as the AES-128 policy; 256
+# bit as Basic256Sha256 (the common one) and the AES-256 policy (docs/assumptions.md). Sign alone too.
+SECURITY = ("None", "Basic256Sha256_Sign", "Basic256Sha256_SignAndEncrypt", "Aes128Sha256RsaOaep_Sign",
+            "Aes128Sha256RsaOaep_SignAndEncrypt", "Aes256Sha256RsaPss_Sign", "Aes256Sha256RsaPss_SignAndEncrypt")
 
 
 @dataclass(frozen=True)
@@ -56,6 +66,12 @@ class OpcUaSettings:
     sample_interval_ms: int = 100
     anonymous: frozenset[str] = frozenset({"SinuReadAll"})
     users: dict[str, User] = field(default_factory=dict)
+    security: tuple[str, ...] = SECURITY
+    allow_anonymous: bool = True
+    accept_certificates: bool = True   # the controller's "accept certificates automatically"
+    trusted_certificates: str | None = None   # a directory of trusted client certificates (DER or PEM)
+    certificate: str | None = None     # the server's certificate and key; None: made at first start
+    private_key: str | None = None
 
     @classmethod
     def from_machine(cls, table: dict[str, Any], source: str = "machine") -> OpcUaSettings:
@@ -84,7 +100,8 @@ class OpcUaSettings:
         if not isinstance(uri, str) or not uri:
             raise NckConfigError("expected a namespace URI", path=source, field="opcua.namespace_uri")
         anonymous = _rights(table.get("anonymous", sorted(cls.anonymous)), source, "opcua.anonymous")
-        return cls(namespace_uri=uri, anonymous=anonymous, users=users, **limits)
+        return cls(namespace_uri=uri, anonymous=anonymous, users=users, **limits,
+                   **_security(table, source))
 
 
 def _rights(value: object, source: str, where: str) -> frozenset[str]:
@@ -95,3 +112,41 @@ def _rights(value: object, source: str, where: str) -> frozenset[str]:
         raise NckConfigError(f"unknown right {unknown[0]!r} (known: realms {', '.join(REALMS)} + Read/Write, "
                              f"SinuReadAll, SinuWriteAll)", path=source, field=where)
     return frozenset(value)
+
+
+def _security(table: dict[str, Any], source: str) -> dict[str, Any]:
+    """The security keys of an ``[opcua]`` table, checked; file paths relative to the machine file."""
+    found: dict[str, Any] = {}
+    if "security" in table:
+        policies = table["security"]
+        if not isinstance(policies, list) or not policies or not all(isinstance(p, str) for p in policies):
+            raise NckConfigError(f"expected a list of security policies from {', '.join(SECURITY)}", path=source,
+                                 field="opcua.security")
+        unknown = sorted(set(policies) - set(SECURITY))
+        if unknown:
+            raise NckConfigError(f"unknown security policy {unknown[0]!r} (known: {', '.join(SECURITY)})",
+                                 path=source, field="opcua.security")
+        found["security"] = tuple(dict.fromkeys(policies))
+    for key in ("allow_anonymous", "accept_certificates"):
+        if key in table:
+            if not isinstance(table[key], bool):
+                raise NckConfigError("expected true or false", path=source, field=f"opcua.{key}")
+            found[key] = table[key]
+    base = Path(source).parent if source and Path(source).suffix == ".toml" else Path(".")
+    for key in ("trusted_certificates", "certificate", "private_key"):
+        if key in table:
+            value = table[key]
+            if not isinstance(value, str) or not value.strip():
+                raise NckConfigError("expected a path", path=source, field=f"opcua.{key}")
+            path = Path(value) if Path(value).is_absolute() else base / value
+            if not (path.is_dir() if key == "trusted_certificates" else path.is_file()):
+                raise NckConfigError(f"{value}: no such {'directory' if key == 'trusted_certificates' else 'file'}",
+                                     path=source, field=f"opcua.{key}")
+            found[key] = str(path)
+    if ("certificate" in found) != ("private_key" in found):
+        raise NckConfigError("certificate and private_key go together", path=source,
+                             field="opcua.certificate" if "certificate" in found else "opcua.private_key")
+    if found.get("accept_certificates") is False and "trusted_certificates" not in found:
+        raise NckConfigError("accept_certificates = false needs trusted_certificates (a directory of client "
+                             "certificates)", path=source, field="opcua.accept_certificates")
+    return found

@@ -3,13 +3,21 @@
 // ops: {"read": "ns=2;s=/Channel/State/progStatus"}
 //      {"write": "ns=2;s=...", "value": 1.5, "type": "Double"}
 //      {"subscribe": "ns=2;s=...", "ms": 1500, "after_ms": 300}   (records changes; prints when done)
+// optional: "security": "Basic256Sha256", "mode": "SignAndEncrypt" (or "Sign"), "pki": a folder for the client's own certificate
 // Prints one line "RESULT <json>" (node-opcua logs on stdout too): a list with one result per op ({"status": "Good", "value": ...}).
 "use strict";
 const opcua = require("node-opcua-client");
 
 async function main() {
   const job = JSON.parse(process.argv[2]);
-  const client = opcua.OPCUAClient.create({ endpointMustExist: false, connectionStrategy: { maxRetry: 1 } });
+  const options = { endpointMustExist: false, connectionStrategy: { maxRetry: 1 } };
+  if (job.security) {
+    options.securityPolicy = opcua.SecurityPolicy[job.security];
+    options.securityMode = opcua.MessageSecurityMode[job.mode || "SignAndEncrypt"];
+    const { OPCUACertificateManager } = require("node-opcua-certificate-manager");
+    options.clientCertificateManager = new OPCUACertificateManager({ rootFolder: job.pki, automaticallyAcceptUnknownCertificate: true });
+  }
+  const client = opcua.OPCUAClient.create(options);
   await client.connect(job.url);
   const identity = job.user
     ? { type: opcua.UserTokenType.UserName, userName: job.user, password: job.password }
