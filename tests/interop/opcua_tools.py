@@ -12,9 +12,10 @@ from nckemu.emulator.runner import EmulatorThread
 
 
 @contextmanager
-def two_faces(machine: str | Path | None = None) -> Iterator[tuple[EmulatorThread, OpcUaFace]]:
+def two_faces(machine: str | Path | None = None, state_path: str | Path | None = None
+              ) -> Iterator[tuple[EmulatorThread, OpcUaFace]]:
     """S7 on a free port and OPC UA on another, both over one Emulator (as ``serve --opcua``)."""
-    with EmulatorThread(machine) as emulator:
+    with EmulatorThread(machine, state_path=state_path) as emulator:
         face = OpcUaFace(emulator.emulator, "127.0.0.1", 0)
         loop = emulator._loop  # the server's loop: the face attaches to it as serve does
         asyncio.run_coroutine_threadsafe(face.start(), loop).result(timeout=60)

@@ -9,6 +9,7 @@ events, newest first). Alarms are raised by the emulator itself (the retained-st
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from ..clock import Clock
@@ -41,6 +42,13 @@ class Alarms:
         self._clock = clock
         self.pending: list[Alarm] = []
         self.events: deque[AlarmEvent] = deque(maxlen=MAX_EVENTS)
+        # Told of each alarm raised or cleared (the OPC UA face sends them as alarm events).
+        self.listeners: list[Callable[[AlarmEvent], None]] = []
+
+    def _tell(self, event: AlarmEvent) -> None:
+        self.events.appendleft(event)
+        for listener in self.listeners:
+            listener(event)
 
     def _now(self) -> float:
         return self._clock.now_s() if self._clock is not None else 0.0
@@ -52,14 +60,14 @@ class Alarms:
                 return alarm
         alarm = Alarm(number, text, self._now(), tuple(parameters), priority)
         self.pending.append(alarm)
-        self.events.appendleft(AlarmEvent(alarm, True, alarm.time_s))
+        self._tell(AlarmEvent(alarm, True, alarm.time_s))
         return alarm
 
     def clear(self, text: str) -> None:
         for alarm in list(self.pending):
             if alarm.text == text:
                 self.pending.remove(alarm)
-                self.events.appendleft(AlarmEvent(alarm, False, self._now()))
+                self._tell(AlarmEvent(alarm, False, self._now()))
 
     @property
     def active(self) -> list[str]:

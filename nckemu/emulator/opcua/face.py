@@ -41,6 +41,7 @@ from nckemu.protocol.addresses import S7Area
 from ..core import Emulator
 from . import files, security
 from . import shelf as address_cache
+from .alarms import ALARM_RIGHTS, AlarmEvents
 from .settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
 from .values import PLC_AREAS, UaStatus, raw_reader, read_value, variant_from_raw, variant_type, write_value
 
@@ -107,6 +108,7 @@ class OpcUaFace:
         self._sampler: asyncio.Task[None] | None = None
         self._sessions: list[Any] = []
         self.updates_pushed = 0
+        self.alarm_events = AlarmEvents(self)
 
     @property
     def specs(self) -> tuple[Any, ...]:
@@ -134,6 +136,7 @@ class OpcUaFace:
         self._cap_samples(iserver.subscription_service)
         await self._build_browse_tree()
         await files.add_methods(self, server)
+        await self.alarm_events.start(server)
         # A port in use reaches the caller as OSError (serve says so in one line); asyncua would also
         # log it with a traceback.
         starting = logging.getLogger("asyncua.server.server")
@@ -154,6 +157,7 @@ class OpcUaFace:
     async def _init_server(self) -> None:
         """asyncua's standard address space from the shared shelf (built by the first face to start)."""
         shelf = address_cache.ready_shelf()
+        self.server.iserver.bind_condition_methods = True  # ConditionRefresh (alarm events), off by default
         if shelf is not None:
             try:
                 await self.server.init(shelf)
@@ -163,6 +167,7 @@ class OpcUaFace:
                             shelf.parent, exc)
                 address_cache.discard(shelf)
                 self.server = Server(user_manager=_UserManager(self.settings))
+                self.server.iserver.bind_condition_methods = True
         building = address_cache.new_shelf()
         await self.server.init(building)
         if building is not None:
@@ -190,6 +195,7 @@ class OpcUaFace:
 
     async def stop(self) -> None:
         self._unlisten()
+        await self.alarm_events.stop()
         if self._pusher is not None:
             self._pusher.cancel()
         if self._sampler is not None:
@@ -384,6 +390,10 @@ class OpcUaFace:
         denied: set[int] = set()
         for position, item in enumerate(params.ItemsToCreate):
             nodeid = item.ItemToMonitor.NodeId
+            if item.ItemToMonitor.AttributeId == ua.AttributeIds.EventNotifier:
+                if not rights & ALARM_RIGHTS:  # alarm events need AlarmRead (the controller's realm)
+                    denied.add(position)
+                continue
             if item.ItemToMonitor.AttributeId != ua.AttributeIds.Value or nodeid.NamespaceIndex != self.namespace \
                     or not isinstance(nodeid.Identifier, str):
                 continue
