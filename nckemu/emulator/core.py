@@ -38,10 +38,17 @@ class Emulator:
         self.status_sections: dict[str, Callable[[], dict[str, Any]]] = {}
         # An alarm text while retained state cannot be written (disk full, read-only directory).
         self.persist_alarm: str | None = None
+        # Retained data of faces (the OPC UA face's users): name -> a function giving it, JSON-able; and
+        # what the state file held for each, for the face to take up when it starts. A face not started
+        # this time keeps what it had: its section is written back as it was read.
+        self.face_state: dict[str, Callable[[], Any]] = {}
+        self.restored_face_state: dict[str, Any] = {}
         if self.store is not None:
             snapshot = self.store.load()
             if snapshot is not None:
                 self.nck.restore_retained(snapshot)
+                faces = snapshot.get("faces", {})
+                self.restored_face_state = dict(faces) if isinstance(faces, dict) else {}
                 log.info("retained state loaded from %s", self.store.path)
         self.dispatcher = Dispatcher(self.nck, self.plc, persist=self.persist,
                                      default_access_level=self.default_access_level,
@@ -57,7 +64,12 @@ class Emulator:
         if self.store is None:
             return
         try:
-            self.store.save(self.nck.retained_snapshot())
+            snapshot = self.nck.retained_snapshot()
+            faces = dict(self.restored_face_state)
+            faces.update({name: state() for name, state in self.face_state.items()})
+            if faces:
+                snapshot["faces"] = faces
+            self.store.save(snapshot)
         except (OSError, NckConfigError) as exc:
             if self.persist_alarm is None:
                 log.error("retained state cannot be written to %s: %s (serving on, alarm raised)",

@@ -270,7 +270,7 @@ class NckModel:
             for t in self.compensation.lec_loaded.values()
         ]
         return {"format": SNAPSHOT_FORMAT, "version": SNAPSHOT_VERSION, "values": self.store.retained_values(),
-                "leadscrew": leadscrew}
+                "leadscrew": leadscrew, "programs": self.programs.snapshot()}
 
     def restore_retained(self, snapshot: dict[str, Any]) -> None:
         """Retained values as after a restart (so they are active, as after power-on)."""
@@ -284,6 +284,8 @@ class NckModel:
                                bool(row["modulo"]))
                 for row in snapshot.get("leadscrew", [])
             ]
+            if "programs" in snapshot:  # older snapshots kept no programs
+                self.programs.restore(snapshot["programs"])
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise NckConfigError(f"damaged retained-state snapshot: {exc!r}") from None
         self.compensation.lec_loaded.clear()

@@ -39,10 +39,12 @@ from nckemu.errors import NckNodeIdError
 from nckemu.protocol.addresses import S7Area
 
 from ..core import Emulator
-from . import files, security
+from . import files, security, users
 from . import shelf as address_cache
 from .alarms import ALARM_RIGHTS, AlarmEvents
 from .settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
+from .users import STATE_KEY as USERS_STATE
+from .users import UserRegistry
 from .values import PLC_AREAS, UaStatus, raw_reader, read_value, variant_from_raw, variant_type, write_value
 
 log = logging.getLogger(__name__)
@@ -66,19 +68,19 @@ class _RealmRules(PermissionRuleset):
 
 
 class _UserManager:
-    """Users of the machine file; an unknown user or a wrong password is refused at activation."""
+    """The face's users (``UserRegistry``: the machine file's, as the methods changed them); an unknown
+    user or a wrong password is refused at activation, and anonymous where it is switched off."""
 
-    def __init__(self, settings: OpcUaSettings) -> None:
-        self.settings = settings
+    def __init__(self, face: OpcUaFace) -> None:
+        self.face = face
 
     def get_user(self, iserver: Any, username: str | None = None, password: str | None = None,
                  certificate: Any = None) -> UaUser | None:
         if not username:
-            if not self.settings.allow_anonymous:
+            if not self.face.settings.allow_anonymous:
                 return None
             return UaUser(role=UserRole.User, name=None)  # asyncua refuses reads to its Anonymous role
-        user = self.settings.users.get(username)
-        if user is None or user.password != password:
+        if not self.face.users.login(username, password):
             return None
         return UaUser(role=UserRole.User, name=username)
 
@@ -95,7 +97,10 @@ class OpcUaFace:
         quiet = logging.getLogger("asyncua")
         if quiet.level == logging.NOTSET:  # its INFO lines (a thousand at init) would drown serve's own
             quiet.setLevel(logging.WARNING)
-        self.server = Server(user_manager=_UserManager(self.settings))
+        self.users = UserRegistry(self.settings, changed=emulator.persist)
+        self.users.restore(emulator.restored_face_state.get(USERS_STATE))
+        emulator.face_state[USERS_STATE] = self.users.snapshot
+        self.server = Server(user_manager=_UserManager(self))
         self.namespace = 2
         self._names: dict[str, NodeName] = {}
         self._monitored: dict[ua.NodeId, _Monitored] = {}
@@ -117,8 +122,7 @@ class OpcUaFace:
     def rights_of(self, user: str | None) -> frozenset[str]:
         if not user:
             return self.settings.anonymous
-        entry = self.settings.users.get(user)
-        return entry.rights if entry is not None else frozenset()
+        return self.users.rights_of(user) or frozenset()
 
     # ------------------------------------------------------------------ start / stop
     async def start(self) -> OpcUaFace:
@@ -135,7 +139,8 @@ class OpcUaFace:
         self._wrap_sessions(iserver)
         self._cap_samples(iserver.subscription_service)
         await self._build_browse_tree()
-        await files.add_methods(self, server)
+        methods = await files.add_methods(self, server)
+        await users.add_methods(self, server, methods, self.users)
         await self.alarm_events.start(server)
         # A port in use reaches the caller as OSError (serve says so in one line); asyncua would also
         # log it with a traceback.
@@ -166,7 +171,7 @@ class OpcUaFace:
                 log.warning("OPC UA: the address-space cache %s did not load (%s); building it again",
                             shelf.parent, exc)
                 address_cache.discard(shelf)
-                self.server = Server(user_manager=_UserManager(self.settings))
+                self.server = Server(user_manager=_UserManager(self))
                 self.server.iserver.bind_condition_methods = True
         building = address_cache.new_shelf()
         await self.server.init(building)

@@ -39,7 +39,7 @@ def _bad(name: str) -> ua.StatusCode:
     return ua.StatusCode(getattr(ua.StatusCodes, name))
 
 
-async def add_methods(face: OpcUaFace, server: Server) -> None:
+async def add_methods(face: OpcUaFace, server: Server) -> Any:
     ns = face.namespace
     from .face import _RIGHTS, _USER  # the request's user, bound by the session wrapper
 
@@ -71,6 +71,7 @@ async def add_methods(face: OpcUaFace, server: Server) -> None:
             return _bad("BadInvalidState")
         programs.add(target)
         programs.texts[target] = bytes(data)
+        face.emulator.persist()  # the program store is retained data (serve --state)
         return []
 
     async def copy_from_server(_parent: Any, path: Any) -> Any:
@@ -98,3 +99,4 @@ async def add_methods(face: OpcUaFace, server: Server) -> None:
     await methods.add_method(ua.NodeId("/Methods/CopyFileFromServer", ns),
                              ua.QualifiedName("CopyFileFromServer", ns), copy_from_server,
                              [argument("path", text)], [argument("data", blob)])
+    return methods

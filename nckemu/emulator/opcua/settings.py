@@ -10,6 +10,7 @@ security = ["None", "Basic256Sha256_SignAndEncrypt", ...]   # endpoints offered 
 allow_anonymous = true               # false: no anonymous logins at all (the endpoints do not offer them)
 accept_certificates = true           # false: only client certificates in trusted_certificates (a directory)
 # certificate = "server.der" and private_key = "server.pem": the server's own (default: made at first start)
+admin = "nckemu"                     # the user who may call AddUser, DeleteUser, GiveUserAccess ...
 [opcua.users.nckemu]
 password = "SUNRISE"
 rights = ["SinuReadAll", "SinuWriteAll"]   # or realms: StateRead, SeaWrite, PlcRead, ...
@@ -31,7 +32,7 @@ RIGHTS = frozenset({f"{realm}{what}" for realm in REALMS for what in ("Read", "W
 ALLOWED_INTERVALS_MS = (100, 250, 500, 1000, 2500, 5000)
 _KEYS = frozenset({"anonymous", "users", "max_sessions", "max_subscriptions", "sample_interval_ms",
                    "namespace_uri", "max_samples_per_s", "security", "allow_anonymous", "accept_certificates",
-                   "trusted_certificates", "certificate", "private_key"})
+                   "trusted_certificates", "certificate", "private_key", "admin"})
 # The controller offers "encryption None, 128 bit or 256 bit": None; 128 bit as the AES-128 policy; 256
 # bit as Basic256Sha256 (the common one) and the AES-256 policy (docs/assumptions.md). Sign alone too.
 SECURITY = ("None", "Basic256Sha256_Sign", "Basic256Sha256_SignAndEncrypt", "Aes128Sha256RsaOaep_Sign",
@@ -66,6 +67,9 @@ class OpcUaSettings:
     sample_interval_ms: int = 100
     anonymous: frozenset[str] = frozenset({"SinuReadAll"})
     users: dict[str, User] = field(default_factory=dict)
+    # The user who manages users (AddUser, GiveUserAccess ...): set up at commissioning on the
+    # controller; ours by default (docs/assumptions.md).
+    admin: str = "nckemu"
     security: tuple[str, ...] = SECURITY
     allow_anonymous: bool = True
     accept_certificates: bool = True   # the controller's "accept certificates automatically"
@@ -100,6 +104,10 @@ class OpcUaSettings:
         if not isinstance(uri, str) or not uri:
             raise NckConfigError("expected a namespace URI", path=source, field="opcua.namespace_uri")
         anonymous = _rights(table.get("anonymous", sorted(cls.anonymous)), source, "opcua.anonymous")
+        admin = table.get("admin", cls.admin)
+        if not isinstance(admin, str) or not admin:
+            raise NckConfigError("expected the name of the user who manages users", path=source, field="opcua.admin")
+        limits["admin"] = admin
         return cls(namespace_uri=uri, anonymous=anonymous, users=users, **limits,
                    **_security(table, source))
 
