@@ -63,6 +63,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     find.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                       help="with --fleet: a running Dask scheduler (default: a local cluster in this process)")
     find.add_argument("--workers", type=int, metavar="N", help="with --fleet: local cluster workers (default: cores)")
+    find.add_argument("--reduce", metavar="60s",
+                      help="with --fleet: first reduce each run file to window means (one Dask task per file, "
+                           "into ROOT/_60s/; files already reduced are kept), then discover on them")
     find.set_defaults(func=run_discover)
 
 
@@ -96,7 +99,7 @@ def _is_one_file(spec: str) -> bool:
 
 
 def run_discover(args: argparse.Namespace) -> int:
-    if args.fleet or args.scheduler or args.workers:
+    if args.fleet or args.scheduler or args.workers or args.reduce:
         from .fleet_commands import run_fleet_discover
 
         return run_fleet_discover(args)

@@ -39,7 +39,8 @@ def scan_root(root: str | Path) -> list[MachineFolder]:
     root = Path(root)
     if not root.is_dir():
         raise NckConfigError("--fleet: not a directory (one folder per machine)", path=str(root))
-    folders = sorted(entry for entry in root.iterdir() if entry.is_dir() and not entry.name.startswith("."))
+    # "." hidden, "_" the reduced trees (``fleet_reduce``): neither is a machine
+    folders = sorted(entry for entry in root.iterdir() if entry.is_dir() and not entry.name.startswith((".", "_")))
     if not folders:
         raise NckConfigError("--fleet: no machine folders in it (one folder per machine: its runs as CSV "
                              "or Parquet, optionally its model TOML)", path=str(root))
@@ -171,11 +172,15 @@ def _connect(scheduler: str | None, workers: int | None, timeout_s: float) -> tu
 
 def discover_fleet(machines: Sequence[MachineFolder], *, axis: str | None = None, scheduler: str | None = None,
                    workers: int | None = None, timeout_s: float = SCHEDULER_TIMEOUT_S,
-                   progress: Callable[[Any, int], Any] | None = None, root: str = "") -> dict[str, Any]:
+                   progress: Callable[[Any, int], Any] | None = None, root: str = "",
+                   reduce_step_s: float | None = None,
+                   reduce_progress: Callable[[Any, int], Any] | None = None) -> dict[str, Any]:
     """Each machine's ``discover_machine`` as a Dask task; the fleet document (per machine + table).
 
     ``scheduler``: a running cluster's address (tcp://HOST:PORT), else an in-process local cluster of
-    ``workers`` processes. ``progress(iterable, total)`` wraps the stream of finished machines."""
+    ``workers`` processes. ``progress(iterable, total)`` wraps the stream of finished machines.
+    ``reduce_step_s``: first each run file reduced to window means (``fleet_reduce``, one task per file,
+    ``reduce_progress`` wraps those), then discovery on the reduced files."""
     import logging
 
     from distributed import as_completed
@@ -183,7 +188,10 @@ def discover_fleet(machines: Sequence[MachineFolder], *, axis: str | None = None
     # distributed logs a worker's death and the retry at WARNING/ERROR on our stderr; the result says it
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
     client, cluster, engine = _connect(scheduler, workers, timeout_s)
+    reduced: dict[str, Any] | None = None
     try:
+        if reduce_step_s is not None:
+            machines, reduced = _reduce(client, list(machines), root, reduce_step_s, reduce_progress)
         keys = [f"nckemu-discover-{index:05d}-{machine.name}" for index, machine in enumerate(machines)]
         futures = client.map(discover_machine, list(machines), axis=axis, key=keys)
         finished = as_completed(futures, with_results=True)
@@ -197,7 +205,41 @@ def discover_fleet(machines: Sequence[MachineFolder], *, axis: str | None = None
         client.close()
         if cluster is not None:
             cluster.close()
-    return fleet_document(results, root, axis, engine)
+    document = fleet_document(results, root, axis, engine)
+    if reduced is not None:
+        document["reduce"] = reduced
+        document["failed"].update(reduced["machines_without_runs"])
+    return document
+
+
+def _reduce(client: Any, machines: list[MachineFolder], root: str, step_s: float,
+            progress: Callable[[Any, int], Any] | None) -> tuple[list[MachineFolder], dict[str, Any]]:
+    """Stage 1 on the cluster: the files not yet reduced, one task each; the machines over their reduced
+    runs (a file that failed is left out and listed; a machine left without runs is not discovered)."""
+    from distributed import as_completed
+
+    from .fleet_reduce import plan, reduce_file
+
+    tasks = plan(machines, root, step_s)
+    todo = [task for task in tasks if not task.up_to_date()]
+    keys = [f"nckemu-reduce-{index:06d}-{task.machine}-{Path(task.source).name}" for index, task in enumerate(todo)]
+    futures = client.map(reduce_file, todo, step_s=step_s, key=keys)
+    finished = as_completed(futures, with_results=True)
+    results = [result for _future, result in (progress(finished, len(futures)) if progress else finished)]
+    del futures, finished
+    failed = {result["source"]: result["error"] for result in results if "error" in result}
+    kept: list[MachineFolder] = []
+    without: dict[str, str] = {}
+    for machine in machines:
+        runs = tuple(task.target for task in tasks if task.machine == machine.name and task.source not in failed)
+        if runs:
+            kept.append(MachineFolder(machine.name, runs, machine.model))
+        else:
+            without[machine.name] = "no run could be reduced"
+    summary = {"step_s": step_s, "files": len(tasks), "reduced": len(todo) - len(failed),
+               "up_to_date": len(tasks) - len(todo), "failed": failed, "machines_without_runs": without,
+               "rows_in": sum(r.get("rows_in", 0) for r in results), "rows_out": sum(r.get("rows_out", 0) for r in results)}
+    return kept, summary
 
 
 # ---------------------------------------------------------------------------- HTML

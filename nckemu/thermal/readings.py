@@ -51,10 +51,9 @@ def _with(recording: Recording, temperatures: dict[str, np.ndarray]) -> Recordin
     return replace(recording, temperatures_C=temperatures)
 
 
-def prepare(recording: Recording, settings: Settings) -> Readings:
-    """Short bursts of a temperature reading that no structure follows are bridged before any
-    feature sees them (fed through a gradient or a lag they become spikes of the improved model
-    that the gauge never showed), and reported; then the readings are averaged."""
+def bridge_glitches(recording: Recording, settings: Settings) -> tuple[dict[str, np.ndarray], list[str]]:
+    """The temperatures with short bursts that no structure follows bridged by interpolation, and a note
+    per sensor that had any (also what fleet reduction repairs before it averages)."""
     notes: list[str] = []
     repaired = dict(recording.temperatures_C)
     for name, values in recording.temperatures_C.items():
@@ -67,6 +66,14 @@ def prepare(recording: Recording, settings: Settings) -> Readings:
             f"{name}: {glitches.bursts} glitch burst(s), {int(glitches.samples.sum())} sample(s), up to "
             f"{glitches.peak_K:.2f} K off the sensor's running median (first at t = {glitches.first_t_s:.0f} s "
             f"= {glitches.first_t_s / 3600:.2f} h): bridged by interpolation before fitting")
+    return repaired, notes
+
+
+def prepare(recording: Recording, settings: Settings) -> Readings:
+    """Short bursts of a temperature reading that no structure follows are bridged before any
+    feature sees them (fed through a gradient or a lag they become spikes of the improved model
+    that the gauge never showed), and reported; then the readings are averaged."""
+    repaired, notes = bridge_glitches(recording, settings)
     noise_C = {name: white_noise_C(values) for name, values in repaired.items()}
     window_s = settings.sensor_smoothing_s
     averaged = _with(recording, {name: smooth_sensor(recording.t_s, values, window_s)
