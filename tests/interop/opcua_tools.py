@@ -7,6 +7,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from asyncua import Client, ua
+from asyncua.ua.uaerrors import UaStatusCodeError
+
 from nckemu.emulator.opcua import OpcUaFace
 from nckemu.emulator.runner import EmulatorThread
 
@@ -23,3 +26,31 @@ def two_faces(machine: str | Path | None = None, state_path: str | Path | None =
             yield emulator, face
         finally:
             asyncio.run_coroutine_threadsafe(face.stop(), loop).result(timeout=30)
+
+
+NS_URI = "SinumerikVarProvider"
+
+
+async def connect(face: OpcUaFace, user: str | None = None, password: str | None = None) -> Client:
+    """asyncua's client on the face, as ``user`` (anonymous without one)."""
+    client = Client(face.url, timeout=10)
+    if user:
+        client.set_user(user)
+        client.set_password(password or "")
+    await client.connect()
+    return client
+
+
+async def write_status(face: OpcUaFace, node_id: str, variant: ua.Variant, user: str | None = "nckemu",
+                       password: str = "SUNRISE") -> str:
+    """Write one SINUMERIK node in a session of its own; the status name (Good, BadUserAccessDenied ...)."""
+    client = await connect(face, user, password)
+    try:
+        ns = await client.get_namespace_index(NS_URI)
+        try:
+            await client.get_node(ua.NodeId(node_id, ns)).write_value(variant)
+        except UaStatusCodeError as exc:
+            return type(exc).__name__
+        return "Good"
+    finally:
+        await client.disconnect()

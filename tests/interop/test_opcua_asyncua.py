@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 import snap7
-from asyncua import Client, ua
+from asyncua import ua
 from asyncua.ua.uaerrors import UaStatusCodeError
 
 from nckemu.catalogue.node_ids import parse_node_id
@@ -19,7 +19,7 @@ from nckemu.emulator.nck.access import HIGHEST_LEVEL, AccessContext
 from nckemu.emulator.opcua import OpcUaFace
 from nckemu.emulator.runner import EmulatorThread
 
-from .opcua_tools import two_faces
+from .opcua_tools import connect, two_faces, write_status
 
 pytestmark = pytest.mark.timeout(120)
 NS_URI = "SinumerikVarProvider"
@@ -37,17 +37,8 @@ def run(coroutine: Any) -> Any:
     return asyncio.run(coroutine)
 
 
-async def _client(face: OpcUaFace, user: str | None = None, password: str | None = None) -> Client:
-    client = Client(face.url, timeout=10)
-    if user:
-        client.set_user(user)
-        client.set_password(password or "")
-    await client.connect()
-    return client
-
-
 async def _read(face: OpcUaFace, *ids: str, user: str | None = None, password: str | None = None) -> list[Any]:
-    client = await _client(face, user, password)
+    client = await connect(face, user, password)
     try:
         ns = await client.get_namespace_index(NS_URI)
         return [await client.get_node(ua.NodeId(i, ns)).read_value() for i in ids]
@@ -56,7 +47,7 @@ async def _read(face: OpcUaFace, *ids: str, user: str | None = None, password: s
 
 
 async def _status_of_read(face: OpcUaFace, node_id: str) -> str:
-    client = await _client(face)
+    client = await connect(face)
     try:
         ns = await client.get_namespace_index(NS_URI)
         value = await client.get_node(ua.NodeId(node_id, ns)).read_data_value(raise_on_bad_status=False)
@@ -65,23 +56,9 @@ async def _status_of_read(face: OpcUaFace, node_id: str) -> str:
         await client.disconnect()
 
 
-async def _write(face: OpcUaFace, node_id: str, variant: ua.Variant, user: str | None = "nckemu",
-                 password: str = "SUNRISE") -> str:
-    client = await _client(face, user, password)
-    try:
-        ns = await client.get_namespace_index(NS_URI)
-        try:
-            await client.get_node(ua.NodeId(node_id, ns)).write_value(variant)
-        except UaStatusCodeError as exc:
-            return type(exc).__name__
-        return "Good"
-    finally:
-        await client.disconnect()
-
-
 def test_namespace_is_sinumerik_var_provider_at_index_2(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
     async def go() -> int:
-        client = await _client(faces[1])
+        client = await connect(faces[1])
         try:
             return await client.get_namespace_index(NS_URI)
         finally:
@@ -101,13 +78,13 @@ def test_reads_in_the_controllers_syntax(faces: tuple[EmulatorThread, OpcUaFace]
 
 def test_opcua_write_is_read_over_s7_and_back(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
     emulator, face = faces
-    assert run(_write(face, SD43900_AX4, ua.Variant(0.0125, ua.VariantType.Double))) == "Good"
+    assert run(write_status(face, SD43900_AX4, ua.Variant(0.0125, ua.VariantType.Double))) == "Good"
     with NckClient("127.0.0.1", emulator.port) as nck:
         assert nck.get("SD43900[AX4]") == [pytest.approx(0.0125)]
         nck.put({"SD43900[AX4]": -0.25})
     assert run(_read(face, SD43900_AX4)) == [pytest.approx(-0.25)]
     # PLC memory: OPC UA array write, python-snap7 db_read, python-snap7 db_write, OPC UA read
-    assert run(_write(face, "/Plc/DB130.DBW0:[3]", ua.Variant([1, 2, 515], ua.VariantType.UInt16))) == "Good"
+    assert run(write_status(face, "/Plc/DB130.DBW0:[3]", ua.Variant([1, 2, 515], ua.VariantType.UInt16))) == "Good"
     plc = snap7.Client()
     plc.connect("127.0.0.1", 0, 2, emulator.port)
     try:
@@ -128,7 +105,7 @@ def test_subscription_sees_an_s7_write_within_two_publishing_intervals(
             seen.append((time.monotonic(), value))
 
     async def go() -> float:
-        client = await _client(face)
+        client = await connect(face)
         try:
             ns = await client.get_namespace_index(NS_URI)
             subscription = await client.create_subscription(100, Handler())
@@ -161,7 +138,7 @@ def test_every_s7_write_reaches_a_monitored_item_however_fast(faces: tuple[Emula
             seen["nc" if "TEMP_COMP" in str(node.nodeid.Identifier) else "plc"].append(value)
 
     async def go() -> None:
-        client = await _client(face)
+        client = await connect(face)
         try:
             ns = await client.get_namespace_index(NS_URI)
             subscription = await client.create_subscription(100, Handler())
@@ -197,9 +174,9 @@ def test_errors_as_the_controller(faces: tuple[EmulatorThread, OpcUaFace]) -> No
     assert run(_status_of_read(face, "/Nck/Spindle/driveLoad[u1, 3]")) == "BadAttributeIdInvalid"
     assert run(_status_of_read(face, "/Channel/Parameter/R[u1,99999999]")) == "BadNodeIdUnknown"
     assert run(_status_of_read(face, "/Channel/Parameter/R[u1,1000]")) == "BadAttributeIdInvalid"
-    assert run(_write(face, SD43900_AX4, ua.Variant(0.5, ua.VariantType.Double), user=None)) == "BadUserAccessDenied"
-    assert run(_write(face, SD43900_AX4, ua.Variant(5000.0, ua.VariantType.Double))) == "BadOutOfRange"
-    assert run(_write(face, "/Channel/State/progStatus", ua.Variant(1, ua.VariantType.UInt16))) == "BadNotWritable"
+    assert run(write_status(face, SD43900_AX4, ua.Variant(0.5, ua.VariantType.Double), user=None)) == "BadUserAccessDenied"
+    assert run(write_status(face, SD43900_AX4, ua.Variant(5000.0, ua.VariantType.Double))) == "BadOutOfRange"
+    assert run(write_status(face, "/Channel/State/progStatus", ua.Variant(1, ua.VariantType.UInt16))) == "BadNotWritable"
 
 
 def test_user_rules(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
@@ -209,7 +186,7 @@ def test_user_rules(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
     assert run(_read(face, "/Channel/State/progStatus", user="nckemu", password="SUNRISE"))
 
     async def methods(user: str | None) -> tuple[Any, ...]:
-        client = await _client(face, user, "SUNRISE")
+        client = await connect(face, user, "SUNRISE")
         try:
             ns = await client.get_namespace_index(NS_URI)
             node = await client.nodes.objects.get_child([f"{ns}:Sinumerik", f"{ns}:Methods"])
@@ -236,7 +213,7 @@ def test_browsing_reaches_every_catalogue_row(faces: tuple[EmulatorThread, OpcUa
     _, face = faces
 
     async def go() -> set[str]:
-        client = await _client(face)
+        client = await connect(face)
         found: set[str] = set()
         try:
             ns = await client.get_namespace_index(NS_URI)
@@ -262,10 +239,10 @@ def test_limits_sessions_and_publishing_interval() -> None:
         face.settings = replace(face.settings, max_sessions=1, max_subscriptions=1)
 
         async def go() -> tuple[str, float, str]:
-            first = await _client(face)
+            first = await connect(face)
             try:
                 try:
-                    second = await _client(face)
+                    second = await connect(face)
                     await second.disconnect()
                     too_many = "accepted"
                 except UaStatusCodeError as exc:
@@ -298,7 +275,7 @@ def test_samples_per_second_cap_refuses_the_item_past_it() -> None:
         face.settings = replace(face.settings, max_samples_per_s=25)
 
         async def go() -> tuple[list[str], str, int]:
-            client = await _client(face)
+            client = await connect(face)
             try:
                 ns = await client.get_namespace_index(NS_URI)
                 fast = await client.create_subscription(100, Quiet())
@@ -330,7 +307,7 @@ async def _first_notifications(face: OpcUaFace, ids: list[str]) -> tuple[list[st
         def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
             first.setdefault(str(node.nodeid.Identifier), (value, data.monitored_item.Value.StatusCode.name))
 
-    client = await _client(face)
+    client = await connect(face)
     try:
         ns = await client.get_namespace_index(NS_URI)
         subscription = await client.create_subscription(100, Handler())
@@ -379,7 +356,7 @@ def test_subscription_sees_the_machines_own_dynamics(faces: tuple[EmulatorThread
             seen.append(value)
 
     async def go() -> None:
-        client = await _client(face)
+        client = await connect(face)
         try:
             ns = await client.get_namespace_index(NS_URI)
             subscription = await client.create_subscription(100, Handler())

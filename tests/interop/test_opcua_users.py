@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from asyncua import Client, ua
+from asyncua import ua
 from asyncua.ua.uaerrors import UaStatusCodeError
 from hypothesis import given
 from hypothesis import strategies as st
@@ -19,22 +19,15 @@ from nckemu.emulator.opcua import OpcUaFace
 from nckemu.emulator.opcua.settings import RIGHTS, OpcUaSettings, User
 from nckemu.emulator.opcua.users import MAX_USERS, UserError, UserRegistry, format_rights, parse_rights
 
+from .opcua_tools import connect, write_status
+
 pytestmark = pytest.mark.timeout(180)
 SD = "/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]"
 PROGRAM = "Sinumerik/FileSystem/Part Program/KEEP1.MPF"
 
 
-async def _session(face: OpcUaFace, user: str | None, password: str | None) -> Client:
-    client = Client(face.url, timeout=10)
-    if user:
-        client.set_user(user)
-        client.set_password(password or "")
-    await client.connect()
-    return client
-
-
 async def _call(face: OpcUaFace, user: str | None, password: str | None, method: str, *arguments: Any) -> Any:
-    client = await _session(face, user, password)
+    client = await connect(face, user, password)
     try:
         ns = await client.get_namespace_index("SinumerikVarProvider")
         methods = await client.nodes.objects.get_child([f"{ns}:Sinumerik", f"{ns}:Methods"])
@@ -46,22 +39,9 @@ async def _call(face: OpcUaFace, user: str | None, password: str | None, method:
         await client.disconnect()
 
 
-async def _write(face: OpcUaFace, user: str, password: str, node_id: str, variant: ua.Variant) -> str:
-    client = await _session(face, user, password)
-    try:
-        ns = await client.get_namespace_index("SinumerikVarProvider")
-        try:
-            await client.get_node(ua.NodeId(node_id, ns)).write_value(variant)
-        except UaStatusCodeError as exc:
-            return type(exc).__name__
-        return "Good"
-    finally:
-        await client.disconnect()
-
-
 async def _can_login(face: OpcUaFace, user: str, password: str) -> bool:
     try:
-        client = await _session(face, user, password)
+        client = await connect(face, user, password)
     except UaStatusCodeError:
         return False
     await client.disconnect()
@@ -82,11 +62,11 @@ def test_the_admin_manages_users_and_their_rights_apply_at_once(tmp_path: Path) 
             seen["give"] = await _call(face, *admin, "GiveUserAccess", "op1", "PlcRead;PlcWrite;StateRead")
             seen["rights"] = await _call(face, *admin, "GetUserAccessRights", "op1")
             seen["list"] = await _call(face, *admin, "GetUserList")
-            seen["plc"] = await _write(face, "op1", "first", "/Plc/DB130.DBW0", ua.Variant(5, ua.VariantType.UInt16))
-            seen["sea"] = await _write(face, "op1", "first", SD, ua.Variant(0.1, ua.VariantType.Double))
+            seen["plc"] = await write_status(face, "/Plc/DB130.DBW0", ua.Variant(5, ua.VariantType.UInt16), "op1", "first")
+            seen["sea"] = await write_status(face, SD, ua.Variant(0.1, ua.VariantType.Double), "op1", "first")
             seen["take"] = await _call(face, *admin, "DeleteUserAccess", "op1", "PlcWrite")
-            seen["plc_after"] = await _write(face, "op1", "first", "/Plc/DB130.DBW0",
-                                             ua.Variant(6, ua.VariantType.UInt16))
+            seen["plc_after"] = await write_status(face, "/Plc/DB130.DBW0", ua.Variant(6, ua.VariantType.UInt16),
+                                                  "op1", "first")
             seen["not_admin"] = await _call(face, "op1", "first", "AddUser", "op2", "x")
             seen["anonymous"] = await _call(face, None, None, "GetUserList")
             seen["certificate"] = await _call(face, *admin, "AddCertificateUser", "op3", b"\x30\x00")
