@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 import snap7
-from asyncua import ua
+from asyncua import Client, ua
 from asyncua.ua.uaerrors import UaStatusCodeError
 
 from nckemu.catalogue.node_ids import parse_node_id
@@ -338,6 +338,21 @@ def test_a_monitored_item_starts_with_the_value_and_needs_the_read_right() -> No
         statuses, first = run(_first_notifications(face, ids))
     assert statuses == ["Good", "Good"]
     assert first[ids[1]] == (42, "Good")
+
+
+def test_sessions_are_revised_to_the_controllers_timeout() -> None:
+    """asyncua's client asks for an hour; the controller keeps an idle session 60 s (a setting)."""
+    from dataclasses import replace
+
+    with two_faces() as (_, face):
+        async def revised() -> float:
+            client = Client(face.url, timeout=10)
+            async with client:
+                return float(client.session_timeout)
+
+        assert run(revised()) == 60_000.0
+        face.settings = replace(face.settings, session_timeout_s=5)
+        assert run(revised()) == 5_000.0
 
 
 def test_machine_file_var_rows_are_served() -> None:

@@ -349,6 +349,17 @@ class OpcUaFace:
             bind()
             return await face._monitor_with_rights(params, monitor)
 
+        create_session = session.create_session
+
+        async def create_session_capped(params: ua.CreateSessionParameters, sockname: Any = None) -> Any:
+            # asyncua keeps what the client asks for (its own client asks for an hour) and closes a
+            # session idle that long; the controller's is 60 s.
+            cap_ms = face.settings.session_timeout_s * 1000.0
+            requested = params.RequestedSessionTimeout
+            params.RequestedSessionTimeout = cap_ms if not requested or requested <= 0 else min(requested, cap_ms)
+            return await create_session(params, sockname=sockname)
+
+        session.create_session = create_session_capped
         session.activate_session = activate_session
         session.read = read_as_user
         session.call = call_as_user

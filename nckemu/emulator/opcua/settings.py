@@ -6,6 +6,7 @@ anonymous = ["SinuReadAll"]          # rights of an anonymous session ([] as a n
 max_sessions = 10                    # 840D sl: 10 (828D: 5)
 max_subscriptions = 10
 max_samples_per_s = 1000             # 840D sl: 1000 (828D: 500); items x 1000 / interval_ms, summed
+session_timeout_s = 60               # an idle session is closed; longer requests are revised down
 security = ["None", "Basic256Sha256_SignAndEncrypt", ...]   # endpoints offered (default: all, see SECURITY)
 allow_anonymous = true               # false: no anonymous logins at all (the endpoints do not offer them)
 accept_certificates = true           # false: only client certificates in trusted_certificates (a directory)
@@ -32,7 +33,7 @@ RIGHTS = frozenset({f"{realm}{what}" for realm in REALMS for what in ("Read", "W
 ALLOWED_INTERVALS_MS = (100, 250, 500, 1000, 2500, 5000)
 _KEYS = frozenset({"anonymous", "users", "max_sessions", "max_subscriptions", "sample_interval_ms",
                    "namespace_uri", "max_samples_per_s", "security", "allow_anonymous", "accept_certificates",
-                   "trusted_certificates", "certificate", "private_key", "admin"})
+                   "trusted_certificates", "certificate", "private_key", "admin", "session_timeout_s"})
 # The controller offers "encryption None, 128 bit or 256 bit": None; 128 bit as the AES-128 policy; 256
 # bit as Basic256Sha256 (the common one) and the AES-256 policy (docs/assumptions.md). Sign alone too.
 SECURITY = ("None", "Basic256Sha256_Sign", "Basic256Sha256_SignAndEncrypt", "Aes128Sha256RsaOaep_Sign",
@@ -62,6 +63,8 @@ class OpcUaSettings:
     # interval in ms). What the controller does past it is not in our sources: the face refuses the
     # item that would exceed it with BadTooManyMonitoredItems (docs/assumptions.md).
     max_samples_per_s: int = 1000
+    # A session idle this long is closed (840D sl: 60 s); a longer request is revised down to it.
+    session_timeout_s: int = 60
     # How often monitored variables are read from the model and changes pushed to subscriptions: the
     # controller's smallest publishing interval, so a change is seen within two of them.
     sample_interval_ms: int = 100
@@ -94,7 +97,7 @@ class OpcUaSettings:
                 raise NckConfigError("expected password = \"...\" and rights = [...]", path=source, field=where)
             users[name] = User(name, entry["password"], _rights(entry.get("rights", []), source, f"{where}.rights"))
         limits = {}
-        for key in ("max_sessions", "max_subscriptions", "sample_interval_ms", "max_samples_per_s"):
+        for key in ("max_sessions", "max_subscriptions", "sample_interval_ms", "max_samples_per_s", "session_timeout_s"):
             if key in table:
                 value = table[key]
                 if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 100_000:
