@@ -107,3 +107,36 @@ def test_subscription_sees_an_s7_write(faces: tuple[EmulatorThread, OpcUaFace]) 
     timer.join()
     values = _result(out.splitlines())[0]["values"]
     assert 42 in values, values
+
+
+def test_alarm_events_reach_node_opcua(tmp_path: Path) -> None:
+    """An alarm the emulator raises (its retained state cannot be written) arrives at node-opcua's event
+    monitor on the Server object with its number, text and active state; its clearing too."""
+    blocker = tmp_path / ".state.json.tmp"
+    fields = ["Message", "Severity", "3:AlarmIdentifier", "ActiveState.Id", "Retain"]
+    with two_faces(state_path=tmp_path / "state.json") as (emulator, face):
+        job = {"url": face.url, "user": None, "password": None,
+               "ops": [{"events": "i=2253", "fields": fields, "ms": 2500}]}
+        process = subprocess.Popen([str(NODE), str(HERE / "client.js"), json.dumps(job)], stdout=subprocess.PIPE,
+                                   text=True, cwd=HERE)
+        assert process.stdout is not None
+        first = process.stdout.readline()
+        while first and not first.startswith("RESULT "):
+            first = process.stdout.readline()
+        assert _result([first]) == {"subscribed": True}, first
+
+        def fail_then_recover() -> None:
+            blocker.mkdir()
+            with NckClient("127.0.0.1", emulator.port) as nck:
+                nck.put({"SD43900[AX4]": 0.1})
+                blocker.rmdir()
+                nck.put({"SD43900[AX4]": 0.2})
+
+        timer = threading.Timer(0.3, fail_then_recover)
+        timer.start()
+        out, _ = process.communicate(timeout=60)
+        timer.join()
+    events = _result(out.splitlines())[0]["events"]
+    alarms = [dict(zip(fields, event, strict=True)) for event in events if event[2] == "700999"]
+    assert [(a["ActiveState.Id"], a["Retain"], a["Severity"]) for a in alarms] == [(True, True, 500), (False, False, 500)]
+    assert alarms[0]["Message"].startswith("retained state not saved")

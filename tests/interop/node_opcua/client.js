@@ -3,6 +3,7 @@
 // ops: {"read": "ns=2;s=/Channel/State/progStatus"}
 //      {"write": "ns=2;s=...", "value": 1.5, "type": "Double"}
 //      {"subscribe": "ns=2;s=...", "ms": 1500, "after_ms": 300}   (records changes; prints when done)
+//      {"events": "i=2253", "fields": ["Message", "3:AlarmIdentifier", "ActiveState.Id"], "ms": 1500}   (records events)
 // optional: "security": "Basic256Sha256", "mode": "SignAndEncrypt" (or "Sign"), "pki": a folder for the client's own certificate
 // Prints one line "RESULT <json>" (node-opcua logs on stdout too): a list with one result per op ({"status": "Good", "value": ...}).
 "use strict";
@@ -51,6 +52,26 @@ async function main() {
         await new Promise((resolve) => setTimeout(resolve, op.ms));
         await subscription.terminate();
         results.push({ status: "Good", values: seen });
+      } else if (op.events) {
+        const subscription = await session.createSubscription2({
+          requestedPublishingInterval: 100, requestedMaxKeepAliveCount: 10, publishingEnabled: true,
+        });
+        const item = await subscription.monitor(
+          { nodeId: op.events, attributeId: opcua.AttributeIds.EventNotifier },
+          { samplingInterval: 0, queueSize: 100, filter: opcua.constructEventFilter(op.fields) },
+          opcua.TimestampsToReturn.Both);
+        const seen = [];
+        const plain = (variant) => {
+          const value = variant.value;
+          if (value && value.text !== undefined) return value.text;
+          if (value && typeof value === "object" && value.length !== undefined) return Array.from(value);
+          return value;
+        };
+        item.on("changed", (fields) => seen.push(fields.map(plain)));
+        process.stdout.write("RESULT " + JSON.stringify({ subscribed: true }) + "\n");
+        await new Promise((resolve) => setTimeout(resolve, op.ms));
+        await subscription.terminate();
+        results.push({ status: "Good", events: seen });
       }
     }
   } finally {
