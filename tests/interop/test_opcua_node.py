@@ -83,10 +83,8 @@ def test_errors_and_user_rules(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
     assert "error" in refused
 
 
-def test_subscription_sees_an_s7_write(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
-    emulator, face = faces
-    job = {"url": face.url, "user": None, "password": None,
-           "ops": [{"subscribe": "ns=2;s=/Plc/DB130.DBW40", "ms": 1500}]}
+def _subscribed_client(job: dict[str, Any]) -> subprocess.Popen[str]:
+    """client.js started on ``job``, once it says its subscription is live (so the test acts only then)."""
     process = subprocess.Popen([str(NODE), str(HERE / "client.js"), json.dumps(job)], stdout=subprocess.PIPE,
                                text=True, cwd=HERE)
     assert process.stdout is not None
@@ -94,6 +92,14 @@ def test_subscription_sees_an_s7_write(faces: tuple[EmulatorThread, OpcUaFace]) 
     while first and not first.startswith("RESULT "):
         first = process.stdout.readline()
     assert _result([first]) == {"subscribed": True}, first
+    return process
+
+
+def test_subscription_sees_an_s7_write(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    emulator, face = faces
+    job = {"url": face.url, "user": None, "password": None,
+           "ops": [{"subscribe": "ns=2;s=/Plc/DB130.DBW40", "ms": 1500}]}
+    process = _subscribed_client(job)
 
     def write_over_s7() -> None:
         plc = snap7.Client()
@@ -117,13 +123,7 @@ def test_alarm_events_reach_node_opcua(tmp_path: Path) -> None:
     with two_faces(state_path=tmp_path / "state.json") as (emulator, face):
         job = {"url": face.url, "user": None, "password": None,
                "ops": [{"events": "i=2253", "fields": fields, "ms": 2500}]}
-        process = subprocess.Popen([str(NODE), str(HERE / "client.js"), json.dumps(job)], stdout=subprocess.PIPE,
-                                   text=True, cwd=HERE)
-        assert process.stdout is not None
-        first = process.stdout.readline()
-        while first and not first.startswith("RESULT "):
-            first = process.stdout.readline()
-        assert _result([first]) == {"subscribed": True}, first
+        process = _subscribed_client(job)
 
         def fail_then_recover() -> None:
             blocker.mkdir()
