@@ -382,7 +382,6 @@ class OpcUaFace:
                 return await create(params)
             each = 1000.0 / max(subscription.data.RevisedPublishingInterval, ALLOWED_INTERVALS_MS[0])
             budget = face.settings.max_samples_per_s - face.samples_per_s(service.subscriptions)
-            taken: list[Any] = []
             refused: set[int] = set()
             for position, item in enumerate(params.ItemsToCreate):
                 if item.ItemToMonitor.AttributeId == ua.AttributeIds.Value:
@@ -390,13 +389,7 @@ class OpcUaFace:
                         refused.add(position)
                         continue
                     budget -= each
-                taken.append(item)
-            if not refused:
-                return await create(params)
-            created = iter(await create(dataclasses.replace(params, ItemsToCreate=taken)) if taken else [])
-            too_many = ua.StatusCode(ua.StatusCodes.BadTooManyMonitoredItems)
-            return [ua.MonitoredItemCreateResult(StatusCode_=too_many) if position in refused else next(created)
-                    for position in range(len(params.ItemsToCreate))]
+            return await _create_refusing(params, refused, ua.StatusCodes.BadTooManyMonitoredItems, create)
 
         service.create_monitored_items = create_monitored_items
 
@@ -419,13 +412,7 @@ class OpcUaFace:
                 continue  # asyncua answers for ids that are no variable
             if not may(rights, name.realm, write=False):
                 denied.add(position)
-        if not denied:
-            return await create(params)
-        taken = [item for position, item in enumerate(params.ItemsToCreate) if position not in denied]
-        created = iter(await create(dataclasses.replace(params, ItemsToCreate=taken)) if taken else [])
-        refusal = ua.StatusCode(ua.StatusCodes.BadUserAccessDenied)
-        return [ua.MonitoredItemCreateResult(StatusCode_=refusal) if position in denied else next(created)
-                for position in range(len(params.ItemsToCreate))]
+        return await _create_refusing(params, denied, ua.StatusCodes.BadUserAccessDenied, create)
 
     # ------------------------------------------------------------------ subscriptions
     def _wrap_datachange(self, aspace: Any) -> None:
@@ -614,6 +601,19 @@ class _PlcIndex:
         low = bisect.bisect_left(starts, first_byte - longest + 1)
         high = bisect.bisect_left(starts, end_byte)
         return [item for item in items[low:high] if item.end_byte > first_byte]
+
+
+async def _create_refusing(params: ua.CreateMonitoredItemsParameters, refused: set[int], status: int,
+                           create: Callable[[ua.CreateMonitoredItemsParameters], Any]) -> Any:
+    """Create the items of ``params`` but those at the ``refused`` positions, which get ``status``; the
+    results in the request's order."""
+    if not refused:
+        return await create(params)
+    taken = [item for position, item in enumerate(params.ItemsToCreate) if position not in refused]
+    created = iter(await create(dataclasses.replace(params, ItemsToCreate=taken)) if taken else [])
+    refusal = ua.StatusCode(status)
+    return [ua.MonitoredItemCreateResult(StatusCode_=refusal) if position in refused else next(created)
+            for position in range(len(params.ItemsToCreate))]
 
 
 def _raw_now(reader: Callable[[], object]) -> object:
