@@ -25,9 +25,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from nckemu.emulator.clock import SimulatedClock  # noqa: E402
-from nckemu.emulator.core import Emulator  # noqa: E402
-from nckemu.emulator.session import ServerSession  # noqa: E402
+from nckemu.emulator.faces.s7.dispatch import Dispatcher  # noqa: E402
+from nckemu.emulator.faces.s7.session import ServerSession  # noqa: E402
+from nckemu.emulator.machine.clock import SimulatedClock  # noqa: E402
+from nckemu.emulator.machine.core import Emulator  # noqa: E402
 from nckemu.protocol import cotp, s7  # noqa: E402
 
 CR = bytes.fromhex("0300001611E00000000100C0010AC1020100C2020104")
@@ -43,7 +44,7 @@ def _frame(pdu: bytes) -> bytes:
 
 
 def ready_session(emulator: Emulator) -> ServerSession:
-    session = ServerSession(emulator.dispatcher)
+    session = ServerSession(Dispatcher.for_machine(emulator))
     session.receive(CR)
     session.receive(_frame(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 1, s7.build_setup_communication(
         s7.SetupCommunication(1, 1, 480))))))

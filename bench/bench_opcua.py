@@ -36,9 +36,9 @@ async def serve(kind: str, port: int) -> None:
     from asyncua import Server, ua
 
     if kind == "ours":
-        from nckemu.emulator.core import Emulator
-        from nckemu.emulator.machine import parse_machine
-        from nckemu.emulator.opcua import OpcUaFace
+        from nckemu.emulator.faces.opcua import OpcUaFace
+        from nckemu.emulator.machine.core import Emulator
+        from nckemu.emulator.machine.machine_file import parse_machine
 
         # 1000 items at 100 ms are 10 000 samples/s, ten times an 840D sl's cap: raised for the bench.
         emulator = Emulator(parse_machine('name = "bench"\n[plc]\ndata_blocks = { 200 = 4096 }\n'

@@ -74,15 +74,16 @@ setInterval(() => {}, 1 << 30);
 # protocol callback and the socket calls: what no pure-Python server can go below.
 FLOOR_SCRIPT = """
 import asyncio, sys, uvloop
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.session import ServerSession
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.faces.s7.session import ServerSession
 emulator = Emulator()
 
 class Floor(asyncio.BufferedProtocol):
     def __init__(self):
         self.buffer = bytearray(4096)
         self.view = memoryview(self.buffer)
-        self.session = ServerSession(emulator.dispatcher)
+        self.session = ServerSession(Dispatcher.for_machine(emulator))
         self.answers = {}
 
     def connection_made(self, transport):

@@ -16,8 +16,9 @@ import atheris
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 with atheris.instrument_imports():
-    from nckemu.emulator.core import Emulator
-    from nckemu.emulator.session import ServerSession, SessionLimits
+    from nckemu.emulator.faces.s7.dispatch import Dispatcher
+    from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits
+    from nckemu.emulator.machine.core import Emulator
     from nckemu.protocol import s7
 
 CR = bytes.fromhex("0300001611E00000000100C0010AC1020100C2020104")
@@ -36,7 +37,7 @@ logging.getLogger("nckemu").propagate = False
 
 
 def one_input(data: bytes) -> None:
-    session = ServerSession(EMULATOR.dispatcher, limits=LIMITS)
+    session = ServerSession(Dispatcher.for_machine(EMULATOR), limits=LIMITS)
     session.receive(CR + SETUP)
     cut = data[0] if data else 0
     for chunk in (data[1:1 + cut], data[1 + cut:]):

@@ -19,8 +19,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from nckemu.emulator.core import Emulator  # noqa: E402
-from nckemu.emulator.session import ServerSession, SessionLimits  # noqa: E402
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits  # noqa: E402
+from nckemu.emulator.machine.core import Emulator  # noqa: E402
 from tests.property.test_session_fuzz import CR, SETUP, VALID_JOBS, dt  # noqa: E402
 
 
@@ -75,7 +76,7 @@ def main() -> int:
     started = time.perf_counter()
     frames = 0
     while frames < args.frames:
-        session = ServerSession(emulator.dispatcher, limits=limits)
+        session = ServerSession(Dispatcher.for_machine(emulator), limits=limits)
         sessions += 1
         session.receive(CR + dt(SETUP))
         for _ in range(rng.randint(1, 50)):

@@ -18,8 +18,8 @@ import snap7
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from nckemu.clients import FbPut, NckClient  # noqa: E402
-from nckemu.emulator.clock import SimulatedClock  # noqa: E402
-from nckemu.emulator.core import Emulator  # noqa: E402
+from nckemu.emulator.machine.clock import SimulatedClock  # noqa: E402
+from nckemu.emulator.machine.core import Emulator  # noqa: E402
 from nckemu.emulator.runner import EmulatorThread  # noqa: E402
 
 RAW_PER_C = 276.48  # the default machine's PT100 input: 0..27648 = 0..100 degC

@@ -7,8 +7,8 @@ job into a protocol answer and a client can raise exactly what the controller sa
 * ``return_code``: the per-item return code of a read/write item (``ReturnCode``);
 * ``state``: the FB2/FB3/FB4 ``State`` word a PLC block would show (assumed values, see clients).
 
-Errors about malformed bytes (``NckProtocolError``, ``NckTruncatedError``) are wire-specific and
-live beside the codecs in ``nckemu.protocol.errors``; they subclass ``NckError`` from here.
+Errors about malformed bytes (``NckProtocolError``, ``NckTruncatedError``) are the codecs' own; they
+are defined here with the rest and ``nckemu.protocol.errors`` names them beside the codecs.
 """
 
 from __future__ import annotations
@@ -219,13 +219,15 @@ def service_error_for(error_class: int, error_code: int, message: str = "") -> N
     return cls(message, error_class=error_class, error_code=error_code)
 
 
-def __getattr__(name: str) -> Any:
-    # Before 0.2 this module re-exported the wire errors; they now live beside the codecs.
-    if name in ("NckProtocolError", "NckTruncatedError"):
-        from nckemu.protocol import errors as wire_errors
+class NckProtocolError(NckError):
+    """Bytes that are not a valid frame or PDU (answered with 0x85/0x00, wrong frames)."""
 
-        return getattr(wire_errors, name)
-    raise AttributeError(f"module 'nckemu.errors' has no attribute {name!r}")
+    error_class = HeaderError.WRONG_FRAMES.error_class
+    error_code = HeaderError.WRONG_FRAMES.error_code
+
+
+class NckTruncatedError(NckProtocolError):
+    """The bytes end before the structure they announce."""
 
 
 class NckNodeIdError(NckError):

@@ -11,13 +11,12 @@ import sys
 from collections.abc import Callable, Sequence
 
 from nckemu.cliutil import check_output, listen_port, until_signalled
+from nckemu.emulator.faces import Face
+from nckemu.emulator.faces.s7.server import EmulatorServer, ServerLimits
+from nckemu.emulator.machine.clock import Clock
+from nckemu.emulator.machine.core import Emulator
 from nckemu.errors import NckConfigError, NckError
 from nckemu.textfile import read_text
-
-from .clock import Clock
-from .core import Emulator
-from .live import Face
-from .server import EmulatorServer, ServerLimits
 
 log = logging.getLogger(__name__)
 
@@ -72,10 +71,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 
 def run_machine_show(args: argparse.Namespace) -> int:
+    from nckemu.emulator.machine.machine_file import load_machine
+    from nckemu.emulator.machine.plc.memory import AREA_BYTES
     from nckemu.protocol.db41 import CHANNEL_DB
-
-    from .machine import load_machine
-    from .plc.memory import AREA_BYTES
 
     machine = load_machine(args.machine)
     blocks = dict(sorted({**machine.data_blocks, CHANNEL_DB: machine.data_blocks.get(CHANNEL_DB, 64)}.items()))
@@ -146,11 +144,11 @@ def run_serve(args: argparse.Namespace, *, clock: Clock | None = None, faces: Se
                             record_path=args.record)
     built = [make(emulator, server) for make in faces]
     if getattr(args, "http", None) is not None:
-        from .web import WebFace
+        from nckemu.emulator.faces.web import WebFace
 
         built.append(WebFace(emulator, server, host=args.host, port=args.http))
     if getattr(args, "opcua", None) is not None:
-        from .opcua import OpcUaFace
+        from nckemu.emulator.faces.opcua import OpcUaFace
 
         built.append(OpcUaFace(emulator, args.host, args.opcua))
     try:

@@ -22,14 +22,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from nckemu.emulator.faces import Face
+from nckemu.emulator.faces.s7.server import EmulatorServer, ServerLimits
+from nckemu.emulator.machine.clock import Clock
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import Machine, load_machine
 from nckemu.errors import NckConfigError
 from nckemu.textfile import read_text
-
-from .clock import Clock
-from .core import Emulator
-from .live import Face
-from .machine import Machine, load_machine
-from .server import EmulatorServer, ServerLimits
 
 log = logging.getLogger(__name__)
 
@@ -298,7 +297,9 @@ class Fleet:
             face = make_face(emulator, server) if make_face is not None else None
             opcua: Face | None = None
             if entry.opcua is not None:
-                from .opcua import OpcUaFace  # asyncua is imported only by fleets that serve OPC UA
+                from nckemu.emulator.faces.opcua import (
+                    OpcUaFace,  # asyncua is imported only by fleets that serve OPC UA
+                )
 
                 try:
                     opcua = OpcUaFace(emulator, entry.host, entry.opcua)

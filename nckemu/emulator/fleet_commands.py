@@ -7,11 +7,10 @@ import asyncio
 import json
 
 from nckemu.cliutil import port_number, until_signalled
+from nckemu.emulator.commands import loop_factory
+from nckemu.emulator.faces.s7.server import ServerLimits
+from nckemu.emulator.fleet import Fleet, LivingHook, load_fleet, quick_fleet
 from nckemu.errors import NckConfigError
-
-from .commands import loop_factory
-from .fleet import Fleet, LivingHook, load_fleet, quick_fleet
-from .server import ServerLimits
 
 EXAMPLE = """\
 examples:

@@ -9,10 +9,10 @@ from concurrent.futures import Future
 from pathlib import Path
 from typing import Any, TypeVar
 
-from .core import Emulator
-from .machine import Machine
-from .server import EmulatorServer, ServerLimits
-from .session import SessionLimits
+from nckemu.emulator.faces.s7.server import EmulatorServer, ServerLimits
+from nckemu.emulator.faces.s7.session import SessionLimits
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import Machine
 
 T = TypeVar("T")
 

@@ -165,7 +165,7 @@ def _warn_position_dependent(program: str, machine_path: str | None, axis_number
     import sys
     from pathlib import Path
 
-    from nckemu.emulator.machine import load_machine
+    from nckemu.emulator.machine.machine_file import load_machine
 
     from .replay import position_dependent_warning
 
@@ -307,7 +307,7 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from nckemu.emulator.machine import load_machine
+    from nckemu.emulator.machine.machine_file import load_machine
     from nckemu.thermal.plcmodel import plc_model, terms_of
     from nckemu.thermal.recording import load_recording
 
@@ -388,7 +388,7 @@ def serve_live(plain_serve: Any, args: argparse.Namespace) -> int:
         return int(plain_serve(args) or 0)
     import sys
 
-    from nckemu.emulator.clock import LiveClock
+    from nckemu.emulator.machine.clock import LiveClock
 
     from .live import LiveMachine, parse_speed
 

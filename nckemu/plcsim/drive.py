@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nckemu.emulator.machine import Machine
-from nckemu.emulator.nck.model import NckModel
+from nckemu.emulator.machine.machine_file import Machine
+from nckemu.emulator.machine.nck.model import NckModel
 from nckemu.errors import NckConfigError
 from nckemu.thermal.recording import Recording
 

@@ -10,10 +10,10 @@ import argparse
 import functools
 from typing import Any
 
-from nckemu.emulator.clock import LiveClock
-from nckemu.emulator.core import Emulator
+from nckemu.emulator.faces.s7.server import EmulatorServer
 from nckemu.emulator.fleet import FaceFactory, FleetMachine
-from nckemu.emulator.server import EmulatorServer
+from nckemu.emulator.machine.clock import LiveClock
+from nckemu.emulator.machine.core import Emulator
 from nckemu.errors import NckConfigError
 
 

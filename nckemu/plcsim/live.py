@@ -1,7 +1,7 @@
 """A living machine: a recording and the user's STL program driving a served machine on its clock.
 
 ``LiveMachine(emulator, inputs=..., plc=..., speed=..., loop=..., server=...)`` hangs one cycle on
-the emulator's :class:`~nckemu.emulator.live.CyclePacer`: every ``cycle_s`` of simulated time the
+the emulator's :class:`~nckemu.emulator.machine.cycle.CyclePacer`: every ``cycle_s`` of simulated time the
 recording's inputs (``drive.RecordingDrive``, the same as ``plc run --inputs``) and then one cycle of
 the program in awlsim (``bridge.PlcRunner``, the same as offline), its FB2/FB3/FB4 jobs going to the
 machine's own S7 face on the same event loop, as a client. The pacer holds the clock at the cycle's
@@ -24,10 +24,10 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from nckemu.clients.async_client import AsyncNckClient
-from nckemu.emulator.clock import LiveClock
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.live import CyclePacer
-from nckemu.emulator.server import EmulatorServer
+from nckemu.emulator.faces.s7.server import EmulatorServer
+from nckemu.emulator.machine.clock import LiveClock
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.cycle import CyclePacer
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area
 from nckemu.thermal.recording import Recording, load_recording

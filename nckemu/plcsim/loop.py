@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from nckemu.emulator.machine import Axis, Machine, load_machine
+from nckemu.emulator.machine.machine_file import Axis, Machine, load_machine
 from nckemu.thermal import stats
 from nckemu.thermal.discover import Discovery, discover
 from nckemu.thermal.plcmodel import PlcModel, plc_model, terms_of

@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from nckemu.clients import NckClient
-from nckemu.emulator.clock import SimulatedClock
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.machine import Axis, Machine, load_machine
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import Axis, Machine, load_machine
 from nckemu.emulator.runner import EmulatorThread
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import S7Area

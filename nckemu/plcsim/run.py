@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from nckemu.clients import NckClient
-from nckemu.emulator.clock import SimulatedClock
-from nckemu.emulator.core import Emulator
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.runner import EmulatorThread
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area

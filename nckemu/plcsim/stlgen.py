@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from nckemu.catalogue.names import parse_variable
-from nckemu.emulator.machine import Axis, Machine, Sensor
+from nckemu.emulator.machine.machine_file import Axis, Machine, Sensor
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import NckType
 from nckemu.protocol.awl import NcVarDb, NcVarEntry, render_ncvar_db

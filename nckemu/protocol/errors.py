@@ -1,7 +1,8 @@
-"""Wire-specific errors: bytes that are not a valid frame or PDU.
+"""The codecs' errors, beside the codecs: bytes that are not a valid frame or PDU.
 
-They subclass the one hierarchy in ``nckemu.errors`` (the bottom of the package, the only module of
-ours that ``protocol/`` imports). The other names are re-exported so that code written against
+``NckProtocolError`` and ``NckTruncatedError`` are defined with the whole hierarchy in
+``nckemu.errors`` (the bottom of the package, the only module of ours that ``protocol/`` imports), so
+that module imports nothing back. The other names are re-exported so that code written against
 ``nckemu.protocol.errors`` before 0.2 keeps working.
 """
 
@@ -19,22 +20,13 @@ from nckemu.errors import (  # noqa: F401
     NckHardwareError,
     NckItemError,
     NckObjectDoesNotExist,
+    NckProtocolError,
     NckServiceError,
     NckTimeoutError,
+    NckTruncatedError,
     NckTypeInconsistent,
     NckTypeNotSupported,
     ReturnCode,
     item_error_for,
     service_error_for,
 )
-
-
-class NckProtocolError(NckError):
-    """Bytes that are not a valid frame or PDU (answered with 0x85/0x00, wrong frames)."""
-
-    error_class = HeaderError.WRONG_FRAMES.error_class
-    error_code = HeaderError.WRONG_FRAMES.error_code
-
-
-class NckTruncatedError(NckProtocolError):
-    """The bytes end before the structure they announce."""

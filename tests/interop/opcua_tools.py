@@ -10,7 +10,7 @@ from pathlib import Path
 from asyncua import Client, ua
 from asyncua.ua.uaerrors import UaStatusCodeError
 
-from nckemu.emulator.opcua import OpcUaFace
+from nckemu.emulator.faces.opcua import OpcUaFace
 from nckemu.emulator.runner import EmulatorThread
 
 

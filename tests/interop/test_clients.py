@@ -199,10 +199,10 @@ def test_channel_840c(emulator: EmulatorThread) -> None:
 
 
 def test_channel_840c_refuses_p0_at_zero_when_the_machine_says_so() -> None:
-    import nckemu.emulator
-    from nckemu.emulator.machine import parse_machine
+    import nckemu.emulator.machine
+    from nckemu.emulator.machine.machine_file import parse_machine
 
-    text = (Path(nckemu.emulator.__file__).parent / "machines" / "default.toml").read_text()
+    text = (Path(nckemu.emulator.machine.__file__).parent / "machines" / "default.toml").read_text()
     machine = parse_machine(text.replace("c840_refuse_p0_at_zero = false", "c840_refuse_p0_at_zero = true"))
 
     async def run(port: int) -> None:

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from nckemu.clients import NckClient
+from nckemu.emulator.faces.s7.server import ServerLimits
 from nckemu.emulator.runner import EmulatorThread
-from nckemu.emulator.server import ServerLimits
 
 CR = bytes.fromhex("0300001611E00000000100C0010AC1020100C2020104")
 SETUP = bytes.fromhex("0300001902F08032010000000100080000F0000008000803C0")

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import snap7
 
-from nckemu.emulator.machine import load_machine
+from nckemu.emulator.machine.machine_file import load_machine
 from nckemu.plcsim.replay import run_on_recording, with_simulation, write_atomically
 from nckemu.thermal.recording import load_recording
 

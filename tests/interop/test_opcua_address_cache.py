@@ -10,10 +10,10 @@ from typing import Any
 import pytest
 from asyncua import Client, ua
 
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.machine import load_machine
-from nckemu.emulator.opcua import OpcUaFace
-from nckemu.emulator.opcua import shelf as address_cache
+from nckemu.emulator.faces.opcua import OpcUaFace
+from nckemu.emulator.faces.opcua import shelf as address_cache
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import load_machine
 
 pytestmark = pytest.mark.timeout(180)
 

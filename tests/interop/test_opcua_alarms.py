@@ -17,8 +17,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from nckemu.clients import NckClient
-from nckemu.emulator.nck.alarms import ALARM_RETAINED_STATE, Alarm, AlarmEvent
-from nckemu.emulator.opcua.alarms import CNC_NAMESPACE, SEVERITIES, condition_id, event_fields
+from nckemu.emulator.faces.opcua.alarms import CNC_NAMESPACE, SEVERITIES, condition_id, event_fields
+from nckemu.emulator.machine.nck.alarms import ALARM_RETAINED_STATE, Alarm, AlarmEvent
 
 from .opcua_tools import two_faces
 

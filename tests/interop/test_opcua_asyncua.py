@@ -15,8 +15,8 @@ from asyncua.ua.uaerrors import UaStatusCodeError
 
 from nckemu.catalogue.node_ids import parse_node_id
 from nckemu.clients import NckClient
-from nckemu.emulator.nck.access import HIGHEST_LEVEL, AccessContext
-from nckemu.emulator.opcua import OpcUaFace
+from nckemu.emulator.faces.opcua import OpcUaFace
+from nckemu.emulator.machine.nck.access import HIGHEST_LEVEL, AccessContext
 from nckemu.emulator.runner import EmulatorThread
 
 from .opcua_tools import connect, two_faces, write_status

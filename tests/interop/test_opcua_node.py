@@ -14,7 +14,7 @@ import pytest
 import snap7
 
 from nckemu.clients import NckClient
-from nckemu.emulator.opcua import OpcUaFace
+from nckemu.emulator.faces.opcua import OpcUaFace
 from nckemu.emulator.runner import EmulatorThread
 
 from .opcua_tools import two_faces

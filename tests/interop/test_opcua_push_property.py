@@ -15,7 +15,7 @@ from asyncua import Client, ua
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from nckemu.emulator.opcua import OpcUaFace
+from nckemu.emulator.faces.opcua import OpcUaFace
 from nckemu.emulator.runner import EmulatorThread
 
 from .opcua_tools import two_faces

@@ -19,10 +19,10 @@ from cryptography.x509.oid import ExtendedKeyUsageOID
 from hypothesis import given
 from hypothesis import strategies as st
 
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.machine import load_machine, parse_machine
-from nckemu.emulator.opcua import OpcUaFace
-from nckemu.emulator.opcua.settings import SECURITY, OpcUaSettings
+from nckemu.emulator.faces.opcua import OpcUaFace
+from nckemu.emulator.faces.opcua.settings import SECURITY, OpcUaSettings
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import load_machine, parse_machine
 from nckemu.errors import NckConfigError
 
 pytestmark = pytest.mark.timeout(180)

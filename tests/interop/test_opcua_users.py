@@ -13,11 +13,11 @@ from asyncua.ua.uaerrors import UaStatusCodeError
 from hypothesis import given
 from hypothesis import strategies as st
 
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.machine import load_machine
-from nckemu.emulator.opcua import OpcUaFace
-from nckemu.emulator.opcua.settings import RIGHTS, OpcUaSettings, User
-from nckemu.emulator.opcua.users import MAX_USERS, UserError, UserRegistry, format_rights, parse_rights
+from nckemu.emulator.faces.opcua import OpcUaFace
+from nckemu.emulator.faces.opcua.settings import RIGHTS, OpcUaSettings, User
+from nckemu.emulator.faces.opcua.users import MAX_USERS, UserError, UserRegistry, format_rights, parse_rights
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import load_machine
 
 from .opcua_tools import connect, write_status
 

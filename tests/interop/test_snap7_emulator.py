@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import pytest
 import snap7
 
-from nckemu.emulator.nck.access import AccessContext
+from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.emulator.runner import EmulatorThread
 from nckemu.protocol import pi, s7
 from nckemu.protocol.addresses import NckAddress

@@ -7,9 +7,10 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from nckemu.emulator.clock import SimulatedClock
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.session import ServerSession, SessionLimits
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.core import Emulator
 from nckemu.protocol import cotp, s7
 from nckemu.protocol.addresses import NckAddress, S7AnyAddress
 from tests.property.test_codec_properties import addresses
@@ -24,7 +25,7 @@ KNOWN = st.sampled_from([NckAddress(3, 4, 43900, 1, 0x16), NckAddress(2, 1, 1, 1
 
 
 def _ready(pdu_size: int, tpdu_size_code: int = 0x0A) -> ServerSession:
-    session = ServerSession(EMULATOR.dispatcher, limits=SessionLimits(pdu_size_max=pdu_size, max_amq=8))
+    session = ServerSession(Dispatcher.for_machine(EMULATOR), limits=SessionLimits(pdu_size_max=pdu_size, max_amq=8))
     session.receive(CR[:-9] + bytes([tpdu_size_code]) + CR[-8:])  # TPDU size 2 ** code
     setup = s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 1, s7.build_setup_communication(
         s7.SetupCommunication(1, 1, pdu_size))))
@@ -76,7 +77,8 @@ def test_planned_s7any_reads_answer_as_the_general_path(items: list[S7AnyAddress
     the values must be those of the moment (after writes and sensor changes), the bytes those of
     ``Dispatcher.job``."""
     emulator = Emulator(clock=SimulatedClock(100.0))
-    dispatcher, ctx = emulator.dispatcher, emulator.dispatcher.new_access_context("test")
+    dispatcher = Dispatcher.for_machine(emulator)
+    ctx = dispatcher.new_access_context("test")
     parameter = s7.build_read_var_request(s7.ReadVarRequest(tuple(items)))
     job = s7.S7Pdu(s7.Rosctr.JOB, pdu_ref, parameter)
     for round_ in range(2):  # the first answer makes the plan, the second uses it
@@ -121,7 +123,7 @@ def test_read_jobs_answer_alike_whole_split_or_pipelined(items: list[object], pd
 
 
 def _ready_on(emulator: Emulator) -> ServerSession:
-    session = ServerSession(emulator.dispatcher, limits=SessionLimits(pdu_size_max=480, max_amq=8))
+    session = ServerSession(Dispatcher.for_machine(emulator), limits=SessionLimits(pdu_size_max=480, max_amq=8))
     session.receive(CR)
     session.receive(cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 1, s7.build_setup_communication(
         s7.SetupCommunication(1, 1, 480))))))

@@ -8,7 +8,7 @@ import math
 from hypothesis import given
 from hypothesis import strategies as st
 
-from nckemu.emulator.clock import LiveClock
+from nckemu.emulator.machine.clock import LiveClock
 
 
 class FakeWall:

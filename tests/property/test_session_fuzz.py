@@ -12,9 +12,10 @@ import struct
 from hypothesis import given
 from hypothesis import strategies as st
 
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.nck.access import AccessContext
-from nckemu.emulator.session import ServerSession, SessionLimits
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.protocol import pi, s7, szl
 from nckemu.protocol.addresses import NckAddress, S7AnyAddress
 
@@ -104,12 +105,12 @@ def test_fuzzed_streams_get_answers_or_a_clean_close(chunks: list[bytes]) -> Non
 def _fuzz(chunks: list[bytes]) -> None:
     emulator = Emulator()
     emulator.nck.write(SENTINEL, [0.125], AccessContext(level=0))
-    session = ServerSession(emulator.dispatcher, limits=LIMITS, peer="fuzz")
+    session = ServerSession(Dispatcher.for_machine(emulator), limits=LIMITS, peer="fuzz")
     for chunk in chunks:
         _answers_are_frames(session.receive(chunk))  # nothing may escape
         assert len(session._buffer) <= LIMITS.max_buffer_bytes
     # Other connections see a consistent model: a fresh session reads what the model holds.
-    fresh = ServerSession(emulator.dispatcher, limits=LIMITS)
+    fresh = ServerSession(Dispatcher.for_machine(emulator), limits=LIMITS)
     fresh.receive(CR)
     fresh.receive(dt(SETUP))
     (answer,) = fresh.receive(dt(pdu(9, s7.build_read_var_request(s7.ReadVarRequest((SENTINEL,))))))
@@ -122,7 +123,7 @@ def _fuzz(chunks: list[bytes]) -> None:
 
 @given(st.binary(max_size=400), st.integers(1, 50))
 def test_random_bytes_after_a_valid_connect(garbage: bytes, chunk: int) -> None:
-    session = ServerSession(Emulator().dispatcher, limits=LIMITS)
+    session = ServerSession(Dispatcher.for_machine(Emulator()), limits=LIMITS)
     session.receive(CR + dt(SETUP))
     for start in range(0, len(garbage), chunk):
         _answers_are_frames(session.receive(garbage[start:start + chunk]))

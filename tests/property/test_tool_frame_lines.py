@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from nckemu.emulator.machine import (
+from nckemu.emulator.machine.machine_file import (
     MAX_EDGE_PARAMS,
     STANDARD_EDGE_PARAMS,
     Axis,
@@ -17,8 +17,8 @@ from nckemu.emulator.machine import (
     ToolSettings,
     WorkOffsets,
 )
-from nckemu.emulator.nck.frames import IFRAME, MAX_ACTIVE_FRAME_INDEX, PFRAME, Frames
-from nckemu.emulator.nck.tools import Tools
+from nckemu.emulator.machine.nck.frames import IFRAME, MAX_ACTIVE_FRAME_INDEX, PFRAME, Frames
+from nckemu.emulator.machine.nck.tools import Tools
 from nckemu.errors import NckAddressOutOfRange, NckObjectDoesNotExist
 
 

@@ -7,9 +7,9 @@ import importlib
 import pytest
 
 from nckemu.catalogue import build_table, find_by_name, load_table, parse_variable
-from nckemu.emulator.clock import SimulatedClock
-from nckemu.emulator.machine import load_machine
-from nckemu.emulator.nck.model import NckModel, check_sources
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.machine_file import load_machine
+from nckemu.emulator.machine.nck.model import NckModel, check_sources
 from nckemu.errors import NckConfigError
 
 GOOD = {"name": "X", "number": "MD1", "module": 0x1A, "column": 1, "areas": ["N"], "type": "REAL8"}

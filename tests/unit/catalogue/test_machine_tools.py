@@ -7,7 +7,7 @@ import pytest
 
 from nckemu.catalogue.names import parse_variable
 from nckemu.catalogue.table import build_table
-from nckemu.emulator.machine import SETTABLE_FRAMES, load_machine, parse_machine
+from nckemu.emulator.machine.machine_file import SETTABLE_FRAMES, load_machine, parse_machine
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import NckArea
 

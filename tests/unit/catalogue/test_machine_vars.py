@@ -9,9 +9,10 @@ from pathlib import Path
 import pytest
 
 from nckemu.cli import main
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.machine import load_machine, parse_machine
-from nckemu.emulator.nck.access import AccessContext
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import load_machine, parse_machine
+from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import NckAddress, NckArea
 
@@ -100,10 +101,10 @@ def test_vars_help_example_runs(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_served_over_the_wire_with_the_machine_override() -> None:
-    from nckemu.emulator.session import ServerSession
+    from nckemu.emulator.faces.s7.session import ServerSession
 
     from ..emulator.test_field_catalogue import CR_LSC, SETUP_LSC, answer_items, item, read_frame
-    session = ServerSession(Emulator(load_machine(FIXTURE)).dispatcher)
+    session = ServerSession(Dispatcher.for_machine(Emulator(load_machine(FIXTURE))))
     session.receive(CR_LSC)
     session.receive(SETUP_LSC)
     (answer,) = session.receive(read_frame(item(0x01, 18030, 1, 0x1A), item(0x41, 500, 1, 0x7F)))

@@ -16,10 +16,11 @@ import struct
 
 import pytest
 
-from nckemu.emulator.clock import SimulatedClock
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.nck.alarms import ALARM_RETAINED_STATE
-from nckemu.emulator.session import ServerSession, SessionLimits
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.nck.alarms import ALARM_RETAINED_STATE
 
 # LSC's connect: CR with src-ref 0x0048, calling TSAP 0x0400, called TSAP 0x0D04, TPDU size 1024; it
 # drops the connection unless the CC is exactly 22 bytes.
@@ -68,7 +69,7 @@ def emulator(clock: SimulatedClock) -> Emulator:
 
 @pytest.fixture
 def session(emulator: Emulator) -> ServerSession:
-    session = ServerSession(emulator.dispatcher, limits=SessionLimits(pdu_size_max=960, max_amq=8), peer="t")
+    session = ServerSession(Dispatcher.for_machine(emulator), limits=SessionLimits(pdu_size_max=960, max_amq=8), peer="t")
     (cc,) = session.receive(CR_LSC)
     (setup,) = session.receive(SETUP_LSC)
     assert len(cc) == 22 and len(setup) == 27
@@ -81,7 +82,7 @@ def read(session: ServerSession, *items: bytes) -> list[tuple[int, int, bytes]]:
 
 
 def test_collector_connect_sequence_gets_the_lengths_it_insists_on(emulator: Emulator) -> None:
-    session = ServerSession(emulator.dispatcher, limits=SessionLimits(pdu_size_max=960, max_amq=8))
+    session = ServerSession(Dispatcher.for_machine(emulator), limits=SessionLimits(pdu_size_max=960, max_amq=8))
     (cc,) = session.receive(CR_LSC)
     assert len(cc) == 22 and cc[5] == 0xD0
     (setup,) = session.receive(SETUP_LSC)

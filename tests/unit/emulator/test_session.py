@@ -6,8 +6,9 @@ import struct
 
 import pytest
 
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.session import ServerSession, SessionLimits
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits
+from nckemu.emulator.machine.core import Emulator
 
 CR_NCK = bytes.fromhex("0300001611E00000000100C0010AC1020100C2020104")
 CR_828D = bytes.fromhex("0300001611E00000004800C1020400C2020D04C0010A")
@@ -39,7 +40,7 @@ def header_error(answer: bytes) -> tuple[int, int]:
 @pytest.fixture
 def session() -> ServerSession:
     emulator = Emulator()
-    return ServerSession(emulator.dispatcher, limits=SessionLimits(pdu_size_max=960, max_amq=8),
+    return ServerSession(Dispatcher.for_machine(emulator), limits=SessionLimits(pdu_size_max=960, max_amq=8),
                          peer="test")
 
 
@@ -65,7 +66,7 @@ def test_828d_tsaps_are_accepted(session: ServerSession) -> None:
 
 
 def test_setup_negotiates_pdu_down_to_the_server_maximum() -> None:
-    session = ServerSession(Emulator().dispatcher, limits=SessionLimits(pdu_size_max=480))
+    session = ServerSession(Dispatcher.for_machine(Emulator()), limits=SessionLimits(pdu_size_max=480))
     session.receive(CR_NCK)
     (answer,) = session.receive(dt(SETUP_960))
     assert s7_of(answer)[-2:] == struct.pack(">H", 480)
@@ -152,7 +153,7 @@ def test_cotp_fragments_are_reassembled(session: ServerSession) -> None:
 
 
 def test_more_jobs_than_the_granted_amq_get_no_resources() -> None:
-    session = ServerSession(Emulator().dispatcher, limits=SessionLimits(max_amq=2))
+    session = ServerSession(Dispatcher.for_machine(Emulator()), limits=SessionLimits(max_amq=2))
     session.receive(CR_NCK)
     session.receive(dt(SETUP_960))
     burst = b"".join(dt(job(10 + i, b"\x04\x01" + SD43900_AX4)) for i in range(3))

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from nckemu.emulator.session import _TRANSITIONS, Event, SessionState, next_state
+from nckemu.emulator.faces.s7.session import _TRANSITIONS, Event, SessionState, next_state
 from nckemu.errors import HeaderError
 
 S = SessionState

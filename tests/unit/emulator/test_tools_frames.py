@@ -13,9 +13,10 @@ import struct
 
 import pytest
 
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.machine import parse_machine
-from nckemu.emulator.session import ServerSession
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.faces.s7.session import ServerSession
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import parse_machine
 
 from .test_field_catalogue import CR_LSC, SETUP_LSC, answer_items, item, read_frame
 
@@ -30,7 +31,7 @@ def line_of(d_number: int, parameter: int) -> int:
 
 
 def connect(emulator: Emulator) -> ServerSession:
-    session = ServerSession(emulator.dispatcher)
+    session = ServerSession(Dispatcher.for_machine(emulator))
     session.receive(CR_LSC)
     session.receive(SETUP_LSC)
     return session

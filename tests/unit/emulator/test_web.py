@@ -8,9 +8,9 @@ import urllib.error
 import urllib.request
 
 from nckemu.clients.async_client import AsyncNckClient
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.server import EmulatorServer
-from nckemu.emulator.web import WebFace
+from nckemu.emulator.faces.s7.server import EmulatorServer
+from nckemu.emulator.faces.web import WebFace
+from nckemu.emulator.machine.core import Emulator
 
 
 def _get(port: int, path: str, method: str = "GET") -> tuple[int, bytes]:

@@ -12,12 +12,13 @@ from pathlib import Path
 
 import pytest
 
-import nckemu.emulator
-from nckemu.emulator.clock import SimulatedClock
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.machine import load_machine, parse_machine
-from nckemu.emulator.nck.access import AccessContext
-from nckemu.emulator.session import ServerSession, SessionLimits
+import nckemu.emulator.machine
+from nckemu.emulator.faces.s7.dispatch import Dispatcher
+from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import load_machine, parse_machine
+from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.errors import NckConfigError
 from nckemu.protocol import c840, db41, pi
 from nckemu.protocol.addresses import NckAddress
@@ -47,14 +48,14 @@ def split_userdata_answer(frame: bytes) -> tuple[bytes, bytes]:
 
 @pytest.fixture
 def session() -> ServerSession:
-    return connected(ServerSession(Emulator().dispatcher, limits=SessionLimits(pdu_size_max=960, max_amq=8)))
+    return connected(ServerSession(Dispatcher.for_machine(Emulator()), limits=SessionLimits(pdu_size_max=960, max_amq=8)))
 
 
 # ---------------------------------------------------------------- 1. userdata groups
 def test_read_clock_answers_the_plc_clock_in_userdata() -> None:
     clock = SimulatedClock()
     emulator = Emulator(clock=clock)
-    session = connected(ServerSession(emulator.dispatcher))
+    session = connected(ServerSession(Dispatcher.for_machine(emulator)))
     clock.advance(3600.0)
     expected = emulator.plc.now()
     # PYSNAP7 get_plc_datetime: group 7 ("time functions"), subfunction 1 ("read clock")
@@ -109,7 +110,7 @@ def test_unserved_userdata_gets_a_userdata_answer_with_the_error_in_its_paramete
 
 def test_unserved_userdata_error_is_a_setting() -> None:
     machine = parse_machine("[settings]\nuserdata_not_served_error = 0xD405\n")
-    session = connected(ServerSession(Emulator(machine).dispatcher))
+    session = connected(ServerSession(Dispatcher.for_machine(Emulator(machine))))
     (answer,) = session.receive(dt(userdata(1, bytes.fromhex("0001120411470200"), bytes.fromhex("0A000000"))))
     assert split_userdata_answer(answer)[0][-2:] == b"\xD4\x05"
 
@@ -140,13 +141,13 @@ def test_unsupported_functions_get_an_ack_with_the_error_and_no_parameter(
 
 def test_unsupported_function_error_is_a_setting() -> None:
     machine = parse_machine("[settings]\nunsupported_function_error = 0xD241\n")
-    session = connected(ServerSession(Emulator(machine).dispatcher))
+    session = connected(ServerSession(Dispatcher.for_machine(Emulator(machine))))
     (answer,) = session.receive(dt(job(4, bytes.fromhex("1D00000000000000"))))
     assert s7_of(answer) == bytes.fromhex("32020000000400000000" "D241")
 
 
 def test_unsupported_function_before_setup_is_an_ack_too() -> None:
-    session = ServerSession(Emulator().dispatcher)
+    session = ServerSession(Dispatcher.for_machine(Emulator()))
     session.receive(CR_NCK)
     (answer,) = session.receive(dt(job(4, bytes.fromhex("1D00000000000000"))))
     assert s7_of(answer) == bytes.fromhex("32020000000400000000" "8401")
@@ -156,7 +157,7 @@ def test_unsupported_function_before_setup_is_an_ack_too() -> None:
 @pytest.mark.parametrize(("asked", "granted"), [(0, 240), (1, 240), (100, 240), (239, 240), (240, 240),
                                                  (480, 480), (960, 960), (0xFFFF, 960)])
 def test_setup_pdu_size_is_clamped_to_240_and_the_maximum(asked: int, granted: int) -> None:
-    session = ServerSession(Emulator().dispatcher, limits=SessionLimits(pdu_size_max=960))
+    session = ServerSession(Dispatcher.for_machine(Emulator()), limits=SessionLimits(pdu_size_max=960))
     session.receive(CR_NCK)
     (answer,) = session.receive(dt(job(1, bytes.fromhex("F0000008000 8".replace(" ", "")) + struct.pack(">H", asked))))
     assert s7_of(answer)[-2:] == struct.pack(">H", granted)
@@ -180,7 +181,7 @@ def test_szl_unknown_id_and_unknown_index_codes(session: ServerSession) -> None:
 def test_szl_not_available_codes_are_settings() -> None:
     # C snap7 answers 0xD402 for every SZL it lacks (SNAP7 PerformGroupSZL)
     machine = parse_machine("[settings]\nszl_unknown_id_error = 0xD402\n")
-    session = connected(ServerSession(Emulator(machine).dispatcher))
+    session = connected(ServerSession(Dispatcher.for_machine(Emulator(machine))))
     assert _szl_answer(session, 0x0999, 0)[0][-2:] == b"\xD4\x02"
     with pytest.raises(NckConfigError, match="szl_unknown_id_error"):
         parse_machine("[settings]\nszl_unknown_id_error = 0x10000\n")
@@ -221,7 +222,7 @@ def test_szl_index_0_in_python_snap7s_layout(session: ServerSession) -> None:
 
 def test_szl_index_0_layout_can_be_switched_off() -> None:
     machine = parse_machine("[settings]\nszl_index0_python_snap7 = false\n")
-    session = connected(ServerSession(Emulator(machine).dispatcher))
+    session = connected(ServerSession(Dispatcher.for_machine(Emulator(machine))))
     assert _szl_answer(session, 0x0131, 0)[0][-2:] == b"\xD4\x02"
 
 
@@ -252,7 +253,7 @@ def test_empty_dt_with_eot_is_ignored(session: ServerSession) -> None:
 
 
 def test_empty_dts_before_setup_are_ignored_too() -> None:
-    session = ServerSession(Emulator().dispatcher)
+    session = ServerSession(Dispatcher.for_machine(Emulator()))
     session.receive(CR_NCK)
     assert session.receive(EMPTY_DT_EOT + EMPTY_DT) == []
     (answer,) = session.receive(dt(SETUP_960) + EMPTY_DT)
@@ -260,7 +261,7 @@ def test_empty_dts_before_setup_are_ignored_too() -> None:
 
 
 def test_empty_dt_with_eot_ends_a_fragmented_pdu() -> None:
-    session = connected(ServerSession(Emulator().dispatcher))
+    session = connected(ServerSession(Dispatcher.for_machine(Emulator())))
     pdu = job(8, b"\x04\x01" + SD43900_AX4)
     assert session.receive(dt(pdu, eot=False)) == []
     (answer,) = session.receive(EMPTY_DT_EOT)
@@ -269,7 +270,7 @@ def test_empty_dt_with_eot_ends_a_fragmented_pdu() -> None:
 
 # ---------------------------------------------------------------- 9. COTP segmentation
 def test_answers_longer_than_the_tpdu_are_split_into_several_dts() -> None:
-    session = ServerSession(Emulator().dispatcher, limits=SessionLimits(pdu_size_max=960))
+    session = ServerSession(Dispatcher.for_machine(Emulator()), limits=SessionLimits(pdu_size_max=960))
     session.receive(bytes.fromhex("0300001611E00000000100C00107C1020100C2020104"))
     session.receive(dt(job(1, bytes.fromhex("F0000008000803C0"))))
     frames = session.receive(dt(job(2, bytes.fromhex("0401120A100200C8006484000000"))))
@@ -286,7 +287,7 @@ def test_answers_longer_than_the_tpdu_are_split_into_several_dts() -> None:
 # ---------------------------------------------------------------- 3. _N_CONFIG
 def test_n_config_activates_new_conf_machine_data(session: ServerSession) -> None:
     emulator = Emulator()
-    session = connected(ServerSession(emulator.dispatcher))
+    session = connected(ServerSession(Dispatcher.for_machine(emulator)))
     md32760 = NckAddress(3, 4, 32760, 1, 0x1A)
     emulator.nck.write(md32760, [0.05], AccessContext(level=0))
     assert emulator.nck.store.active_value("COMP_ADD_VELO_FACTOR", 4) == 0.01
@@ -335,7 +336,7 @@ def _run_channel(emulator: Emulator, user_db: bytes) -> int:
 def test_840c_p0_zero_with_a_flag_is_accepted_by_default_and_refused_by_setting() -> None:
     user_db = _user_db(0xC004, 0x40000000, 0)  # U and A set, axis 4, P0 = 0
     assert _run_channel(Emulator(), user_db) == db41.ChannelError.NONE
-    default_text = (Path(nckemu.emulator.__file__).parent / "machines" / "default.toml").read_text()
+    default_text = (Path(nckemu.emulator.machine.__file__).parent / "machines" / "default.toml").read_text()
     strict = parse_machine(default_text.replace("c840_refuse_p0_at_zero = false", "c840_refuse_p0_at_zero = true"))
     assert _run_channel(Emulator(strict), user_db) == db41.ChannelError.P0_AT_AXIS_ZERO
 
@@ -357,7 +358,7 @@ def test_clock_bcd_round_trip() -> None:
 def test_828d_collector_handshake_and_extra_empty_dt() -> None:
     """LSC `_siemenscnc_828d_connect` (notes/catalogue.md 2.1): CC exactly 22 bytes, setup answer
     exactly 27 bytes, then every job followed by 03 00 00 07 02 F0 00 in the same send buffer."""
-    session = ServerSession(Emulator().dispatcher)
+    session = ServerSession(Dispatcher.for_machine(Emulator()))
     (cc,) = session.receive(bytes.fromhex("0300001611E00000004800C1020400C2020D04C0010A"))
     assert len(cc) == 22 and cc[5] == 0xD0
     (setup,) = session.receive(bytes.fromhex("0300001902F08032010000000100080000F0000064006403C0"))
@@ -374,11 +375,11 @@ def test_long_szl_at_pdu_240_comes_in_parts() -> None:
     """After the clamp to 240 an SZL longer than the PDU is sent in parts (last data unit 1, then 0);
     the client asks for each next part with method 0x12, type request and the answer's sequence number
     (python-snap7 3.3 build_userdata_followup_request; snap7.pcap in icsnpp-s7comm)."""
-    whole_session = connected(ServerSession(Emulator().dispatcher))
+    whole_session = connected(ServerSession(Dispatcher.for_machine(Emulator())))
     (whole,) = whole_session.receive(dt(szl_read(0x001C, 0)))
     expected = split_userdata_answer(whole)[1][4:]
     assert len(expected) > 240
-    session = ServerSession(Emulator().dispatcher)
+    session = ServerSession(Dispatcher.for_machine(Emulator()))
     session.receive(CR_NCK)
     session.receive(dt(job(1, bytes.fromhex("F000000800080000"))))  # PDU 0 -> 240
     (first,) = session.receive(dt(szl_read(0x001C, 0, pdu_ref=0x40)))

@@ -10,11 +10,11 @@ from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
-from nckemu.emulator.clock import SimulatedClock
-from nckemu.emulator.machine import load_machine, parse_machine
-from nckemu.emulator.nck.access import AccessContext
-from nckemu.emulator.nck.model import NckModel
-from nckemu.emulator.state import RetainedStore
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.machine_file import load_machine, parse_machine
+from nckemu.emulator.machine.nck.access import AccessContext
+from nckemu.emulator.machine.nck.model import NckModel
+from nckemu.emulator.machine.state import RetainedStore
 from nckemu.errors import (
     NckAccessDenied,
     NckAddressOutOfRange,

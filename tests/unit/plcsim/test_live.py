@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from nckemu.clients.async_client import AsyncNckClient
-from nckemu.emulator.clock import LiveClock
-from nckemu.emulator.core import Emulator
-from nckemu.emulator.machine import load_machine
-from nckemu.emulator.server import EmulatorServer
+from nckemu.emulator.faces.s7.server import EmulatorServer
+from nckemu.emulator.machine.clock import LiveClock
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.machine_file import load_machine
 from nckemu.errors import NckConfigError
 from nckemu.plcsim.drive import RecordingDrive
 from nckemu.plcsim.live import LiveMachine, parse_speed
@@ -227,7 +227,7 @@ async def test_the_job_log_stays_bounded(tmp_path: Path, monkeypatch: pytest.Mon
 
 async def test_the_programs_connection_is_never_idle(tmp_path: Path) -> None:
     """A program that writes rarely keeps its connection; an outside client idle as long is closed."""
-    from nckemu.emulator.server import ServerLimits
+    from nckemu.emulator.faces.s7.server import ServerLimits
 
     emulator = Emulator(MACHINE, clock=LiveClock())
     server = EmulatorServer(emulator, port=0, limits=ServerLimits(idle_timeout_s=0.5))

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from nckemu.emulator.machine import Machine, load_machine, parse_machine
+from nckemu.emulator.machine.machine_file import Machine, load_machine, parse_machine
 from nckemu.plcsim.bridge import PlcRunner
 from nckemu.plcsim.replay import RecordingRun, recording_axis, run_on_recording
 from nckemu.plcsim.stlgen import STATE_DB, generate_program, lag_coefficient

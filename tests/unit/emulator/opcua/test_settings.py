@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from nckemu.emulator.machine import load_machine, parse_machine
-from nckemu.emulator.opcua.settings import OpcUaSettings, may
+from nckemu.emulator.faces.opcua.settings import OpcUaSettings, may
+from nckemu.emulator.machine.machine_file import load_machine, parse_machine
 from nckemu.errors import NckConfigError
 
 

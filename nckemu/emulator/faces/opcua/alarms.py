@@ -1,0 +1,138 @@
+"""Alarm events of the OPC UA face: the NCK's alarms as ``CncAlarmType`` events on the Server object.
+
+The SINUMERIK OPC UA server reports alarms as events of OPC 40502's ``CncAlarmType`` (a
+``DiscreteAlarmType`` with ``AlarmIdentifier``, ``AuxParameters``, ``HelpSource``), severity 1, 500 or
+1000, without acknowledgement or comments, with ConditionRefresh, to sessions with the AlarmRead right.
+Here each alarm raised or cleared on the NCK's alarm list (``nck/alarms.py``) becomes one event: raised
+with ``Retain`` and ``ActiveState/Id`` true, cleared with both false. asyncua keeps the retained ones
+and sends them again between RefreshStart and RefreshEnd events when a client calls ConditionRefresh.
+Acknowledge and AddComment are not offered (no method nodes on the type): the controller supports
+neither. Which severity an alarm gets is ours (``severity_of``, docs/assumptions.md).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import copy
+import logging
+import threading
+import zlib
+from datetime import UTC, datetime
+from typing import TYPE_CHECKING, Any
+
+from asyncua import Server, ua
+
+from nckemu.emulator.machine.nck.alarms import Alarm, AlarmEvent
+
+if TYPE_CHECKING:
+    from nckemu.emulator.faces.opcua.face import OpcUaFace
+
+# Loggers keep their names from before the 0.2 layout, so logs and users' log filters stay as they were.
+log = logging.getLogger("nckemu.emulator.opcua.alarms")
+
+CNC_NAMESPACE = "http://opcfoundation.org/UA/CNC/"
+SEVERITIES = (1, 500, 1000)
+# The rights that let a session receive alarm events.
+ALARM_RIGHTS = frozenset({"AlarmRead", "SinuReadAll", "SinuWriteAll"})
+
+
+def severity_of(alarm: Alarm) -> int:
+    """1000 for NCK alarms (numbers below 100000: the NCK's own ranges), 500 for the PLC's alarm ranges
+    (400000..799999, where nckemu's own 700999 falls), 1 for the rest (messages)."""
+    if alarm.number < 100_000:
+        return 1000
+    if 400_000 <= alarm.number < 800_000:
+        return 500
+    return 1
+
+
+def condition_name(alarm: Alarm) -> str:
+    return str(alarm.number)
+
+
+def condition_id(alarm: Alarm, namespace: int) -> ua.NodeId:
+    """One condition per alarm on the list (the list tells alarms apart by their text)."""
+    return ua.NodeId(f"/Nck/Alarm/{alarm.number}/{zlib.crc32(alarm.text.encode()):08x}", namespace)
+
+
+def event_fields(event: AlarmEvent, namespace: int) -> dict[str, Any]:
+    """The fields a raised or cleared alarm sets on a ``CncAlarmType`` event."""
+    alarm, active = event.alarm, event.raised
+    state = ua.LocalizedText("Active" if active else "Inactive")
+    return {
+        "NodeId": condition_id(alarm, namespace), "SourceName": "NCK",
+        "Message": ua.LocalizedText(alarm.text), "Severity": severity_of(alarm),
+        "ConditionName": condition_name(alarm), "Retain": active,
+        "ActiveState": state, "ActiveState/Id": active,
+        "EnabledState": ua.LocalizedText("Enabled"), "EnabledState/Id": True,
+        "AckedState": ua.LocalizedText("Acknowledged"), "AckedState/Id": True,  # nothing to acknowledge
+        "AlarmIdentifier": str(alarm.number), "AuxParameters": list(alarm.parameters), "HelpSource": "",
+    }
+
+
+class AlarmEvents:
+    """Sends the alarm events of one face's emulator; ``start`` after the server is initialised."""
+
+    def __init__(self, face: OpcUaFace) -> None:
+        self.face = face
+        self._generator: Any = None
+        self._template: Any = None
+        self._pending: list[AlarmEvent] = []
+        self._sender: asyncio.Task[None] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._loop_thread = 0
+        self.sent = 0
+
+    async def start(self, server: Server) -> None:
+        cnc = await server.register_namespace(CNC_NAMESPACE)
+        event_type = await server.create_custom_event_type(
+            cnc, "CncAlarmType", ua.ObjectIds.DiscreteAlarmType,
+            [("AlarmIdentifier", ua.VariantType.String), ("AuxParameters", ua.VariantType.String),
+             ("HelpSource", ua.VariantType.String)])
+        self._generator = await server.get_event_generator(event_type, ua.ObjectIds.Server)
+        self._template = self._generator.event
+        self._loop = asyncio.get_running_loop()
+        self._loop_thread = threading.get_ident()
+        alarms = self.face.emulator.nck.alarm_list
+        alarms.listeners.append(self._told)
+        for alarm in alarms.pending:  # raised before the face started: kept for ConditionRefresh
+            self._told(AlarmEvent(alarm, True, alarm.time_s))
+
+    async def stop(self) -> None:
+        listeners = self.face.emulator.nck.alarm_list.listeners
+        if self._told in listeners:
+            listeners.remove(self._told)
+        if self._sender is not None:
+            self._sender.cancel()
+
+    def _told(self, event: AlarmEvent) -> None:
+        self._pending.append(event)
+        if self._sender is None and self._loop is not None:
+            if threading.get_ident() == self._loop_thread:
+                self._start_sender()
+            else:
+                self._loop.call_soon_threadsafe(self._start_sender)
+
+    def _start_sender(self) -> None:
+        if self._sender is None and self._loop is not None:
+            self._sender = self._loop.create_task(self._send_pending())
+
+    async def _send_pending(self) -> None:
+        try:
+            while self._pending:
+                event = self._pending.pop(0)
+                await self._send(event)
+        except Exception:  # an event that cannot be sent must not stop the ones after it
+            log.exception("OPC UA alarm event")
+        finally:
+            self._sender = None
+            if self._pending:
+                self._start_sender()
+
+    async def _send(self, event: AlarmEvent) -> None:
+        fields = copy.copy(self._template)  # one object per event: asyncua keeps the retained ones
+        for name, value in event_fields(event, self.face.namespace).items():
+            setattr(fields, name, value)
+        self._generator.event = fields
+        await self._generator.trigger(time_attr=datetime.now(UTC))
+        self.sent += 1

@@ -1,0 +1,101 @@
+"""Methods under ``Sinumerik/Methods``: GetMyAccessRights, CopyFileToServer, CopyFileFromServer.
+
+Part programs live in the emulator's program store, the ``_N_MPF_DIR`` the PI services select from:
+``Sinumerik/FileSystem/Part Program/PART1.MPF`` is ``/_N_MPF_DIR/_N_PART1_MPF``.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import TYPE_CHECKING, Any
+
+from asyncua import Server, ua
+
+from nckemu.emulator.faces.opcua import request
+from nckemu.emulator.faces.opcua.settings import may
+
+if TYPE_CHECKING:
+    from nckemu.emulator.faces.opcua.face import OpcUaFace
+
+MAX_PROGRAM_BYTES = 16 * 1024 * 1024
+_UA_PATH = re.compile(r"^/?sinumerik/filesystem/part program/(?P<name>[A-Za-z0-9_]{1,24})\.mpf$", re.IGNORECASE)
+_NC_PATH = re.compile(r"^/_N_MPF_DIR/_N_(?P<name>[A-Za-z0-9_]{1,24})_MPF$", re.IGNORECASE)
+
+
+def program_path(text: str) -> str | None:
+    """The program store's path of a file path a client names, or None."""
+    for pattern in (_UA_PATH, _NC_PATH):
+        match = pattern.match(text.strip())
+        if match:
+            return f"/_N_MPF_DIR/_N_{match['name'].upper()}_MPF"
+    return None
+
+
+def _plain(argument: Any) -> Any:
+    """asyncua hands method arguments over as variants."""
+    return argument.Value if isinstance(argument, ua.Variant) else argument
+
+
+def _bad(name: str) -> ua.StatusCode:
+    return ua.StatusCode(getattr(ua.StatusCodes, name))
+
+
+async def add_methods(face: OpcUaFace, server: Server) -> Any:
+    ns = face.namespace
+    root = await server.nodes.objects.get_child([f"{ns}:Sinumerik"])
+    methods = await root.add_object(ua.NodeId("/Methods", ns), ua.QualifiedName("Methods", ns))
+    programs = face.emulator.nck.programs
+
+    def refused(right: str, write: bool) -> ua.StatusCode | None:
+        if not request.user():
+            return _bad("BadRequestNotAllowed")  # as the controller: anonymous sessions call no methods
+        if not may(request.rights(), right, write):
+            return _bad("BadUserAccessDenied")
+        return None
+
+    async def get_my_access_rights(_parent: Any) -> Any:
+        if not request.user():
+            return _bad("BadRequestNotAllowed")
+        return [ua.Variant(";".join(sorted(request.rights())), ua.VariantType.String)]
+
+    async def copy_to_server(_parent: Any, path: Any, data: Any, overwrite: Any) -> Any:
+        status = refused("FS", True)
+        if status is not None:
+            return status
+        path, data, overwrite = _plain(path), _plain(data), _plain(overwrite)
+        target = program_path(path) if isinstance(path, str) else None
+        if target is None or not isinstance(data, bytes) or len(data) > MAX_PROGRAM_BYTES:
+            return _bad("BadInvalidArgument")
+        if target in programs.paths and not overwrite:
+            return _bad("BadInvalidState")
+        programs.add(target)
+        programs.texts[target] = bytes(data)
+        face.emulator.persist()  # the program store is retained data (serve --state)
+        return []
+
+    async def copy_from_server(_parent: Any, path: Any) -> Any:
+        status = refused("FS", False)
+        if status is not None:
+            return status
+        path = _plain(path)
+        target = program_path(path) if isinstance(path, str) else None
+        if target is None:
+            return _bad("BadInvalidArgument")
+        if target not in programs.paths:
+            return _bad("BadNotFound")
+        return [ua.Variant(programs.texts.get(target, b""), ua.VariantType.ByteString)]
+
+    def argument(name: str, kind: ua.VariantType) -> ua.Argument:
+        return ua.Argument(Name=name, DataType=ua.NodeId(kind.value), ValueRank=-1, ArrayDimensions=[],
+                           Description=ua.LocalizedText(name))
+
+    text, blob, flag = ua.VariantType.String, ua.VariantType.ByteString, ua.VariantType.Boolean
+    await methods.add_method(ua.NodeId("/Methods/GetMyAccessRights", ns), ua.QualifiedName("GetMyAccessRights", ns),
+                             get_my_access_rights, [], [argument("rights", text)])
+    await methods.add_method(ua.NodeId("/Methods/CopyFileToServer", ns), ua.QualifiedName("CopyFileToServer", ns),
+                             copy_to_server, [argument("path", text), argument("data", blob),
+                                              argument("overwrite", flag)], [])
+    await methods.add_method(ua.NodeId("/Methods/CopyFileFromServer", ns),
+                             ua.QualifiedName("CopyFileFromServer", ns), copy_from_server,
+                             [argument("path", text)], [argument("data", blob)])
+    return methods

@@ -1,0 +1,102 @@
+"""The emulated controller as one object: machine, clock, NCK model, PLC memory, retained state."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from nckemu.emulator.machine.clock import Clock, MonotonicClock
+from nckemu.emulator.machine.machine_file import Machine, load_machine
+from nckemu.emulator.machine.nck.access import HIGHEST_LEVEL, AccessContext
+from nckemu.emulator.machine.nck.alarms import ALARM_RETAINED_STATE
+from nckemu.emulator.machine.nck.model import NckModel
+from nckemu.emulator.machine.plc import PlcModel
+from nckemu.emulator.machine.state import RetainedStore
+from nckemu.errors import NckConfigError, NckError
+from nckemu.protocol.addresses import NckAddress
+from nckemu.protocol.values import decode_nck_values
+
+# Loggers keep their names from before the 0.2 layout, so logs and users' log filters stay as they were.
+log = logging.getLogger("nckemu.emulator.core")
+
+
+class Emulator:
+    """An NCU: NCK and PLC, with optional retained state on disk; the faces (S7, OPC UA, web) come in
+    through ``nck`` and ``plc``."""
+
+    def __init__(self, machine: Machine | str | Path | None = None, *, clock: Clock | None = None,
+                 state_path: str | Path | None = None) -> None:
+        self.machine = machine if isinstance(machine, Machine) else load_machine(machine)
+        self.clock = clock or MonotonicClock()
+        self.nck = NckModel(self.machine, self.clock)
+        self.plc = PlcModel(self.machine, self.nck, clock=self.clock)
+        self.store = RetainedStore(Path(state_path)) if state_path is not None else None
+        # Parts of the machine's state that layers above the emulator report (a living machine's
+        # recording and PLC program): name -> a function giving a JSON-able dict (the live page).
+        self.status_sections: dict[str, Callable[[], dict[str, Any]]] = {}
+        # An alarm text while retained state cannot be written (disk full, read-only directory).
+        self.persist_alarm: str | None = None
+        # Retained data of faces (the OPC UA face's users): name -> a function giving it, JSON-able; and
+        # what the state file held for each, for the face to take up when it starts. A face not started
+        # this time keeps what it had: its section is written back as it was read.
+        self.face_state: dict[str, Callable[[], Any]] = {}
+        self.restored_face_state: dict[str, Any] = {}
+        if self.store is not None:
+            snapshot = self.store.load()
+            if snapshot is not None:
+                self.nck.restore_retained(snapshot)
+                faces = snapshot.get("faces", {})
+                self.restored_face_state = dict(faces) if isinstance(faces, dict) else {}
+                log.info("retained state loaded from %s", self.store.path)
+
+    @property
+    def default_access_level(self) -> int:
+        return int(getattr(self.machine, "connection_access_level", 7))
+
+    def persist(self) -> None:
+        """Write retained data now; on failure keep serving and raise an alarm instead."""
+        if self.store is None:
+            return
+        try:
+            snapshot = self.nck.retained_snapshot()
+            faces = dict(self.restored_face_state)
+            faces.update({name: state() for name, state in self.face_state.items()})
+            if faces:
+                snapshot["faces"] = faces
+            self.store.save(snapshot)
+        except (OSError, NckConfigError) as exc:
+            if self.persist_alarm is None:
+                log.error("retained state cannot be written to %s: %s (serving on, alarm raised)",
+                          self.store.path, exc)
+            if self.persist_alarm is not None:
+                self.nck.alarm_list.clear(self.persist_alarm)
+            self.persist_alarm = f"retained state not saved: {exc}"
+            self.nck.alarm_list.raise_alarm(self.persist_alarm, ALARM_RETAINED_STATE, (str(exc),))
+        else:
+            if self.persist_alarm is not None:
+                log.warning("retained state written again to %s; alarm cleared", self.store.path)
+                self.nck.alarm_list.clear(self.persist_alarm)
+            self.persist_alarm = None
+
+    def power_on(self) -> None:
+        """Simulated power-on: power-on machine data take effect, 840C TC data are erased."""
+        self.nck.power_on()
+
+    def seed_nck(self, values: dict[NckAddress, bytes]) -> int:
+        """Write recorded NCK values (as on the wire) with the highest access level, e.g. before a trace
+        replay; variables that cannot be set (state data and the like) are skipped. Returns how many
+        were written."""
+        ctx = AccessContext(level=HIGHEST_LEVEL, client="seed")
+        written = 0
+        for address, data in values.items():
+            try:
+                nck_type, length = self.nck.variable_type(address)
+                decoded = decode_nck_values(nck_type, data, area=address.area, line_count=address.line_count,
+                                            string_length=length)
+                self.nck.write(address, decoded, ctx)
+                written += 1
+            except NckError:
+                continue
+        return written

@@ -1,0 +1,454 @@
+"""A machine from TOML: axes, sensors, tools, work offsets, PLC data blocks, initial data and settings
+for open facts.
+
+One machine per file; the built-in default machine is ``machines/default.toml`` in this package.
+Every problem is reported as an ``NckConfigError`` naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from nckemu.catalogue.table import VariableSpec, machine_table, row_lines
+from nckemu.emulator.machine.plc.memory import AREA_BYTES
+from nckemu.errors import NckConfigError
+from nckemu.textfile import read_text
+
+
+@dataclass(frozen=True)
+class Axis:
+    number: int
+    name: str
+    travel_min_mm: float = -1.0e6
+    travel_max_mm: float = 1.0e6
+    rotary: bool = False
+    spindle: bool = False
+    referenced: bool = True
+    position_mm: float = 0.0
+    # Which component (1..3) of SD42960 TOOL_TEMP_COMP acts on this axis when MD32750 bit 2 is set;
+    # None: none. Unconfirmed: taken as the tool length components L1/L2/L3 under G17 (Z, Y, X).
+    tool_temp_comp_component: int | None = None
+    # The axis letter of this axis in a recording (pos_<letter>_mm, err_<letter>_um, sim_<letter>_um);
+    # `recording = "Z"` in the machine file, by default the first letter of the name ("" for none).
+    recording: str = ""
+
+
+# The default allocation of SD42960's components to geometry axes, by the first letter of the axis name.
+TOOL_TEMP_COMP_COMPONENTS = {"Z": 1, "Y": 2, "X": 3}
+
+
+@dataclass(frozen=True)
+class Sensor:
+    name: str
+    temperature_C: float = 20.0
+    plc_input: str | None = None
+    raw_offset: float = 0.0
+    raw_per_C: float = 276.48
+    # (t_s, temperature_C) points; linear in between, end values held.
+    profile: tuple[tuple[float, float], ...] = ()
+
+    def raw_value(self, temperature_C: float) -> int:
+        raw = round(self.raw_offset + self.raw_per_C * temperature_C)
+        return max(-32768, min(32767, raw))
+
+
+# The cutting edge parameters a machine file may name, by parameter number (the line within one edge of
+# module TO): 1 tool type, 2 cutting edge position, 3..5 geometry lengths 1..3, 6 radius, 12..14 wear of
+# lengths 1..3, 15 wear of the radius (the order of an 840D sl 4.7 edge in OPCTD; single source). The
+# other parameters of an edge exist and read 0.
+EDGE_PARAMETERS: dict[str, int] = {
+    "type": 1, "edge_position": 2, "length1_mm": 3, "length2_mm": 4, "length3_mm": 5, "radius_mm": 6,
+    "wear_length1_mm": 12, "wear_length2_mm": 13, "wear_length3_mm": 14, "wear_radius_mm": 15,
+}
+# numCuttEdgeParams: "currently 25 parameters are reserved for each tool edge" (A2, 802D sl); LSC reads
+# 35 lines of one 840D sl edge at once, so a machine may configure up to that.
+STANDARD_EDGE_PARAMS = 25
+MAX_EDGE_PARAMS = 35
+# D numbers per tool: MD18105's default maximum is 9 (Siemens W1); T numbers 1..32000 (A2).
+MAX_EDGES_PER_TOOL = 9
+MAX_T_NUMBER = 32000
+TOOL_IDENT_BYTES = 32   # actToolIdent's field length (NCVS)
+
+# Settable frames by name and index (the line block of module FU): G500 is frame 0, G54..G57 are 1..4,
+# G505..G599 are 5..99 (index order inferred from the G-code order; docs/assumptions.md).
+SETTABLE_FRAMES: dict[str, int] = {"G500": 0, "G54": 1, "G55": 2, "G56": 3, "G57": 4,
+                                   **{f"G{code}": code - 500 for code in range(505, 600)}}
+DEFAULT_SETTABLE_FRAMES = 5   # G500, G54..G57
+
+
+@dataclass(frozen=True)
+class Tool:
+    """One tool of the TO unit: its T number, its name and its cutting edges (D1, D2, ...), each the
+    values of parameters 1..n (n = the machine's ``cutting_edge_params``)."""
+
+    number: int
+    ident: str = ""
+    edges: tuple[tuple[float, ...], ...] = ()
+
+
+@dataclass(frozen=True)
+class ToolSettings:
+    cutting_edge_params: int = STANDARD_EDGE_PARAMS
+    # The tool and cutting edge active in channel 1 at start (actTNumber, actDNumber); 0: none.
+    active_t: int = 0
+    active_d: int = 0
+
+
+@dataclass(frozen=True)
+class WorkOffsets:
+    """The settable frames of channel 1 (translations only): frame index -> machine axis -> shift."""
+
+    active: int = 0
+    count: int = DEFAULT_SETTABLE_FRAMES
+    shifts_mm: dict[int, dict[int, float]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Settings:
+    compensation_sign: int = -1
+    tc_requires_referenced: bool = False
+    r_parameter_line_offset: int = 1
+    limit_violation_return_code: int = 0x05
+    # Userdata error codes (docs/assumptions.md): an SZL ID the PLC lacks, a known SZL ID with an index
+    # it lacks, a userdata group or subfunction it does not serve.
+    szl_unknown_id_error: int = 0xD401
+    szl_unknown_index_error: int = 0xD402
+    userdata_not_served_error: int = 0x8104
+    # Header error of the ACK to a job function we do not serve (upload, download, ...); C snap7 gives
+    # upload/download 0xD241 (protection level), python-snap7 and GH107's 840D sl 0x8104.
+    unsupported_function_error: int = 0x8104
+    # SZL 0x0131 / 0x0232 index 0 in the layout python-snap7 3.3 reads (no real CPU defines index 0).
+    szl_index0_python_snap7: bool = True
+    # 840C TC: refuse P0 = 0 with the A flag (the manual only advises against it).
+    c840_refuse_p0_at_zero: bool = False
+
+
+@dataclass(frozen=True)
+class Machine:
+    name: str
+    source: str
+    ipo_cycle_s: float = 0.004
+    pdu_size_max: int = 960
+    max_amq: int = 8
+    channels: int = 1
+    connection_access_level: int = 7
+    passwords: dict[str, int] = field(default_factory=dict)
+    settings: Settings = field(default_factory=Settings)
+    axes: tuple[Axis, ...] = ()
+    sensors: tuple[Sensor, ...] = ()
+    data_blocks: dict[int, int] = field(default_factory=dict)
+    # {"MD32750": {4: 1}, "SD43900": {4: 0.0}}: variable name -> unit -> value (or list of lines)
+    initial: dict[str, dict[int, Any]] = field(default_factory=dict)
+    # The NCK variable table with the file's [[var]] rows (added, or overriding built-in rows by name);
+    # empty: the built-in catalogue.
+    variables: tuple[VariableSpec, ...] = ()
+    tools: tuple[Tool, ...] = ()
+    tool_settings: ToolSettings = field(default_factory=ToolSettings)
+    work_offsets: WorkOffsets = field(default_factory=WorkOffsets)
+    # The [opcua] table as written (users and rights of the OPC UA face; checked by emulator/faces/opcua).
+    opcua: dict[str, Any] = field(default_factory=dict)
+
+    def tool(self, number: int) -> Tool | None:
+        for tool in self.tools:
+            if tool.number == number:
+                return tool
+        return None
+
+    def axis(self, number: int) -> Axis | None:
+        for axis in self.axes:
+            if axis.number == number:
+                return axis
+        return None
+
+
+def _get(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str, source: str,
+         default: Any = None) -> Any:
+    if key not in table:
+        if default is None:
+            raise NckConfigError("missing", path=source, field=f"{where}{key}")
+        return default
+    value = table[key]
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        raise NckConfigError(f"expected {getattr(kind, '__name__', kind)}, got {value!r}", path=source,
+                             field=f"{where}{key}")
+    return value
+
+
+_KNOWN_KEYS: dict[str, frozenset[str]] = {
+    "": frozenset({"name", "ipo_cycle_s", "pdu_size_max", "max_amq", "channels", "connection_access_level",
+                   "passwords", "settings", "axis", "sensor", "plc", "initial", "var", "tools", "tool",
+                   "work_offsets", "opcua"}),
+    # every setting the dataclass has (a new setting needs no second list)
+    "settings.": frozenset(setting.name for setting in fields(Settings)),
+    "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
+                       "tool_temp_comp_component", "recording"}),
+    "sensor": frozenset({"name", "temperature_C", "plc_input", "raw_offset", "raw_per_C", "profile"}),
+    "plc.": frozenset({"data_blocks"}),
+    "tools.": frozenset({"cutting_edge_params", "active_t", "active_d"}),
+    "tool": frozenset({"number", "ident", "edges"}),
+    "edge": frozenset(EDGE_PARAMETERS),
+}
+
+
+def _check_keys(table: Any, kind: str, where: str, source: str, line: int | None = None) -> None:
+    """A mistyped key would silently fall back to its default: refuse it, naming the known ones."""
+    if not isinstance(table, dict):
+        raise NckConfigError("expected a table", path=source, line=line, field=where.rstrip(".") or "(top level)")
+    unknown = sorted(set(table) - _KNOWN_KEYS[kind])
+    if unknown:
+        raise NckConfigError(f"unknown key (known: {', '.join(sorted(_KNOWN_KEYS[kind]))})", path=source,
+                             line=line, field=f"{where}{unknown[0]}")
+
+
+def _header_line(text: str, header: str) -> int | None:
+    """The line of a table header (``[work_offsets]``), so an error in the table can name it."""
+    lines = row_lines(text, header)
+    return lines[0] if lines else None
+
+
+def _whole(value: object, low: int, high: int, what: str, source: str, line: int | None, where: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise NckConfigError(f"expected {what} {low}..{high}, got {value!r}", path=source, line=line, field=where)
+    return value
+
+
+def _tool(table: Any, index: int, params: int, source: str, line: int | None) -> Tool:
+    where = f"tool[{index}]."
+    _check_keys(table, "tool", where, source, line)
+    if "number" not in table:
+        raise NckConfigError("missing (the T number)", path=source, line=line, field=f"{where}number")
+    number = _whole(table["number"], 1, MAX_T_NUMBER, "a T number", source, line, f"{where}number")
+    ident = table.get("ident", "")
+    if not isinstance(ident, str) or len(ident.encode("ascii", "replace")) > TOOL_IDENT_BYTES:
+        raise NckConfigError(f"expected a tool name of up to {TOOL_IDENT_BYTES} characters, got {ident!r}",
+                             path=source, line=line, field=f"{where}ident")
+    edges_raw = table.get("edges", [])
+    if not isinstance(edges_raw, list) or len(edges_raw) > MAX_EDGES_PER_TOOL:
+        raise NckConfigError(f"expected a list of up to {MAX_EDGES_PER_TOOL} cutting edges (D1, D2, ...)",
+                             path=source, line=line, field=f"{where}edges")
+    edges: list[tuple[float, ...]] = []
+    for number_d, edge in enumerate(edges_raw, 1):
+        edge_where = f"{where}edges[{number_d - 1}]."
+        _check_keys(edge, "edge", edge_where, source, line)
+        values = [0.0] * params
+        for key, value in edge.items():
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise NckConfigError(f"expected a number, got {value!r}", path=source, line=line,
+                                     field=f"{edge_where}{key}")
+            values[EDGE_PARAMETERS[key] - 1] = float(value)
+        edges.append(tuple(values))
+    return Tool(number=number, ident=ident, edges=tuple(edges))
+
+
+def _tools(data: dict[str, Any], text: str, source: str) -> tuple[ToolSettings, tuple[Tool, ...]]:
+    settings_table = data.get("tools", {})
+    line = _header_line(text, "[tools]")
+    _check_keys(settings_table, "tools.", "tools.", source, line)
+    params = _whole(settings_table.get("cutting_edge_params", STANDARD_EDGE_PARAMS), STANDARD_EDGE_PARAMS,
+                    MAX_EDGE_PARAMS, "a number of cutting edge parameters", source, line, "tools.cutting_edge_params")
+    tool_rows = data.get("tool", [])
+    if not isinstance(tool_rows, list):
+        raise NckConfigError("expected [[tool]] tables", path=source, field="tool")
+    tool_lines = row_lines(text, "[[tool]]")
+    tools: list[Tool] = []
+    for index, row in enumerate(tool_rows):
+        row_line = tool_lines[index] if index < len(tool_lines) else None
+        tool = _tool(row, index, params, source, row_line)
+        if any(other.number == tool.number for other in tools):
+            raise NckConfigError(f"T{tool.number} is declared twice", path=source, line=row_line,
+                                 field=f"tool[{index}].number")
+        tools.append(tool)
+    active_t = _whole(settings_table.get("active_t", 0), 0, MAX_T_NUMBER, "a T number (0: none)", source, line,
+                      "tools.active_t")
+    active_d = _whole(settings_table.get("active_d", 0), 0, MAX_EDGES_PER_TOOL, "a D number (0: none)", source,
+                      line, "tools.active_d")
+    active = next((tool for tool in tools if tool.number == active_t), None)
+    if active_t and active is None:
+        raise NckConfigError(f"no [[tool]] with number {active_t}", path=source, line=line, field="tools.active_t")
+    if active_d and (active is None or active_d > len(active.edges)):
+        edges = 0 if active is None else len(active.edges)
+        raise NckConfigError(f"T{active_t} has {edges} cutting edge(s), so no D{active_d}", path=source, line=line,
+                             field="tools.active_d")
+    return ToolSettings(params, active_t, active_d), tuple(tools)
+
+
+def _work_offsets(table: Any, axes: tuple[Axis, ...], text: str, source: str) -> WorkOffsets:
+    line = _header_line(text, "[work_offsets]")
+    if not isinstance(table, dict):
+        raise NckConfigError("expected a table", path=source, line=line, field="work_offsets")
+    names = {axis.name.upper(): axis.number for axis in axes}
+    active_name = table.get("active", "G500")
+    if not isinstance(active_name, str) or active_name.upper() not in SETTABLE_FRAMES:
+        raise NckConfigError(f"expected a settable frame G500, G54..G57 or G505..G599, got {active_name!r}",
+                             path=source, line=line, field="work_offsets.active")
+    shifts: dict[int, dict[int, float]] = {}
+    for frame_name, per_axis in table.items():
+        if frame_name == "active":
+            continue
+        if frame_name.upper() not in SETTABLE_FRAMES:
+            raise NckConfigError("unknown key (known: active, G500, G54..G57, G505..G599)", path=source,
+                                 line=line, field=f"work_offsets.{frame_name}")
+        if not isinstance(per_axis, dict):
+            raise NckConfigError("expected { <machine axis name> = <shift in mm> }", path=source, line=line,
+                                 field=f"work_offsets.{frame_name}")
+        frame: dict[int, float] = {}
+        for axis_name, value in per_axis.items():
+            where = f"work_offsets.{frame_name}.{axis_name}"
+            if axis_name.upper() not in names:
+                raise NckConfigError(f"no machine axis {axis_name!r} (axes: {', '.join(a.name for a in axes)})",
+                                     path=source, line=line, field=where)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise NckConfigError(f"expected a shift in mm, got {value!r}", path=source, line=line, field=where)
+            frame[names[axis_name.upper()]] = float(value)
+        shifts[SETTABLE_FRAMES[frame_name.upper()]] = frame
+    count = max([DEFAULT_SETTABLE_FRAMES, SETTABLE_FRAMES[active_name.upper()] + 1,
+                 *(index + 1 for index in shifts)])
+    return WorkOffsets(active=SETTABLE_FRAMES[active_name.upper()], count=count, shifts_mm=shifts)
+
+
+def _axis(table: dict[str, Any], index: int, source: str) -> Axis:
+    where = f"axis[{index}]."
+    _check_keys(table, "axis", where, source)
+    number = _get(table, "number", int, where, source)
+    if not 1 <= number <= 31:
+        raise NckConfigError("a machine axis number is 1..31 (the NCK unit)", path=source, field=f"{where}number")
+    travel = table.get("travel_mm", [-1.0e6, 1.0e6])
+    if (not isinstance(travel, list) or len(travel) != 2
+            or not all(isinstance(v, int | float) for v in travel) or travel[0] > travel[1]):
+        raise NckConfigError("expected [min, max] in mm", path=source, field=f"{where}travel_mm")
+    rotary = _get(table, "rotary", bool, where, source, False)
+    position = _get(table, "position_mm", float, where, source, 0.0 if travel[0] <= 0.0 <= travel[1]
+                    else float(travel[0]))
+    name = _get(table, "name", str, where, source)
+    spindle = _get(table, "spindle", bool, where, source, False)
+    default_component = None if rotary or spindle else TOOL_TEMP_COMP_COMPONENTS.get(name[:1].upper())
+    component = table.get("tool_temp_comp_component", default_component)
+    if component is not None and (isinstance(component, bool) or component not in (1, 2, 3)):
+        raise NckConfigError("expected 1, 2 or 3 (the SD42960 component acting on this axis)", path=source,
+                             field=f"{where}tool_temp_comp_component")
+    recording = table.get("recording", name[:1].upper() if name[:1].isalpha() else "")
+    if not isinstance(recording, str) or (recording and not recording.isidentifier()):
+        raise NckConfigError("expected the axis letter of a recording, e.g. \"Z\"", path=source,
+                             field=f"{where}recording")
+    return Axis(number=number, name=name, recording=recording,
+                travel_min_mm=float(travel[0]), travel_max_mm=float(travel[1]), rotary=rotary,
+                spindle=spindle, referenced=_get(table, "referenced", bool, where, source, True),
+                position_mm=position, tool_temp_comp_component=component)
+
+
+def _sensor(table: dict[str, Any], index: int, source: str) -> Sensor:
+    where = f"sensor[{index}]."
+    _check_keys(table, "sensor", where, source)
+    profile_raw = table.get("profile", [])
+    profile: list[tuple[float, float]] = []
+    if not isinstance(profile_raw, list):
+        raise NckConfigError("expected a list of [t_s, temperature_C]", path=source, field=f"{where}profile")
+    for point in profile_raw:
+        if not (isinstance(point, list) and len(point) == 2 and all(isinstance(v, int | float) for v in point)):
+            raise NckConfigError(f"bad point {point!r}", path=source, field=f"{where}profile")
+        profile.append((float(point[0]), float(point[1])))
+    if any(b[0] <= a[0] for a, b in zip(profile, profile[1:], strict=False)):
+        raise NckConfigError("times must increase", path=source, field=f"{where}profile")
+    plc_input = table.get("plc_input")
+    if plc_input is not None and (not isinstance(plc_input, str) or not plc_input.upper().startswith("PIW")
+                                  or not plc_input[3:].isdigit()):
+        raise NckConfigError("expected 'PIW<byte address>'", path=source, field=f"{where}plc_input")
+    if plc_input is not None and int(plc_input[3:]) > AREA_BYTES - 2:
+        raise NckConfigError(f"{plc_input}: the input area has bytes 0..{AREA_BYTES - 1}, so PIW0..PIW{AREA_BYTES - 2}",
+                             path=source, field=f"{where}plc_input")
+    return Sensor(name=_get(table, "name", str, where, source),
+                  temperature_C=_get(table, "temperature_C", float, where, source, 20.0),
+                  plc_input=plc_input.upper() if plc_input else None,
+                  raw_offset=_get(table, "raw_offset", float, where, source, 0.0),
+                  raw_per_C=_get(table, "raw_per_C", float, where, source, 276.48),
+                  profile=tuple(profile))
+
+
+def parse_machine(text: str, source: str = "<string>") -> Machine:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise NckConfigError(f"not valid TOML: {exc}", path=source) from None
+    _check_keys(data, "", "", source)
+    settings_table = data.get("settings", {})
+    _check_keys(settings_table, "settings.", "settings.", source)
+    settings = Settings(
+        compensation_sign=_get(settings_table, "compensation_sign", int, "settings.", source, -1),
+        tc_requires_referenced=_get(settings_table, "tc_requires_referenced", bool, "settings.", source, False),
+        r_parameter_line_offset=_get(settings_table, "r_parameter_line_offset", int, "settings.", source, 1),
+        limit_violation_return_code=_get(settings_table, "limit_violation_return_code", int, "settings.",
+                                         source, 0x05),
+        szl_unknown_id_error=_get(settings_table, "szl_unknown_id_error", int, "settings.", source, 0xD401),
+        szl_unknown_index_error=_get(settings_table, "szl_unknown_index_error", int, "settings.", source,
+                                     0xD402),
+        userdata_not_served_error=_get(settings_table, "userdata_not_served_error", int, "settings.", source,
+                                       0x8104),
+        unsupported_function_error=_get(settings_table, "unsupported_function_error", int, "settings.", source,
+                                        0x8104),
+        szl_index0_python_snap7=_get(settings_table, "szl_index0_python_snap7", bool, "settings.", source, True),
+        c840_refuse_p0_at_zero=_get(settings_table, "c840_refuse_p0_at_zero", bool, "settings.", source, False),
+    )
+    for name in ("szl_unknown_id_error", "szl_unknown_index_error", "userdata_not_served_error",
+                 "unsupported_function_error"):
+        if not 0x0001 <= getattr(settings, name) <= 0xFFFF:
+            raise NckConfigError("expected an error code 0x0001..0xFFFF", path=source, field=f"settings.{name}")
+    if settings.compensation_sign not in (-1, 1):
+        raise NckConfigError("expected -1 or 1", path=source, field="settings.compensation_sign")
+    axes = tuple(_axis(t, i, source) for i, t in enumerate(data.get("axis", [])))
+    numbers = [a.number for a in axes]
+    if len(set(numbers)) != len(numbers):
+        raise NckConfigError("two axes with one number", path=source, field="axis.number")
+    sensors = tuple(_sensor(t, i, source) for i, t in enumerate(data.get("sensor", [])))
+    plc = data.get("plc", {})
+    _check_keys(plc, "plc.", "plc.", source)
+    blocks_raw = plc.get("data_blocks", {})
+    data_blocks: dict[int, int] = {}
+    for key, size in blocks_raw.items():
+        if not str(key).isdigit() or not isinstance(size, int) or not 1 <= size <= 65535:
+            raise NckConfigError(f"DB {key} = {size!r}: expected a DB number = size in bytes",
+                                 path=source, field="plc.data_blocks")
+        data_blocks[int(key)] = size
+    initial: dict[str, dict[int, Any]] = {}
+    for name, per_unit in data.get("initial", {}).items():
+        if not isinstance(per_unit, dict):
+            raise NckConfigError("expected { unit = value }", path=source, field=f"initial.{name}")
+        initial[name.upper()] = {int(unit): value for unit, value in per_unit.items()}
+    tool_settings, tools = _tools(data, text, source)
+    work_offsets = _work_offsets(data.get("work_offsets", {}), axes, text, source)
+    passwords = data.get("passwords", {})
+    if not all(isinstance(v, int) and 0 <= v <= 7 for v in passwords.values()):
+        raise NckConfigError("each password maps to an access level 0..7", path=source, field="passwords")
+    return Machine(
+        name=_get(data, "name", str, "", source, "unnamed machine"), source=source,
+        ipo_cycle_s=_get(data, "ipo_cycle_s", float, "", source, 0.004),
+        pdu_size_max=_get(data, "pdu_size_max", int, "", source, 960),
+        max_amq=_get(data, "max_amq", int, "", source, 8),
+        channels=_get(data, "channels", int, "", source, 1),
+        connection_access_level=_get(data, "connection_access_level", int, "", source, 7),
+        passwords=dict(passwords), settings=settings, axes=axes, sensors=sensors,
+        data_blocks=data_blocks, initial=initial,
+        variables=machine_table(data["var"], source, text) if "var" in data else (),
+        tools=tools, tool_settings=tool_settings, work_offsets=work_offsets,
+        opcua=_opcua_table(data.get("opcua", {}), source),
+    )
+
+
+def _opcua_table(table: object, source: str) -> dict[str, Any]:
+    if not isinstance(table, dict):
+        raise NckConfigError("expected a table", path=source, field="opcua")
+    return dict(table)
+
+
+def load_machine(path: str | Path | None = None) -> Machine:
+    """The machine in ``path``, or the built-in default machine."""
+    if path is None:
+        text = resources.files("nckemu.emulator.machine").joinpath("machines/default.toml").read_text("utf-8")
+        return parse_machine(text, "default.toml (built in)")
+    return parse_machine(read_text(path, "a machine is TOML text"), str(path))

@@ -1,0 +1,84 @@
+"""The package's shape: no module imports itself back at run time (imports under TYPE_CHECKING aside).
+
+import-linter (``make lint``) checks the layers; a circle inside one layer would pass it, so the
+graph is walked here (grimp, which import-linter uses).
+"""
+
+from __future__ import annotations
+
+import grimp
+
+
+def strongly_connected(graph: grimp.ImportGraph) -> list[list[str]]:
+    """Tarjan's strongly connected components of the module graph with more than one module."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+    counter = 0
+
+    def visit(root: str) -> None:
+        nonlocal counter
+        work = [(root, iter(sorted(graph.find_modules_directly_imported_by(root))))]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            module, children = work[-1]
+            for child in children:
+                if child not in index:
+                    index[child] = low[child] = counter
+                    counter += 1
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.find_modules_directly_imported_by(child)))))
+                    break
+                if child in on_stack:
+                    low[module] = min(low[module], index[child])
+            else:
+                work.pop()
+                if work:
+                    parent = work[-1][0]
+                    low[parent] = min(low[parent], low[module])
+                if low[module] == index[module]:
+                    component = []
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.append(member)
+                        if member == module:
+                            break
+                    if len(component) > 1:
+                        found.append(sorted(component))
+
+    for module in sorted(graph.modules):
+        if module not in index:
+            visit(module)
+    return found
+
+
+def test_no_import_circles_at_run_time() -> None:
+    graph = grimp.build_graph("nckemu", exclude_type_checking_imports=True)
+    assert strongly_connected(graph) == []
+
+
+def test_the_walk_finds_a_circle() -> None:
+    graph = grimp.ImportGraph()
+    for module in ("a", "a.b", "a.c", "a.d"):
+        graph.add_module(module)
+    graph.add_import(importer="a.b", imported="a.c")
+    graph.add_import(importer="a.c", imported="a.b")
+    graph.add_import(importer="a.c", imported="a.d")
+    assert strongly_connected(graph) == [["a.b", "a.c"]]
+
+
+def test_old_emulator_paths_answer_with_the_moved_module() -> None:
+    from nckemu.emulator.core import Emulator as OldEmulator
+    from nckemu.emulator.nck.model import NckModel as OldModel
+
+    from nckemu.emulator.machine.core import Emulator
+    from nckemu.emulator.machine.nck.model import NckModel
+
+    assert OldEmulator is Emulator and OldModel is NckModel
