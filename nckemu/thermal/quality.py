@@ -34,28 +34,86 @@ def find_glitches(t_s: np.ndarray, values_C: np.ndarray, *, width_samples: int =
     n = len(values_C)
     if n < width_samples:
         return None
-    smooth = median_filter(values_C, size=width_samples, mode="nearest")
-    deviation = values_C - smooth
-    sigma = robust_sigma(deviation)
-    threshold = max(sigmas * sigma, min_jump_K) if np.isfinite(sigma) else min_jump_K
-    flagged = np.abs(deviation) > threshold
+    flagged, deviation, threshold = _off_the_median(values_C, values_C, width_samples, sigmas, min_jump_K)
     if not flagged.any():
         return None
-    # Widen each flagged sample by one neighbour on each side: the edges of a burst sit between
-    # the glitch and the true value and are as untrustworthy.
-    widened = flagged.copy()
-    widened[1:] |= flagged[:-1]
-    widened[:-1] |= flagged[1:]
+    # Once more with the first bursts bridged: a burst inside the median's window pulls the median
+    # towards it, and where the true reading turns (a load step's knee) that is enough to flag good
+    # samples beside the burst, which a straight bridge would then cut across.
+    first = flagged
+    flagged, deviation, _ = _off_the_median(values_C, bridge(t_s, values_C, first), width_samples, sigmas,
+                                            min_jump_K, threshold)
+    flagged &= first
+    if not flagged.any():
+        return None
+    widened = _widened(flagged)
     starts = np.flatnonzero(widened & ~np.concatenate(([False], widened[:-1])))
     return Glitches(widened, int(len(starts)), float(t_s[np.flatnonzero(flagged)[0]]),
                     float(np.max(np.abs(deviation[flagged]))))
 
 
-def bridge(t_s: np.ndarray, values_C: np.ndarray, samples: np.ndarray) -> np.ndarray:
-    """The reading with ``samples`` replaced by linear interpolation between their good neighbours."""
+def _off_the_median(values_C: np.ndarray, reference_C: np.ndarray, width_samples: int, sigmas: float,
+                    min_jump_K: float, threshold: float | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Samples further from the running median of ``reference_C`` than the threshold (``sigmas``
+    robust sigma of the scatter, at least ``min_jump_K``), the deviations, and the threshold."""
+    smooth = median_filter(reference_C, size=width_samples, mode="nearest")
+    deviation = values_C - smooth
+    if threshold is None:
+        sigma = robust_sigma(deviation)
+        threshold = max(sigmas * sigma, min_jump_K) if np.isfinite(sigma) else min_jump_K
+    return np.abs(deviation) > threshold, deviation, threshold
+
+
+def _widened(flagged: np.ndarray) -> np.ndarray:
+    """Each flagged sample and one neighbour on each side: the edges of a burst sit between the
+    glitch and the true value and are as untrustworthy."""
+    widened = flagged.copy()
+    widened[1:] |= flagged[:-1]
+    widened[:-1] |= flagged[1:]
+    return widened
+
+
+def bridge(t_s: np.ndarray, values_C: np.ndarray, samples: np.ndarray, *, slope_samples: int = 3) -> np.ndarray:
+    """The reading with ``samples`` replaced by a cubic (Hermite) bridge between their good neighbours,
+    leaving each side with the slope the reading had there (fitted over up to ``slope_samples`` good
+    samples). A straight bridge cuts the corner where a structure starts to heat or cool under the
+    burst (up to half a sample's movement per bridged sample); the slopes carry the turn across."""
     good = ~samples
     if good.sum() < 2:
         return values_C.copy()
     repaired = values_C.copy()
     repaired[samples] = np.interp(t_s[samples], t_s[good], values_C[good])
+    n = len(values_C)
+    bad = np.flatnonzero(samples)
+    if len(bad) == 0:
+        return repaired
+    breaks = np.flatnonzero(np.diff(bad) > 1)
+    for first, last in zip(np.r_[bad[0], bad[breaks + 1]], np.r_[bad[breaks], bad[-1]], strict=True):
+        left, right = first - 1, last + 1
+        if left < 0 or right >= n:
+            continue  # at an end: the nearest good value (np.interp) is all there is
+        left_slope = _edge_slope(t_s, values_C, good, left, -1, slope_samples)
+        right_slope = _edge_slope(t_s, values_C, good, right, +1, slope_samples)
+        span_s = t_s[right] - t_s[left]
+        s = (t_s[first:last + 1] - t_s[left]) / span_s
+        h00, h10 = 1 - 3 * s**2 + 2 * s**3, s - 2 * s**2 + s**3
+        h01, h11 = 3 * s**2 - 2 * s**3, s**3 - s**2
+        repaired[first:last + 1] = (h00 * values_C[left] + h01 * values_C[right]
+                                    + span_s * (h10 * left_slope + h11 * right_slope))
     return repaired
+
+
+def _edge_slope(t_s: np.ndarray, values_C: np.ndarray, good: np.ndarray, edge: int, step: int,
+                count: int) -> float:
+    """The reading's slope (K/s) at a bridge's edge, from up to ``count`` consecutive good samples
+    going away from the gap; 0 when only the edge itself is good (then the bridge is level there)."""
+    indices = [edge]
+    while len(indices) < count:
+        nxt = indices[-1] + step
+        if nxt < 0 or nxt >= len(values_C) or not good[nxt]:
+            break
+        indices.append(nxt)
+    if len(indices) < 2:
+        return 0.0
+    slope, _ = np.polyfit(t_s[indices], values_C[indices], 1)
+    return float(slope)
