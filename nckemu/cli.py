@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "nckemu.clients.commands",    # get, put, pi, comp840c, lec
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
+    "nckemu.thermal.recording_commands",  # recording import, recording check
     "nckemu.plcsim.commands",     # plc run, plc stubs
     "nckemu.plcsim.fleet_live",   # fleet: living machines (inputs/plc in a [[machine]])
 )
@@ -116,7 +117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     command = " ".join(part for part in (args.command, getattr(args, "plc_command", None),
                                          getattr(args, "trace_command", None),
-                                         getattr(args, "machine_command", None)) if part)
+                                         getattr(args, "machine_command", None),
+                                         getattr(args, "recording_command", None)) if part)
     try:
         _configure_logging(args)
         return int(func(args) or 0)

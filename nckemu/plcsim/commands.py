@@ -43,6 +43,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                           "letter, e.g. Z (default: the axis of the recording's only err_ column)")
     run.add_argument("--inputs", metavar="REC.csv",
                      help="drive sensors and axes from this recording on its own time base (needs --machine)")
+    run.add_argument("--map", metavar="MAP.toml", help="with --inputs: read a foreign file through this map "
+                                                       "(docs/recordings.md)")
     run.add_argument("--out", metavar="SIM.csv",
                      help="with --inputs: write the recording plus sim_<axis>_um, the compensation the NCK "
                           "applied (err - sim is the error left)")
@@ -67,6 +69,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     loop.add_argument("--machine", required=True, help="machine TOML: sensors with plc_input, axes")
     loop.add_argument("--inputs", required=True, metavar="REC.csv", help="recording with temp_, pos_ and err_ columns")
     loop.add_argument("--axis", required=True, help="recording letter of the axis, e.g. Z")
+    loop.add_argument("--map", metavar="MAP.toml", help="read a foreign --inputs file through this map "
+                                                        "(docs/recordings.md)")
     loop.add_argument("--cycle", default="1s", help="simulated PLC cycle (1s); the generated filters are exact for it")
     loop.add_argument("--folds", type=int, default=5, help="held-out blocks of time (5)")
     loop.add_argument("--report", metavar="loop.html", help="write one self-contained HTML report")
@@ -199,7 +203,7 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
         raise NckConfigError("--cycle takes e.g. 1s, 15s, 1min") from None
     if args.out:
         check_output(args.out, "--out")
-    recording = load_recording(args.inputs)
+    recording = load_recording(args.inputs, map_path=args.map)
     letter = args.axis
     if letter is None:
         if len(recording.errors_um) != 1:
@@ -276,7 +280,7 @@ def run_loop_command(args: argparse.Namespace) -> int:
         raise NckConfigError("--folds must be at least 2")
     for option, path in (("--report", args.report), ("--json-out", args.json_out), ("--write-stl", args.write_stl)):
         check_output(path, option)
-    recording = load_recording(args.inputs)
+    recording = load_recording(args.inputs, map_path=args.map)
     result = run_loop(args.program, args.machine, recording, args.axis, cycle_s=cycle_s, folds=args.folds)
     for warning in result.warnings:
         print(f"nckemu loop: warning: {warning}", file=sys.stderr)
@@ -372,6 +376,8 @@ def add_live_options(serve: argparse.ArgumentParser) -> None:
                       help="a recording drives the machine on the server's clock: sensors (PIW words), positions, "
                            "spindle speed; at its end the last row holds")
     live.add_argument("--loop", action="store_true", help="with --inputs: start the recording over at its end")
+    live.add_argument("--map", metavar="MAP.toml", help="with --inputs: read a foreign file through this map "
+                                                        "(docs/recordings.md)")
     live.add_argument("--plc", metavar="PROGRAM.awl",
                       help="run this STL program (with OB1) in awlsim on the server's clock; its FB2/FB3/FB4 "
                            "reach this machine")
@@ -396,6 +402,11 @@ def serve_live(plain_serve: Any, args: argparse.Namespace) -> int:
     cycle_s = _cycle(args.cycle)
     if args.loop and args.inputs is None:
         raise NckConfigError("--loop starts a recording over: it needs --inputs")
+    inputs = args.inputs
+    if args.map and inputs is not None:  # a foreign file: read through the map before the server starts
+        from nckemu.thermal.recording import load_recording
+
+        inputs = load_recording(inputs, need_errors=False, map_path=args.map)
     verbose = getattr(args, "verbose", 0) > 0
     # The program's own client (FB2/FB3/FB4 jobs, up to hundreds a second at high speed) logs every
     # frame at debug: -v is for the minute lines, not for that.
@@ -404,7 +415,7 @@ def serve_live(plain_serve: Any, args: argparse.Namespace) -> int:
         print(json.dumps({"live": line}) if args.json else line, file=sys.stdout, flush=True)
 
     def make(emulator: Any, server: Any) -> LiveMachine:
-        return LiveMachine(emulator, inputs=args.inputs, plc=args.plc, speed=speed, loop=args.loop, cycle_s=cycle_s,
+        return LiveMachine(emulator, inputs=inputs, plc=args.plc, speed=speed, loop=args.loop, cycle_s=cycle_s,
                            server=server, on_minute=minute if verbose else None)
 
     snap7_log = logging.getLogger("snap7")

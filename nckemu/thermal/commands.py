@@ -53,6 +53,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     find.add_argument("--split-runs", action="store_true",
                       help="cut each recording into runs at spindle-speed blocks and gaps over 1 h, then "
                            "discover over the runs")
+    find.add_argument("--map", metavar="MAP.toml", help="read foreign files (workbooks, other column names) "
+                                                        "through this map (docs/recordings.md)")
     find.add_argument("--json", action="store_true", help="print the findings as JSON on stdout")
     find.add_argument("--json-out", metavar="FILE", help="write the findings as JSON to FILE (- for stdout)")
     find.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
@@ -115,9 +117,15 @@ def run_discover(args: argparse.Namespace) -> int:
         check_output(path, option)
     model = load_model(args.model) if args.model else None
     specs = [args.recording, *getattr(args, "more", [])]
-    if len(specs) > 1 or not _is_one_file(args.recording) or getattr(args, "split_runs", False):
+    if getattr(args, "map", None):  # foreign files: a workbook may hold several runs
+        mapped = load_runs(specs, args.axis or (model.axis if model is not None else None), map_path=args.map)
+        if len(mapped) > 1 or getattr(args, "split_runs", False):
+            return _run_discover_runs(args, specs, model, discover_runs, lambda *_: mapped)
+        recording = mapped[0]
+    elif len(specs) > 1 or not _is_one_file(args.recording) or getattr(args, "split_runs", False):
         return _run_discover_runs(args, specs, model, discover_runs, load_runs)
-    recording = load_recording(args.recording)
+    else:
+        recording = load_recording(args.recording)
     axis = args.axis or (model.axis if model is not None else None)
     if axis is None:
         if len(recording.errors_um) != 1:

@@ -13,6 +13,7 @@ import csv
 import glob
 import io
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -73,7 +74,9 @@ class Recording:
                          {k: v[mask] for k, v in self.simulated_um.items()}, name or self.name)
 
 
-def _column_kind(name: str) -> tuple[str, str] | None:
+def column_kind(name: str) -> tuple[str, str] | None:
+    """(kind, key) of a project column name: ("t", ""), ("temp", "spindle"), ("err", "Z"), ...; None if it
+    is not one."""
     if name == "t_s":
         return "t", ""
     if name == "spindle_rpm":
@@ -91,8 +94,10 @@ def _column_kinds(header: Sequence[str], source: str, line: int | None,
     column, each name once."""
     kinds: dict[str, tuple[str, str]] = {}
     for name in header:
-        kind = _column_kind(name)
+        kind = column_kind(name)
         if kind is None:
+            if "t_s" not in header:  # not the project's format at all: say what is there and the way in
+                raise NckConfigError(foreign_header_message(header), path=source, line=line)
             raise NckConfigError(f"unknown column ({_COLUMN_HELP})", path=source, line=line, field=name)
         if name in kinds:
             raise NckConfigError("the column appears twice", path=source, line=line, field=name)
@@ -153,6 +158,67 @@ def _assemble(source: str, kinds: dict[str, tuple[str, str]], columns: dict[str,
     return recording
 
 
+def foreign_header_message(header: Sequence[str]) -> str:
+    shown = ", ".join(repr(name) for name in header[:8]) + (f", ... ({len(header)} columns)" if len(header) > 8 else "")
+    return (f"not the project's recording format (its columns: {shown}); a map file says how to read it: "
+            "--map MAP.toml (docs/recordings.md), or `nckemu recording import FILE --map MAP.toml --out DIR`")
+
+
+@dataclass(frozen=True)
+class CsvDialect:
+    separator: str              # ",", ";" or "\t"
+    decimal: str | None         # "." or ","; None when no fraction was seen in the lines looked at
+
+
+_SNIFF_LINES = 200
+_COMMA_DECIMAL = re.compile(r"^[+-]?\d*,\d+(?:[eE][+-]?\d+)?$")
+_POINT_DECIMAL = re.compile(r"^[+-]?\d*\.\d+(?:[eE][+-]?\d+)?$")
+
+
+def sniff_csv(text: str) -> CsvDialect:
+    """The separator (``,`` ``;`` or tab) and decimal mark (``.`` or ``,``) of CSV text, from its first
+    lines: the separator that splits the header into most fields and the data lines as the header is
+    split; the decimal mark that the number cells show (``,`` only where no ``.`` fraction appears)."""
+    lines = [line for line in text.splitlines()[:_SNIFF_LINES] if line.strip()]
+    if not lines:
+        return CsvDialect(",", ".")
+    best: tuple[tuple[bool, int, int], str] | None = None
+    for separator in (",", ";", "\t"):
+        try:
+            rows = list(csv.reader(lines, delimiter=separator))
+        except csv.Error:
+            continue
+        fields = len(rows[0])
+        same = sum(1 for row in rows[1:] if len(row) == fields)
+        score = (fields > 1, same, fields)
+        if best is None or score > best[0]:
+            best = (score, separator)
+    separator = best[1] if best is not None else ","
+    comma = point = 0
+    for row in csv.reader(lines[1:], delimiter=separator):
+        for cell in row:
+            cell = cell.strip()
+            if _COMMA_DECIMAL.match(cell):
+                comma += 1
+            elif _POINT_DECIMAL.match(cell):
+                point += 1
+    decimal = "," if comma and not point else "." if point else None
+    return CsvDialect(separator, decimal)
+
+
+def parse_number(text: str, decimal: str | None) -> float | None:
+    """A number cell's value (``decimal``: the file's mark, None when unknown); None when it is not a
+    number. A ``,`` mark with a ``.`` in the same cell (a thousands separator) is not read."""
+    if decimal != "." and "," in text:
+        if "." in text or text.count(",") > 1:
+            return None
+        text = text.replace(",", ".")
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
 def _parse_csv(data: bytes, source: str, need_errors: bool = True) -> Recording:
     try:
         text = data.decode("utf-8-sig")
@@ -160,7 +226,8 @@ def _parse_csv(data: bytes, source: str, need_errors: bool = True) -> Recording:
         raise NckConfigError("not a text file (a recording is CSV text in UTF-8 or Parquet)", path=source) from None
     if "\x00" in text:
         raise NckConfigError("not a text file (it holds NUL bytes; a recording is CSV text or Parquet)", path=source)
-    reader = csv.reader(io.StringIO(text, newline=""))
+    dialect = sniff_csv(text)
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=dialect.separator)
     try:
         try:
             header = [h.strip() for h in next(reader)]
@@ -185,11 +252,10 @@ def _parse_csv(data: bytes, source: str, need_errors: bool = True) -> Recording:
                                              line=line_number, field=header[index])
                     cells[index].append(math.nan)
                     continue
-                try:
-                    value = float(value_text)
-                except ValueError:
+                value = parse_number(value_text, dialect.decimal if dialect.separator != "," else ".")
+                if value is None:
                     raise NckConfigError(f"not a number: {value_text[:40]!r}", path=source, line=line_number,
-                                         field=header[index]) from None
+                                         field=header[index])
                 if not math.isfinite(value):  # "nan" or "inf" written out is not a reading
                     raise NckConfigError(f"not a finite number: {value_text[:40]!r}", path=source,
                                          line=line_number, field=header[index])
@@ -253,10 +319,22 @@ def is_parquet(path: str | Path) -> bool:
     return any(suffix.lower() in PARQUET_SUFFIXES for suffix in Path(path).suffixes)
 
 
-def load_recording(path: str | Path, *, need_errors: bool = True) -> Recording:
+def load_recording(path: str | Path, *, need_errors: bool = True, map_path: str | Path | None = None) -> Recording:
     """Read and check a recording (CSV, or Parquet by its name or its magic bytes); every refusal names
     the file, and the line (CSV) or row (Parquet) and the column. ``need_errors=False`` accepts a
-    recording without ``err_`` columns (inputs to play back: sensors, positions, spindle speed)."""
+    recording without ``err_`` columns (inputs to play back: sensors, positions, spindle speed).
+    ``map_path``: a foreign file (workbook, CSV, Parquet) read through a map (recording_map.py); it must
+    give one run."""
+    if map_path is not None:
+        from .recording_map import load_mapped_runs
+
+        runs = load_mapped_runs([path], map_path, need_errors=need_errors)
+        if len(runs) != 1:
+            raise NckConfigError(f"{len(runs)} runs under the map ({', '.join(repr(r.name) for r in runs[:5])}"
+                                 f"{', ...' if len(runs) > 5 else ''}); this command takes one: name one sheet in "
+                                 "[runs] sheets, or write one file per run with `nckemu recording import`",
+                                 path=str(path))
+        return runs[0]
     path = Path(path)
     source = str(path)
     try:
@@ -308,25 +386,25 @@ def _has_magic(spec: str) -> bool:
     return any(char in spec for char in "*?[")
 
 
-def find_recordings(specs: Sequence[str | Path]) -> list[Path]:
+def find_recordings(specs: Sequence[str | Path], suffixes: Sequence[str] = RECORDING_SUFFIXES) -> list[Path]:
     """Files named by ``specs``: a file as given, a directory's ``*.csv``/``*.parquet``/``*.pq`` files and a
-    glob's matches (recordings only), in name order within each spec."""
+    glob's matches (recordings only; ``suffixes`` says which), in name order within each spec."""
     if not specs:
         raise NckConfigError("no recordings given")
     found: list[Path] = []
     for spec in specs:
         path = Path(spec)
         if path.is_dir():
-            files = sorted(f for f in path.iterdir() if f.is_file() and f.suffix.lower() in RECORDING_SUFFIXES)
+            files = sorted(f for f in path.iterdir() if f.is_file() and f.suffix.lower() in suffixes)
             if not files:
-                raise NckConfigError(f"no recordings ({', '.join('*' + s for s in RECORDING_SUFFIXES)}) in this "
+                raise NckConfigError(f"no recordings ({', '.join('*' + s for s in suffixes)}) in this "
                                      "directory", path=str(spec))
             found += files
         elif path.exists():
             found.append(path)
         elif _has_magic(str(spec)):
             files = sorted(Path(m) for m in glob.glob(str(spec), recursive=True)
-                           if Path(m).is_file() and Path(m).suffix.lower() in RECORDING_SUFFIXES)
+                           if Path(m).is_file() and Path(m).suffix.lower() in suffixes)
             if not files:
                 raise NckConfigError("no recordings match this pattern", path=str(spec))
             found += files
@@ -335,11 +413,17 @@ def find_recordings(specs: Sequence[str | Path]) -> list[Path]:
     return found
 
 
-def load_runs(specs: Sequence[str | Path], axis: str | None = None) -> list[Recording]:
+def load_runs(specs: Sequence[str | Path], axis: str | None = None, *,
+              map_path: str | Path | None = None) -> list[Recording]:
     """The runs of one machine: files, directories and globs (``find_recordings``), each run named by its
     file name without the extension. Refused, each with one line naming the file: two runs of one name,
     a run that does not load (``load_recording``), runs with different ``err_`` columns (or, with
-    ``axis``, a run without ``err_<axis>_um`` or with fewer than 2 readings of it)."""
+    ``axis``, a run without ``err_<axis>_um`` or with fewer than 2 readings of it). ``map_path``: the
+    sources are foreign files read through a map, each giving one run or several (recording_map.py)."""
+    if map_path is not None:
+        from .recording_map import MAPPED_SUFFIXES, load_mapped_runs
+
+        return check_runs(load_mapped_runs(find_recordings(specs, MAPPED_SUFFIXES), map_path), axis)
     paths = find_recordings(specs)
     seen: dict[str, Path] = {}
     for path in paths:
@@ -350,7 +434,11 @@ def load_runs(specs: Sequence[str | Path], axis: str | None = None) -> list[Reco
                                  f"a second run named {name!r} (the first is {seen[name]}); runs are named by "
                                  "their file names, which must differ", path=str(path))
         seen[name] = path
-    runs = [load_recording(path) for path in paths]
+    return check_runs([load_recording(path) for path in paths], axis)
+
+
+def check_runs(runs: list[Recording], axis: str | None) -> list[Recording]:
+    """Runs of one machine record the same axes (or, with ``axis``, each has 2 readings of it)."""
     first = runs[0]
     for run in runs:
         if axis is not None:
