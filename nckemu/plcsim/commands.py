@@ -189,7 +189,7 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from nckemu.thermal.recording import load_recording
+    from nckemu.thermal.recording_map import load_recording
 
     from .replay import run_on_recording, with_simulation, write_atomically
 
@@ -271,7 +271,7 @@ def run_loop_command(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from nckemu.thermal.recording import load_recording
+    from nckemu.thermal.recording_map import load_recording
 
     from .loop import run_loop, write_loop_report
 
@@ -313,7 +313,7 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
 
     from nckemu.emulator.machine.machine_file import load_machine
     from nckemu.thermal.plcmodel import plc_model, terms_of
-    from nckemu.thermal.recording import load_recording
+    from nckemu.thermal.recording_map import load_recording
 
     from .replay import plc_inputs, recording_axis
     from .stlgen import generate_program
@@ -323,7 +323,7 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     check_output(args.write_stl, "--write-stl")
     cycle_s = _cycle(args.cycle)
     machine = load_machine(args.machine)
-    recording = load_recording(args.recording)
+    recording = load_recording(args.recording, map_path=args.map)
     letter = args.axis or (recording.axes()[0] if len(recording.axes()) == 1 else None)
     if letter is None:
         raise NckConfigError("several err_ columns: name one with --axis", path=args.recording)
@@ -404,7 +404,7 @@ def serve_live(plain_serve: Any, args: argparse.Namespace) -> int:
         raise NckConfigError("--loop starts a recording over: it needs --inputs")
     inputs = args.inputs
     if args.map and inputs is not None:  # a foreign file: read through the map before the server starts
-        from nckemu.thermal.recording import load_recording
+        from nckemu.thermal.recording_map import load_recording
 
         inputs = load_recording(inputs, need_errors=False, map_path=args.map)
     verbose = getattr(args, "verbose", 0) > 0

@@ -108,7 +108,7 @@ def run_discover(args: argparse.Namespace) -> int:
     if args.recording is None:
         raise NckConfigError("give a recording CSV, or --fleet ROOT")
     from .discover import discover, discover_runs
-    from .recording import load_recording, load_runs
+    from .recording_map import load_recording, load_runs
     from .report import write_report
     from .terms import Term, ThermalModel, load_model
 

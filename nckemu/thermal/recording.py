@@ -319,22 +319,11 @@ def is_parquet(path: str | Path) -> bool:
     return any(suffix.lower() in PARQUET_SUFFIXES for suffix in Path(path).suffixes)
 
 
-def load_recording(path: str | Path, *, need_errors: bool = True, map_path: str | Path | None = None) -> Recording:
+def load_recording(path: str | Path, *, need_errors: bool = True) -> Recording:
     """Read and check a recording (CSV, or Parquet by its name or its magic bytes); every refusal names
     the file, and the line (CSV) or row (Parquet) and the column. ``need_errors=False`` accepts a
-    recording without ``err_`` columns (inputs to play back: sensors, positions, spindle speed).
-    ``map_path``: a foreign file (workbook, CSV, Parquet) read through a map (recording_map.py); it must
-    give one run."""
-    if map_path is not None:
-        from .recording_map import load_mapped_runs
-
-        runs = load_mapped_runs([path], map_path, need_errors=need_errors)
-        if len(runs) != 1:
-            raise NckConfigError(f"{len(runs)} runs under the map ({', '.join(repr(r.name) for r in runs[:5])}"
-                                 f"{', ...' if len(runs) > 5 else ''}); this command takes one: name one sheet in "
-                                 "[runs] sheets, or write one file per run with `nckemu recording import`",
-                                 path=str(path))
-        return runs[0]
+    recording without ``err_`` columns (inputs to play back: sensors, positions, spindle speed). A
+    foreign file is read through a map: ``recording_map.load_recording``."""
     path = Path(path)
     source = str(path)
     try:
@@ -413,17 +402,12 @@ def find_recordings(specs: Sequence[str | Path], suffixes: Sequence[str] = RECOR
     return found
 
 
-def load_runs(specs: Sequence[str | Path], axis: str | None = None, *,
-              map_path: str | Path | None = None) -> list[Recording]:
+def load_runs(specs: Sequence[str | Path], axis: str | None = None) -> list[Recording]:
     """The runs of one machine: files, directories and globs (``find_recordings``), each run named by its
     file name without the extension. Refused, each with one line naming the file: two runs of one name,
     a run that does not load (``load_recording``), runs with different ``err_`` columns (or, with
-    ``axis``, a run without ``err_<axis>_um`` or with fewer than 2 readings of it). ``map_path``: the
-    sources are foreign files read through a map, each giving one run or several (recording_map.py)."""
-    if map_path is not None:
-        from .recording_map import MAPPED_SUFFIXES, load_mapped_runs
-
-        return check_runs(load_mapped_runs(find_recordings(specs, MAPPED_SUFFIXES), map_path), axis)
+    ``axis``, a run without ``err_<axis>_um`` or with fewer than 2 readings of it). Foreign files are
+    read through a map: ``recording_map.load_runs``."""
     paths = find_recordings(specs)
     seen: dict[str, Path] = {}
     for path in paths:

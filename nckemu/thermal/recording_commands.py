@@ -10,12 +10,15 @@ from typing import Any
 
 from nckemu.errors import NckConfigError
 
-EXAMPLES = """\
-examples:
-  nckemu recording check ../shared/data/fl_thermal/data.xlsx --map docs/examples/fl_thermal_map.toml
-  nckemu recording import runs.xlsx --map runs_map.toml --out runs/          (one Parquet file per run)
-  nckemu recording import eu.csv --map eu_map.toml --out runs/ --format csv
+CHECK_EXAMPLES = """\
+  nckemu recording check fixtures/thermal/foreign/days.xlsx --map fixtures/thermal/foreign/days_map.toml
   nckemu recording check fixtures/thermal/seed003_spindle_elongation.csv --json
+"""
+IMPORT_EXAMPLES = """\
+  nckemu recording import fixtures/thermal/foreign/days.xlsx --map fixtures/thermal/foreign/days_map.toml --out runs
+  nckemu recording import fixtures/thermal/foreign/seed003_eu.csv --map fixtures/thermal/foreign/seed003_eu_map.toml --out runs --format csv
+"""
+MAP_NOTE = """\
 The map file (TOML) names the time column and its unit, the project's name of each column it keeps,
 and how runs are cut (docs/recordings.md).
 """
@@ -24,10 +27,11 @@ and how runs are cut (docs/recordings.md).
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     raw = argparse.RawDescriptionHelpFormatter
     group = subparsers.add_parser("recording", help="read recordings as they come: workbooks, European CSV, a map "
-                                                    "file", formatter_class=raw, epilog=EXAMPLES)
+                                                    "file", formatter_class=raw,
+                                  epilog="examples:\n" + CHECK_EXAMPLES + IMPORT_EXAMPLES + MAP_NOTE)
     commands = group.add_subparsers(dest="recording_command", metavar="COMMAND")
     imports = commands.add_parser("import", help="write a foreign file's runs in the project's format",
-                                  formatter_class=raw, epilog=EXAMPLES)
+                                  formatter_class=raw, epilog="examples:\n" + IMPORT_EXAMPLES + MAP_NOTE)
     imports.add_argument("sources", nargs="+", metavar="SOURCE", help="workbook (.xlsx), CSV or Parquet files")
     imports.add_argument("--map", required=True, metavar="MAP.toml", help="how the sources become recordings")
     imports.add_argument("--out", required=True, metavar="DIR", help="directory for one file per run (created)")
@@ -36,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     imports.add_argument("--json", action="store_true", help="print the runs written as JSON on stdout")
     imports.set_defaults(func=run_import)
     check = commands.add_parser("check", help="what a recording holds, as the tools understand it",
-                                formatter_class=raw, epilog=EXAMPLES)
+                                formatter_class=raw, epilog="examples:\n" + CHECK_EXAMPLES + MAP_NOTE)
     check.add_argument("file", metavar="FILE", help="a recording, or a foreign file with --map")
     check.add_argument("--map", metavar="MAP.toml", help="read FILE through this map")
     check.add_argument("--json", action="store_true", help="print what was understood as JSON on stdout")

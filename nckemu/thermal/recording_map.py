@@ -29,7 +29,8 @@ import numpy as np
 from nckemu.errors import NckConfigError
 from nckemu.textfile import read_text
 
-from .recording import MIN_ROWS, Recording, column_kind, parse_number, sniff_csv
+from . import recording as project
+from .recording import MIN_ROWS, Recording, check_runs, column_kind, find_recordings, parse_number, sniff_csv
 
 WORKBOOK_SUFFIXES = (".xlsx", ".xlsm")
 MAPPED_SUFFIXES = (*WORKBOOK_SUFFIXES, ".csv", ".txt", ".tsv", ".parquet", ".pq")
@@ -153,7 +154,7 @@ def load_map(path: str | Path) -> RecordingMap:
 
     for table, value in data.items():
         if table not in _TABLES:
-            raise NckConfigError(f"unknown table (a map has [time], [columns] and [runs])", path=source,
+            raise NckConfigError("unknown table (a map has [time], [columns] and [runs])", path=source,
                                  field=table)
         if not isinstance(value, dict):
             raise NckConfigError("expected a table, e.g. [time]", path=source, line=line_of("", table), field=table)
@@ -654,3 +655,25 @@ def safe_file_name(name: str) -> str:
     cleaned = re.sub(r"[^\w.\-]+", "_", name).strip("._")
     return cleaned or "run"
 
+
+def load_recording(path: str | Path, *, need_errors: bool = True, map_path: str | Path | None = None) -> Recording:
+    """``recording.load_recording``, or with ``map_path`` the one run of a foreign file read through the map
+    (a source that gives several runs is refused: ``nckemu recording import`` writes one file each)."""
+    if map_path is None:
+        return project.load_recording(path, need_errors=need_errors)
+    runs = load_mapped_runs([path], map_path, need_errors=need_errors)
+    if len(runs) != 1:
+        raise NckConfigError(f"{len(runs)} runs under the map ({', '.join(repr(r.name) for r in runs[:5])}"
+                             f"{', ...' if len(runs) > 5 else ''}); this command takes one: name one sheet in "
+                             "[runs] sheets, or write one file per run with `nckemu recording import`",
+                             path=str(path))
+    return runs[0]
+
+
+def load_runs(specs: Sequence[str | Path], axis: str | None = None, *,
+              map_path: str | Path | None = None) -> list[Recording]:
+    """``recording.load_runs``, or with ``map_path`` the runs of foreign files (files, directories, globs of
+    workbooks, CSV and Parquet files), each giving one run or several, checked as runs of one machine."""
+    if map_path is None:
+        return project.load_runs(specs, axis)
+    return check_runs(load_mapped_runs(find_recordings(specs, MAPPED_SUFFIXES), map_path), axis)

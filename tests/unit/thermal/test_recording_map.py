@@ -13,19 +13,21 @@ import pytest
 openpyxl = pytest.importorskip("openpyxl")
 
 from nckemu.cli import main  # noqa: E402
-from tests.conftest import SHARED  # noqa: E402
 from nckemu.errors import NckConfigError  # noqa: E402
-from nckemu.thermal.recording import load_recording, load_runs  # noqa: E402
 from nckemu.thermal.recording_map import (  # noqa: E402
     excel_serial,
     load_map,
     load_mapped_runs,
+    load_recording,
+    load_runs,
     read_sources,
     read_tables,
 )
+from tests.conftest import SHARED  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[3]
-FL_MAP = REPO / "fixtures" / "thermal" / "maps" / "fl_thermal.toml"
+FOREIGN = REPO / "fixtures" / "thermal" / "foreign"
+FL_MAP = FOREIGN / "fl_thermal_map.toml"
 
 
 def write_map(path: Path, text: str) -> Path:
