@@ -171,6 +171,7 @@ class CsvDialect:
 
 
 _SNIFF_LINES = 200
+_SNIFF_CHARS = 1 << 16
 _COMMA_DECIMAL = re.compile(r"^[+-]?\d*,\d+(?:[eE][+-]?\d+)?$")
 _POINT_DECIMAL = re.compile(r"^[+-]?\d*\.\d+(?:[eE][+-]?\d+)?$")
 
@@ -179,7 +180,10 @@ def sniff_csv(text: str) -> CsvDialect:
     """The separator (``,`` ``;`` or tab) and decimal mark (``.`` or ``,``) of CSV text, from its first
     lines: the separator that splits the header into most fields and the data lines as the header is
     split; the decimal mark that the number cells show (``,`` only where no ``.`` fraction appears)."""
-    lines = [line for line in text.splitlines()[:_SNIFF_LINES] if line.strip()]
+    head = text[:_SNIFF_CHARS]
+    if len(text) > _SNIFF_CHARS and "\n" in head:  # a line cut at the end would count its fields wrong
+        head = head[:head.rindex("\n")]
+    lines = [line for line in head.splitlines()[:_SNIFF_LINES] if line.strip()]
     if not lines:
         return CsvDialect(",", ".")
     best: tuple[tuple[bool, int, int], str] | None = None
@@ -237,6 +241,7 @@ def _parse_csv(data: bytes, source: str, need_errors: bool = True) -> Recording:
         cells: list[list[float]] = [[] for _ in header]
         lines: list[int] = []
         nullable = [kinds[name][0] in ("err", "sim") for name in header]
+        comma_decimal = dialect.separator != "," and dialect.decimal != "."
         for row in reader:
             line_number = reader.line_num
             if not row or all(not cell.strip() for cell in row):
@@ -252,7 +257,13 @@ def _parse_csv(data: bytes, source: str, need_errors: bool = True) -> Recording:
                                              line=line_number, field=header[index])
                     cells[index].append(math.nan)
                     continue
-                value = parse_number(value_text, dialect.decimal if dialect.separator != "," else ".")
+                if comma_decimal and "," in value_text:
+                    value = parse_number(value_text, ",")
+                else:
+                    try:
+                        value = float(value_text)
+                    except ValueError:
+                        value = None
                 if value is None:
                     raise NckConfigError(f"not a number: {value_text[:40]!r}", path=source, line=line_number,
                                          field=header[index])
