@@ -101,6 +101,9 @@ def _is_one_file(spec: str) -> bool:
 
 
 def run_discover(args: argparse.Namespace) -> int:
+    if args.fleet and getattr(args, "map", None):
+        raise NckConfigError("--fleet reads the project's format only: write each machine's runs with "
+                             "`nckemu recording import SOURCE --map MAP.toml --out ROOT/<machine>` first")
     if args.fleet or args.scheduler or args.workers or args.reduce:
         from .fleet_commands import run_fleet_discover
 

@@ -376,3 +376,56 @@ def test_plc_commands_take_a_map(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert main([*base, "--inputs", str(eu), "--map", str(mapping)]) == 0
     got = json.loads(capsys.readouterr().out)
     assert got == expected
+
+
+def test_loop_takes_a_map(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    base = ["loop", str(REPO / "fixtures/plc/seed003_elongation.awl"), "--machine",
+            str(REPO / "fixtures/machines/seed003_spindle.toml"), "--axis", "Z", "--cycle", "60s", "--folds", "3",
+            "--json"]
+    assert main([*base, "--inputs", str(REPO / "fixtures/thermal/seed003_loop.csv")]) == 0
+    expected = json.loads(capsys.readouterr().out)
+    assert main([*base, "--inputs", str(FOREIGN / "seed003_eu.csv"), "--map", str(FOREIGN / "seed003_eu_map.toml")]) == 0
+    assert json.loads(capsys.readouterr().out) == expected
+
+
+def test_serve_inputs_takes_a_map(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    argv = [sys.executable, "-m", "nckemu", "serve", "--port", "0", "--machine",
+            str(REPO / "fixtures/machines/seed003_spindle.toml"), "--inputs", str(FOREIGN / "seed003_eu.csv"),
+            "--speed", "600x"]
+    bad = subprocess.run([*argv, "--map", str(FOREIGN / "days_map.toml")], capture_output=True, text=True,
+                         timeout=60)
+    assert bad.returncode == 1 and "no column 'Time'" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    process = subprocess.Popen([*argv, "--map", str(FOREIGN / "seed003_eu_map.toml")], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        ready = process.stdout.readline() if process.stdout else ""
+        assert ready.startswith("nckemu: machine") and "127.0.0.1:" in ready, \
+            process.stderr.read() if process.stderr else ready
+    finally:
+        process.terminate()
+        process.wait(timeout=20)
+
+
+def test_a_parquet_source_with_time_stamps(tmp_path: Path) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    start = dt.datetime(2024, 3, 1, 6, 0, tzinfo=dt.UTC)
+    stamps = [start + dt.timedelta(seconds=s) for s in (0, 30, 90, 120)]
+    pq.write_table(pa.table({"stamp": stamps, "Y disp [mm]": [0.001, None, 0.003, 0.004],
+                             "Motor Temp [K]": [293.15, 294.15, 295.15, 296.15]}), tmp_path / "log.parquet")
+    mapping = write_map(tmp_path / "pq.toml", """\
+        [time]
+        column = "stamp"
+        unit = "datetime"
+        [columns]
+        err_Y_um = { column = "Y disp [mm]", unit = "mm" }
+        temp_motor_C = { column = "Motor Temp [K]", unit = "K" }
+        """)
+    (run,) = load_mapped_runs([tmp_path / "log.parquet"], mapping)
+    np.testing.assert_allclose(run.t_s, [0, 30, 90, 120])
+    np.testing.assert_allclose(run.errors_um["Y"], [1.0, np.nan, 3.0, 4.0])
+    np.testing.assert_allclose(run.temperatures_C["temp_motor_C"], [20.0, 21.0, 22.0, 23.0], atol=1e-9)
