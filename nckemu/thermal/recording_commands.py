@@ -152,6 +152,13 @@ def _project_columns(recording: Any) -> list[dict[str, str]]:
     return columns
 
 
+def _width(text: str) -> int:
+    """Terminal columns of ``text``: wide (East Asian) characters take two."""
+    import unicodedata
+
+    return sum(2 if unicodedata.east_asian_width(char) in "WF" else 1 for char in text)
+
+
 def run_check(args: argparse.Namespace) -> int:
     from .recording import load_recording
     from .recording_map import WORKBOOK_SUFFIXES, load_map, read_sources
@@ -188,7 +195,7 @@ def run_check(args: argparse.Namespace) -> int:
     for run in runs:
         print(f"  {_run_line(run)}")
     print("columns:")
-    width = max(len(repr(c["column"])) for c in columns)
+    width = max(_width(repr(c["column"])) for c in columns)
     for column in columns:
         if column["role"] == "ignored":
             continue
@@ -196,7 +203,8 @@ def run_check(args: argparse.Namespace) -> int:
         if unit and column["project_unit"] and unit != column["project_unit"]:
             unit = f"{unit} -> {column['project_unit']}"
         target = f"-> {column['name']}" if column["name"] and column["name"] != column["column"] else ""
-        print(f"  {column['column']!r:<{width}} {target:<24} {column['role']}" + (f", {unit}" if unit else ""))
+        shown = repr(column["column"])
+        print(f"  {shown}{' ' * (width - _width(shown))} {target:<24} {column['role']}" + (f", {unit}" if unit else ""))
     if document["ignored"]:
         print(f"ignored: {', '.join(repr(c) for c in document['ignored'])}")
     if document.get("skipped_sheets"):
