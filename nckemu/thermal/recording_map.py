@@ -85,6 +85,7 @@ class ColumnMap:
     unit: str            # the source's unit
     line: int | None     # where the map says so
     kind: str = ""       # t, temp, rpm, pos, err, sim
+    key: str = ""        # the sensor's or axis's name within the project's name
 
     @property
     def field(self) -> str:
@@ -119,6 +120,7 @@ def _key_lines(text: str, source: str) -> dict[tuple[str, str], int]:
         header = re.match(r"^\[\s*([^\[\]]+?)\s*\]\s*(#.*)?$", stripped)
         if header:
             table = header.group(1).strip().strip('"')
+            lines.setdefault((table, "[]"), number)
             continue
         match = key_pattern.match(raw)
         if not match:
@@ -155,7 +157,7 @@ def load_map(path: str | Path) -> RecordingMap:
     for table, value in data.items():
         if table not in _TABLES:
             raise NckConfigError("unknown table (a map has [time], [columns] and [runs])", path=source,
-                                 field=table)
+                                 line=line_of(table, "[]"), field=table)
         if not isinstance(value, dict):
             raise NckConfigError("expected a table, e.g. [time]", path=source, line=line_of("", table), field=table)
         allowed = _TABLES[table]
@@ -204,7 +206,7 @@ def load_map(path: str | Path) -> RecordingMap:
         if unit not in VALUE_UNITS[kind[0]]:
             raise NckConfigError(f"unknown unit {unit!r} for a {ROLES[kind[0]]} column (expected "
                                  f"{', '.join(VALUE_UNITS[kind[0]])})", path=source, line=line, field=where)
-        columns.append(ColumnMap(name, column, unit, line, kind[0]))
+        columns.append(ColumnMap(name, column, unit, line, kind[0], kind[1]))
     runs = data.get("runs") or {}
     sheets: tuple[str, ...] | None = None
     if "sheets" in runs:
@@ -543,7 +545,7 @@ def _recording(table: Table, recording_map: RecordingMap, name: str, rows: list[
     for column, index in indices:
         values = convert_value(_numbers(table, index, rows, nullable=column.kind in ("err", "sim")),
                                column.kind, column.unit)
-        key = column.name[len(column.name.split("_")[0]) + 1:-len(column.name.rsplit("_", 1)[1]) - 1]
+        key = column.key
         if column.kind == "temp":
             recording.temperatures_C[column.name] = values
         elif column.kind == "rpm":
