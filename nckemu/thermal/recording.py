@@ -345,6 +345,9 @@ def load_recording(path: str | Path, *, need_errors: bool = True) -> Recording:
         raise NckConfigError(f"cannot read: {exc.strerror}", path=source) from None
     if is_parquet(path) or data[:4] == _PARQUET_MAGIC:
         return _parse_parquet(data, source, need_errors)
+    if data[:4] == b"PK\x03\x04":  # a zip: an .xlsx workbook, most likely
+        raise NckConfigError("a workbook (or another zip file), not a recording: read a workbook through a map, "
+                             "--map MAP.toml (docs/recordings.md)", path=source)
     return _parse_csv(data, source, need_errors)
 
 

@@ -233,6 +233,8 @@ def test_a_foreign_header_without_a_map_gets_one_line_naming_the_way(tmp_path: P
     assert len(message.splitlines()) == 1
     assert "'Zeit', 'Temp Spindel', 'X Abw'" in message and "--map MAP.toml" in message
     assert "field" not in message and "unknown column" not in message
+    assert main(["discover", str(FOREIGN / "days.xlsx")]) == 1
+    assert "a workbook (or another zip file), not a recording" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------------------------ bad input
