@@ -159,10 +159,11 @@ def detectable_um(evaluations: list[Evaluation], base_rms_um: float, t_critical:
     this record could have shown: it must clear the t-test (coefficient >= t_critical standard
     errors, on the part of its feature the design does not already hold) and lower held-out RMS by
     ``min_improvement`` (explain 1 - (1 - min_improvement)^2 of the mean square), and that on the
-    candidate's own held-out figure: an effect of size s of its shape adds s^2 to the baseline's
-    held-out mean square B and leaves the candidate's C (it is fitted), so C <= (1 - bar)^2 (B + s^2).
-    A family whose features cost held-out accuracy (a time constant picked on the record, noisy
-    sensors) needs a larger effect than one that does not. Best-placed candidate of each family."""
+    candidate's own held-out figure C against the baseline's B (mean squares): more of an effect of its
+    shape adds to B and leaves C (it is fitted), so its contribution s must reach
+    s^2 = C / (1 - bar)^2 - min(B, C) (the min: what the candidate already explains, B - C, counts
+    towards s). A family whose features cost held-out accuracy (a time constant picked on the record,
+    noisy sensors) needs a larger effect than one that does not. Best-placed candidate of each family."""
     keep = (1 - min_improvement) ** 2
     held_out_um = base_rms_um * math.sqrt(1 - keep)
     base_ms = base_rms_um ** 2
@@ -171,7 +172,9 @@ def detectable_um(evaluations: list[Evaluation], base_rms_um: float, t_critical:
         if not (math.isfinite(e.t_value) and e.t_value != 0 and math.isfinite(e.own_rms)):
             continue
         se = abs(e.coefficient / e.t_value)
-        own_um = math.sqrt(max(e.cv.rms_um ** 2 / keep - base_ms, 0.0)) if math.isfinite(e.cv.rms_um) else math.inf
+        candidate_ms = e.cv.rms_um ** 2
+        own_um = math.sqrt(max(candidate_ms / keep - min(base_ms, candidate_ms), 0.0)) \
+            if math.isfinite(candidate_ms) else math.inf
         size = max(t_critical * se * e.own_rms, held_out_um, own_um)
         family = e.candidate.term.effect
         out[family] = min(out.get(family, math.inf), size)

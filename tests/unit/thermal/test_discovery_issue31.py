@@ -164,3 +164,27 @@ def test_runs_report_has_a_plot_per_run_and_marks_the_failing(tmp_path: Path) ->
     page = report.read_text()
     assert "Each run held out" in page and "Per run." in page
     assert len(result.series["heldout_improved_um"]) == len(result.series["measured_um"])
+
+
+def test_detectable_sizes_follow_each_familys_held_out_figure() -> None:
+    """Many samples (the t-test part small): before issue 31 every family got 0.44 x the baseline's
+    RMS. Now each its own: a family no better held out than the baseline needs 0.48 x, one that
+    costs held-out accuracy more."""
+    from types import SimpleNamespace
+
+    from nckemu.thermal.stats import CrossValidation
+
+    def candidate(effect: str, heldout_um: float) -> SimpleNamespace:
+        return SimpleNamespace(t_value=2.0, coefficient=0.01, own_rms=1.0, cv=CrossValidation(heldout_um, ()),
+                               candidate=SimpleNamespace(term=SimpleNamespace(effect=effect)))
+
+    base_um = 7.0
+    sizes = explain.detectable_um([candidate("temperature", 7.0), candidate("thermal_lag", 7.3),
+                                   candidate("thermal_gradient", 6.5), candidate("thermal_gradient", 6.9)],
+                                  base_um, 4.0, 0.10)
+    assert sizes["temperature"] == pytest.approx(base_um * (1 / 0.81 - 1) ** 0.5, rel=1e-6)
+    assert sizes["thermal_lag"] == pytest.approx((7.3 ** 2 / 0.81 - 7.0 ** 2) ** 0.5, rel=1e-6)
+    # what the better gradient already explains counts towards its size: 0.48 x its own held-out RMS
+    assert sizes["thermal_gradient"] == pytest.approx(6.5 * (1 / 0.81 - 1) ** 0.5, rel=1e-6)
+    assert min(sizes.values()) >= base_um * 0.19 ** 0.5  # never below the held-out bar
+    assert len(set(sizes.values())) == 3
