@@ -357,7 +357,8 @@ class Discoverer:
             t0 = float(run.readings.recording.t_s[0])
             row["fails_from_h"], row["fails_to_h"] = round((start_s - t0) / 3600, 2), round((end_s - t0) / 3600, 2)
             why = explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)
-            follows = explain.follows(run.readings.recording, t_run[inside], r_run[inside])
+            near = explain.widened(inside)
+            follows = explain.follows(run.readings.recording, t_run[near], r_run[near])
             row["follows"] = follows
             result.mismatch.append({"run": run.name, "t_start_s": start_s, "t_end_s": end_s,
                                     "why": f"{why}; {follows}" if follows else why})

@@ -75,7 +75,10 @@ def mismatch(recording: Recording, axis: str, t_s: np.ndarray, residual: np.ndar
     out = []
     for start, end in structured_windows(t_s, residual):
         inside = (t_s >= start) & (t_s <= end)
-        out.append({"t_start_s": start, "t_end_s": end, "why": why(recording, axis, t_s, inside, residual)})
+        words = why(recording, axis, t_s, inside, residual)
+        near = widened(inside)
+        tracks = follows(recording, t_s[near], residual[near])
+        out.append({"t_start_s": start, "t_end_s": end, "why": f"{words}; {tracks}" if tracks else words})
     return out
 
 
@@ -261,6 +264,20 @@ def runs_words(figures: dict[str, Any]) -> str:
     if figures["fails"]:
         return line + f"; the model still fails {', '.join(figures['fails'])}"
     return line + (f"; no run is left at more than {figures['fails_above_median']:g} x the median")
+
+
+def widened(inside: np.ndarray, minimum: int = 12) -> np.ndarray:
+    """``inside`` (one contiguous window of samples) grown on both sides to ``minimum`` samples: a
+    correlation over a handful of gauge readings says nothing."""
+    indices = np.flatnonzero(inside)
+    if len(indices) >= minimum or len(indices) == 0:
+        return inside
+    grow = (minimum - len(indices) + 1) // 2
+    start = max(0, int(indices[0]) - grow)
+    end = min(len(inside), int(indices[-1]) + 1 + grow)
+    out = np.zeros_like(inside)
+    out[start:end] = True
+    return out
 
 
 def follows(recording: Recording, t_s: np.ndarray, residual: np.ndarray) -> str:
