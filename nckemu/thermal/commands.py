@@ -110,10 +110,9 @@ def run_discover(args: argparse.Namespace) -> int:
         return run_fleet_discover(args)
     if args.recording is None:
         raise NckConfigError("give a recording CSV, or --fleet ROOT")
-    from .discover import discover, discover_runs
+    from .discover import discover_runs
     from .recording_map import load_recording, load_runs
-    from .report import write_report
-    from .terms import Term, ThermalModel, load_model
+    from .terms import load_model
 
     for option, path in (("--json-out", args.json_out), ("--report", args.report),
                          ("--write-model", args.write_model)):
@@ -124,21 +123,28 @@ def run_discover(args: argparse.Namespace) -> int:
         mapped = load_runs(specs, args.axis or (model.axis if model is not None else None), map_path=args.map)
         if len(mapped) > 1 or getattr(args, "split_runs", False):
             return _run_discover_runs(args, specs, model, discover_runs, lambda *_: mapped)
-        recording = mapped[0]
-    elif len(specs) > 1 or not _is_one_file(args.recording) or getattr(args, "split_runs", False):
+        return _run_discover_one(args, mapped[0], model)
+    if len(specs) > 1 or not _is_one_file(args.recording) or getattr(args, "split_runs", False):
         return _run_discover_runs(args, specs, model, discover_runs, load_runs)
-    else:
-        recording = load_recording(args.recording)
+    return _run_discover_one(args, load_recording(args.recording), model)
+
+
+def _run_discover_one(args: argparse.Namespace, recording: Any, model: Any) -> int:
+    """Discovery on one recording (one file, or a recording that ``--split-runs`` left whole)."""
+    from .discover import discover
+    from .report import write_report
+    from .terms import Term, ThermalModel
+
     axis = args.axis or (model.axis if model is not None else None)
     if axis is None:
         if len(recording.errors_um) != 1:
             raise NckConfigError(f"which axis? give --axis ({', '.join(sorted(recording.errors_um))})",
-                                 path=args.recording)
+                                 path=recording.source)
         axis = next(iter(recording.errors_um))
     if axis not in recording.errors_um:
         raise NckConfigError(f"no err_{axis}_um column (it has: "
-                             f"{', '.join(sorted(recording.errors_um)) or 'none'})", path=args.recording)
-    baseline = f"the sim_{axis}_um column of {args.recording}"
+                             f"{', '.join(sorted(recording.errors_um)) or 'none'})", path=recording.source)
+    baseline = f"the sim_{axis}_um column of {recording.source}"
     if model is None and axis not in recording.simulated_um:
         # No baseline at all: start from a constant offset, so the sensors explain the axis on their own.
         model = ThermalModel(axis, [Term("offset", {"value_um": 0.0})], "<constant offset>")
@@ -156,7 +162,7 @@ def run_discover(args: argparse.Namespace) -> int:
         document["program"] = dict(findings)
     write_json(document, args.json_out)
     if args.report:
-        write_report(args.report, result, f"nckemu discover: {Path(args.recording).name}", findings)
+        write_report(args.report, result, f"nckemu discover: {Path(recording.source).name}", findings)
     text = _write_model_and_json(args, document, result, "" if args.model else f"# baseline: {baseline}\n")
     if text is None:
         return 0
@@ -198,6 +204,10 @@ def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, d
         from .recording import split_runs
 
         runs = [part for run in runs for part in split_runs(run)]
+        if len(runs) == 1:  # nothing to cut: discovery on the recording, exactly as without --split-runs
+            if not args.json:
+                print(f"nckemu discover: {runs[0].name} stays one run after splitting", file=sys.stderr)
+            return _run_discover_one(args, runs[0], model)
         if not args.json:
             print(f"nckemu discover: {len(runs)} runs after splitting: {', '.join(r.name for r in runs)}",
                   file=sys.stderr)

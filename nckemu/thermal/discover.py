@@ -70,6 +70,18 @@ class Discovery:
     # Several runs: the figures of each (leave-one-run-out), which columns some runs lack.
     runs: list[dict[str, Any]] = field(default_factory=list)
     coverage: list[dict[str, Any]] = field(default_factory=list)
+    # Several runs: medians over runs, how many improve, the worst run, the runs the model still fails.
+    run_figures: dict[str, Any] = field(default_factory=dict)
+    # The final residual's r(1), Ljung-Box Q and whether it is beyond white noise: a residual that is
+    # structure is never "nothing missing".
+    residual_structure: dict[str, Any] = field(default_factory=dict)
+    # A program's sim_ column that is one constant (e.g. all zeros): it explains nothing, so candidates
+    # were tried against it plus an offset, as against a constant-offset baseline. None otherwise.
+    baseline_constant_um: float | None = None
+
+    @property
+    def residual_is_structure(self) -> bool:
+        return bool(self.residual_structure.get("beyond_white_noise"))
 
     def to_json(self) -> dict[str, Any]:
         document = {
@@ -85,9 +97,13 @@ class Discovery:
             "why_nothing": self.why_nothing,
             "smallest_detectable_um": {k: round(v, 4) for k, v in self.smallest_detectable_um.items()},
             "likely_not_proven": self.likely,
+            "residual_structure": self.residual_structure,
         }
+        if self.baseline_constant_um is not None:
+            document["baseline_constant_um"] = round(self.baseline_constant_um, 6)
         if self.runs:
             document["runs"] = self.runs
+            document["run_figures"] = self.run_figures
             document["coverage"] = self.coverage
         return document
 
@@ -104,6 +120,25 @@ def _isolated(flagged: np.ndarray, longest: int = 2) -> np.ndarray:
     return out
 
 
+def constant_program(recordings: list[Recording], axis: str) -> float | None:
+    """The value of a ``sim_<axis>_um`` column that is one constant on every measured sample of every
+    recording (a program whose output stays 0), else None. Such a baseline has no shape to refit: it
+    is an offset, and candidates must be tried against it as against a constant."""
+    values = []
+    for recording in recordings:
+        simulated = recording.simulated_um.get(axis)
+        if simulated is None or axis not in recording.errors_um:
+            return None
+        measured = ~np.isnan(recording.errors_um[axis]) & ~np.isnan(simulated)
+        if not measured.any():
+            continue
+        values.append(simulated[measured])
+    if not values:
+        return None
+    together = np.concatenate(values)
+    return float(together[0]) if float(np.ptp(together)) <= 1e-9 else None
+
+
 class Discoverer:
     """Wires the parts for one recording (or, through ``runs``, several runs of one machine)."""
 
@@ -116,6 +151,10 @@ class Discoverer:
                 raise NckConfigError(f"several axes ({', '.join(axes)}): name one with --axis", path=recording.source)
             axis = axes[0]
         self.settings = settings or Settings()
+        self.constant_um = constant_program([recording], axis) if model is None else None
+        if self.constant_um is not None:
+            model = ThermalModel(axis, [Term("offset", {"value_um": self.constant_um})],
+                                 f"<the sim_{axis}_um column, constant {self.constant_um:g} um>")
         readings = prepare(recording, self.settings)
         self.data_quality: list[str] = list(readings.data_quality)
         self.sensor_noise_C = readings.sensor_noise_C
@@ -128,6 +167,9 @@ class Discoverer:
         """Several runs of one machine: each its own offset, held out one at a time."""
         self = cls.__new__(cls)
         self.settings = settings or Settings()
+        self.constant_um = constant_program(runs, axis) if model is None else None
+        if self.constant_um is not None:  # each run's own offset is the whole baseline
+            model = ThermalModel(axis, [], f"<the sim_{axis}_um column, constant {self.constant_um:g} um>")
         self.data_quality = []
         self.sensor_noise_C = {}
         prepared = []
@@ -233,6 +275,7 @@ class Discoverer:
             chosen, preferred = selector.prefer(recalibrate, with_gain)
         self.selector, self.setup, self.path = selector, setup, chosen
         result = self._finish(setup, chosen, preferred)
+        result.baseline_constant_um = self.constant_um
         self._honest(result, selector, setup, chosen)
         if len(self.problem.runs) > 1:
             self._per_run(result, setup, chosen)
@@ -253,6 +296,10 @@ class Discoverer:
         result.heldout_rms_before_um = before_um
         if not result.missing_physics:
             result.heldout_rms_after_um = before_um
+        final_residual = path.final.residual if path.final is not None else self.y - setup.given
+        if self.problem.per_run_offset:  # what each run's own offset leaves
+            final_residual = self.problem.within(final_residual)
+        result.residual_structure = explain.residual_structure(final_residual)
         near = selector.near_misses(path)
         found = {(m["effect"], str(m["parameters"].get("sensor", m["parameters"].get("sensors", ""))))
                  for m in result.missing_physics}
@@ -276,11 +323,14 @@ class Discoverer:
 
     def _per_run(self, result: Discovery, setup: Baseline, path: Path) -> None:
         """Leave-one-run-out figures per run (before = the like-for-like baseline, after = the improved
-        model), the medians as headline, and which runs the model still fails and when."""
+        model), the medians as headline, how many runs improve, the worst run, and which runs the
+        model still fails: when in the run and what the residual there follows."""
         problem = self.problem
         before_cv = setup.given_cv if path.gain_mode else setup.reference_cv
-        after_cv = path.base_cv if result.missing_physics else before_cv
-        residual = _heldout_residual(path.design if result.missing_physics else setup.base_design, self.y, setup.folds)
+        found = bool(result.missing_physics)
+        after_cv = path.base_cv if found else before_cv
+        residual = _heldout_residual(path.design if found else setup.base_design, self.y, setup.folds)
+        base_residual = _heldout_residual(setup.base_design, self.y, setup.folds)
         rows = []
         for index, run in enumerate(problem.runs):
             recording = run.readings.recording
@@ -288,16 +338,16 @@ class Discoverer:
                          "heldout_rms_before_um": round(before_cv.fold_rms_um[index], 4),
                          "heldout_rms_after_um": round(after_cv.fold_rms_um[index], 4)})
         result.runs = rows
-        result.heldout_rms_before_um = float(np.median([r["heldout_rms_before_um"] for r in rows]))
-        result.heldout_rms_after_um = float(np.median([r["heldout_rms_after_um"] for r in rows]))
+        figures = explain.run_figures([r["name"] for r in rows], [r["heldout_rms_before_um"] for r in rows],
+                                      [r["heldout_rms_after_um"] for r in rows], found)
+        result.run_figures = figures
+        result.heldout_rms_before_um = figures["median_before_um"]
+        result.heldout_rms_after_um = figures["median_after_um"]
         result.before_is += "; median over runs, each held out"
-        median_after = result.heldout_rms_after_um
         result.mismatch = []
         for index, (run, row) in enumerate(zip(problem.runs, rows, strict=True)):
-            fails = row["heldout_rms_after_um"] > 2 * median_after or \
-                (result.missing_physics and row["heldout_rms_after_um"] >= row["heldout_rms_before_um"])
-            row["fails"] = bool(fails)
-            if not fails:
+            row["fails"] = row["name"] in figures["fails"]
+            if not row["fails"]:
                 continue
             mine = problem.groups == index
             t_run, r_run = problem.t_s[mine], residual[mine]
@@ -306,8 +356,12 @@ class Discoverer:
             inside = (t_run >= start_s) & (t_run <= end_s)
             t0 = float(run.readings.recording.t_s[0])
             row["fails_from_h"], row["fails_to_h"] = round((start_s - t0) / 3600, 2), round((end_s - t0) / 3600, 2)
+            why = explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)
+            near = explain.widened(inside)
+            follows = explain.follows(run.readings.recording, t_run[near], r_run[near])
+            row["follows"] = follows
             result.mismatch.append({"run": run.name, "t_start_s": start_s, "t_end_s": end_s,
-                                    "why": explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)})
+                                    "why": f"{why}; {follows}" if follows else why})
         library = self.selector.library
         result.coverage = [{"column": column, "missing_in": lacking, "handled": library.handling(column)}
                            for column, lacking in library.unavailable.items()]
@@ -318,8 +372,15 @@ class Discoverer:
             hours.append(t_run - t_run[0] + start)
             start += run.readings.recording.duration_s + 1800.0
         result.series["t_s"] = np.concatenate(hours)
+        # Hours after each run's own start (its first row): where the per-run plots and windows are.
+        result.series["run_hours"] = np.concatenate([
+            (problem.t_s[problem.groups == index] - float(run.readings.recording.t_s[0])) / 3600.0
+            for index, run in enumerate(problem.runs)])
         result.series["run_index"] = problem.groups.copy()
         result.series["heldout_residual_um"] = residual
+        # Each run held out: the baseline and the improved model as they predict it from the other runs.
+        result.series["heldout_baseline_um"] = self.y - base_residual
+        result.series["heldout_improved_um"] = self.y - residual
 
     def _finish(self, setup: Baseline, path: Path, preferred: str) -> Discovery:
         problem, given, final = self.problem, setup.given, path.final
@@ -411,6 +472,8 @@ def discover_runs(runs: list[Recording], axis: str | None = None, model: Thermal
         twice = sorted({n for n in names if names.count(n) > 1})
         raise NckConfigError(f"two runs named {twice[0]!r}: runs need unique names", path=runs[0].source)
     if len(runs) == 1:
+        if model is None and axis not in runs[0].simulated_um:  # no baseline: a constant offset, as for one file
+            model = ThermalModel(axis, [Term("offset", {"value_um": 0.0})], "<constant offset>")
         return discover(runs[0], axis, model, settings)
     if model is None and not all(axis in run.simulated_um for run in runs):
         model = ThermalModel(axis, [], "<each run's own offset>")

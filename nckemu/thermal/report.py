@@ -92,20 +92,76 @@ def _runs_section(discovery: Discovery) -> str:
         f"<tr{red if r.get('fails') else ''}><td>{html.escape(r['name'])}</td>"
         f"<td>{r['rows']}</td><td>{r['duration_h']:.1f}</td><td>{r['heldout_rms_before_um']:.3f}</td>"
         f"<td>{r['heldout_rms_after_um']:.3f}</td><td>"
-        + (f"still fails, {r['fails_from_h']:.2f} h to {r['fails_to_h']:.2f} h after its start" if r.get("fails") else "")
+        + (html.escape(f"still fails, {r['fails_from_h']:.2f} h to {r['fails_to_h']:.2f} h after its start"
+                       + (f"; {r['follows']}" if r.get("follows") else "")) if r.get("fails") else "")
         + "</td></tr>" for r in discovery.runs)
     coverage = "".join(f"<li>{html.escape(c['column'])} missing in {html.escape(', '.join(c['missing_in']))}: "
                        f"{html.escape(c['handled'])}</li>" for c in discovery.coverage)
     return (f"<h2>Runs</h2><table><tr><th>run</th><th>rows</th><th>hours</th><th>held-out before [um]</th>"
             f"<th>held-out after [um]</th><th></th></tr>{rows}</table>"
             + (f"<p>Columns some runs lack:</p><ul>{coverage}</ul>" if coverage else "")
-            + f'<img alt="held-out RMS per run, before and after" src="data:image/png;base64,{plot}">')
+            + f'<img alt="held-out RMS per run, before and after" src="data:image/png;base64,{plot}">'
+            + _figures_line(discovery) + _per_run_plots(discovery))
+
+
+def _figures_line(discovery: Discovery) -> str:
+    if not discovery.run_figures:
+        return ""
+    from .explain import runs_words
+
+    return f"<p><b>Per run.</b> {html.escape(runs_words(discovery.run_figures))}.</p>"
+
+
+def _per_run_plots(discovery: Discovery) -> str:
+    """One small plot per run: recorded, baseline and improved model, each as predicted with the run
+    held out (fitted on the other runs, the run's own offset on itself). Runs the model still fails
+    have a red frame and title, and their window shaded."""
+    series = discovery.series
+    if not discovery.runs or "heldout_improved_um" not in series:
+        return ""
+    import math
+
+    count = len(discovery.runs)
+    columns = min(4, count)
+    rows = math.ceil(count / columns)
+    figure, grid = plt.subplots(rows, columns, figsize=(10.5, 2.3 * rows + 0.4), squeeze=False)
+    for index, run in enumerate(discovery.runs):
+        axes = grid[index // columns][index % columns]
+        mine = series["run_index"] == index
+        hours = series["run_hours"][mine]
+        axes.plot(hours, series["measured_um"][mine], ".", markersize=2, color="black", label="recorded")
+        axes.plot(hours, series["heldout_baseline_um"][mine], color="tab:blue", linewidth=1, label="baseline")
+        axes.plot(hours, series["heldout_improved_um"][mine], color="tab:orange", linewidth=1.2,
+                  label="improved model")
+        fails = bool(run.get("fails"))
+        title = (f"{run['name']}\n{run['heldout_rms_before_um']:.2f} -> {run['heldout_rms_after_um']:.2f} um"
+                 + (" STILL FAILS" if fails else ""))
+        axes.set_title(title, fontsize=7.5, color="red" if fails else "black")
+        if fails:
+            axes.axvspan(run["fails_from_h"], run["fails_to_h"], color="red", alpha=0.12)
+            for spine in axes.spines.values():
+                spine.set_color("red")
+                spine.set_linewidth(2)
+        axes.tick_params(labelsize=7)
+        if index % columns == 0:
+            axes.set_ylabel("um", fontsize=7)
+    for index in range(count, rows * columns):
+        grid[index // columns][index % columns].axis("off")
+    handles, labels = grid[0][0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="upper center", ncol=3, fontsize=8, frameon=False)
+    figure.supxlabel("hours after the run's start", fontsize=8)
+    figure.tight_layout(rect=(0, 0, 1, 1 - 0.35 / (2.3 * rows + 0.4)))
+    return ('<h3>Each run held out</h3><p>Recorded error, the baseline and the improved model, each fitted on '
+            'the other runs (the run\'s own offset on itself); red: a run the model still fails, its window '
+            'shaded.</p>'
+            f'<img alt="each run: recorded, baseline, improved model" src="data:image/png;base64,{_png(figure)}">')
 
 
 def _honest_section(discovery: Discovery) -> str:
     parts = []
     if discovery.why_nothing:
-        parts.append(f"<p><b>Why nothing is missing.</b> {html.escape(discovery.why_nothing)}</p>")
+        heading = "Why nothing is named" if discovery.residual_is_structure else "Why nothing is missing"
+        parts.append(f"<p><b>{heading}.</b> {html.escape(discovery.why_nothing)}</p>")
     for item in discovery.likely:
         e = item["evidence"]
         parts.append(f"<p><b>Likely, not proven:</b> {html.escape(item['label'])} "
@@ -137,7 +193,9 @@ def write_report(path: str | Path, discovery: Discovery, title: str,
     axes.set_ylabel("residual [um]")
     axes.legend()
     residuals = _png(figure)
-    rows = "".join(_row(m) for m in discovery.missing_physics) or "<tr><td colspan=3>nothing missing</td></tr>"
+    nothing = ("nothing named, but the residual is structure, not noise: physics this search does not name is left"
+               if discovery.residual_is_structure else "nothing missing")
+    rows = "".join(_row(m) for m in discovery.missing_physics) or f"<tr><td colspan=3>{nothing}</td></tr>"
     windows = "".join(f"<li>{html.escape(w['run']) + ': ' if 'run' in w else ''}{w['t_start_s'] / 3600:.2f} h to {w['t_end_s'] / 3600:.2f} h: {html.escape(w['why'])}</li>"
                       for w in discovery.mismatch) or ("<li>no run the model still fails</li>" if discovery.runs
                                          else "<li>no structured residual</li>")

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from . import stats
+from . import explain, stats
 from .discover import Discovery
 from .terms import EFFECTS
 
@@ -26,10 +26,15 @@ def program_findings(discovery: Discovery, law: str | None = None) -> list[tuple
     what = (f"The program's compensation (sim_{discovery.axis}_um) ran from {float(np.min(compensated)):.2f} to "
             f"{float(np.max(compensated)):.2f} um over the {discovery.samples} measured samples; it takes the "
             f"recorded error's RMS from {error_rms:.3f} um to {residual_rms:.3f} um ({share:.0f} % removed).")
+    if discovery.baseline_constant_um is not None:
+        what += (f" Its output is one constant ({discovery.baseline_constant_um:g} um): it compensates nothing, "
+                 f"so the candidates were tried against it plus an offset, as against a constant baseline.")
     if law:
         what += f" Read back from its output, its law is {law}."
-    residual = (f"Left after compensation (err - sim): RMS {discovery.baseline_rms_um:.3f} um; with the best single "
-                f"factor on the program's output {discovery.recalibrated_rms_um:.3f} um; with the missing physics "
+    refit = ("with an offset fitted" if discovery.baseline_constant_um is not None
+             else "with the best single factor on the program's output")
+    residual = (f"Left after compensation (err - sim): RMS {discovery.baseline_rms_um:.3f} um; {refit} "
+                f"{discovery.recalibrated_rms_um:.3f} um; with the missing physics "
                 f"added, held-out {discovery.heldout_rms_after_um:.3f} um.")
     if discovery.mismatch:
         short = "It falls short " + "; ".join(
@@ -41,12 +46,23 @@ def program_findings(discovery: Discovery, law: str | None = None) -> list[tuple
         physics = "It leaves out: " + "; ".join(
             f"{m['effect']} ({EFFECTS[m['effect']].description}: {_parameters(m['parameters'])})"
             for m in discovery.missing_physics) + "."
+    elif discovery.residual_is_structure:
+        physics = ("No candidate of the vocabulary passed the guards, but what it leaves is structure, not noise "
+                   f"({structure_words(discovery)}): it leaves out physics this search does not name.")
     else:
         physics = "It leaves out no physics the recording can show."
     return [("What the program compensated", what), ("The residual", residual),
             ("Where it falls short", short), ("What physics it leaves out", physics)]
 
 
+
+
+def structure_words(discovery: Discovery) -> str:
+    """r(1) and the Ljung-Box Q of the final residual, in a few words."""
+    s = discovery.residual_structure
+    q = s.get("ljung_box_q")
+    return f"r(1) = {s.get('r1', float('nan')):.2f}, Ljung-Box Q = {q:.0f}" if q is not None else \
+        f"r(1) = {s.get('r1', float('nan')):.2f}"
 
 
 def finding_lines(discovery: Discovery) -> list[str]:
@@ -61,7 +77,10 @@ def finding_lines(discovery: Discovery) -> list[str]:
                      f"({e['heldout_improvement']:.1%}, the bar is {e['heldout_bar']:.0%}), t = "
                      f"{e['t_value_ar1_corrected']} (critical {e['t_critical']}), folds {e['folds_improved']}")
     if not discovery.missing_physics:
-        lines.append(f"nothing missing: {discovery.why_nothing}" if discovery.why_nothing else "nothing missing")
+        # A residual that is structure (r(1) near 1, a huge Ljung-Box Q) is never "nothing missing".
+        head = (f"nothing named, but the residual is structure ({structure_words(discovery)})"
+                if discovery.residual_is_structure else "nothing missing")
+        lines.append(f"{head}: {discovery.why_nothing}" if discovery.why_nothing else head)
     for item in discovery.coverage:
         lines.append(f"{item['column']} missing in {', '.join(item['missing_in'])}: {item['handled']}")
     return lines
@@ -77,6 +96,8 @@ def runs_table(discovery: Discovery) -> list[str]:
         flag = "  still fails" if r.get("fails") else ""
         lines.append(f"{r['name']:<{width}}  {r['rows']:>6}  {r['duration_h']:>6.1f}  "
                      f"{r['heldout_rms_before_um']:>9.3f}  {r['heldout_rms_after_um']:>8.3f}{flag}")
+    if discovery.run_figures:
+        lines.append(explain.runs_words(discovery.run_figures))
     for w in discovery.mismatch:
         if "run" in w:
             run = next(r for r in discovery.runs if r["name"] == w["run"])

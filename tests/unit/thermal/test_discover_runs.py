@@ -178,7 +178,7 @@ def test_cli_over_a_directory_a_glob_and_files(tmp_path: Path, capsys) -> None:
     text = capsys.readouterr().out
     assert "over 3 runs" in text and "day2" in text and "missing: thermal_lag" in text
     page = report.read_text()
-    assert "<h2>Runs</h2>" in page and page.count("data:image/png;base64,") == 3
+    assert "<h2>Runs</h2>" in page and page.count("data:image/png;base64,") == 4  # + one small plot per run (issue 31)
     assert main(["discover", str(RUNS / "day*.csv"), "--axis", "Z", "--json"]) == 0
     assert len(json.loads(capsys.readouterr().out)["runs"]) == 3
     files = [str(p) for p in sorted(RUNS.glob("*.csv"))]
