@@ -23,7 +23,6 @@ from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.emulator.machine.nck.alarms import Alarms
 from nckemu.emulator.machine.nck.axes import Axes
 from nckemu.emulator.machine.nck.channel import Channel
-from nckemu.emulator.machine.nck.drives import Drives
 from nckemu.emulator.machine.nck.compensation import (  # noqa: F401 (old import path)
     TC_BIT_POSITION_DEPENDENT,
     TC_BIT_POSITION_INDEPENDENT,
@@ -31,6 +30,7 @@ from nckemu.emulator.machine.nck.compensation import (  # noqa: F401 (old import
     Compensation,
     Tc840c,
 )
+from nckemu.emulator.machine.nck.drives import Drives
 from nckemu.emulator.machine.nck.frames import Frames
 from nckemu.emulator.machine.nck.programs import Programs
 from nckemu.emulator.machine.nck.sensors import Sensors
