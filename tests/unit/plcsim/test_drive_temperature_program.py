@@ -44,3 +44,25 @@ def test_cli_counts_the_jobs(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert main(["plc", "run", str(PROGRAM), "--machine", str(warming_lathe(tmp_path)), "--duration", "5min",
                  "--axis", "2"]) == 0
     assert "4 FB3 PUT jobs, 4 FB2 GET jobs, 0 FB4 PI_SERV jobs, 0 errors" in capsys.readouterr().out
+
+
+def test_on_a_recording_the_program_follows_its_motor_temperature_column(tmp_path: Path) -> None:
+    """`plc run --inputs` (the code path of `loop` and a living serve): the recording's
+    temp_spindle_motor_C drives the sensor, r0035 reports it, the program's K0 follows."""
+    from nckemu.plcsim.replay import run_on_recording
+    from nckemu.thermal.recording import load_recording
+
+    rows = ["t_s,temp_spindle_motor_C,temp_bed_C,spindle_rpm,err_Z_um"]
+    for i in range(61):
+        t = i * 60.0
+        rows.append(f"{t:g},{28.0 + 20.0 * t / 3600.0:.4f},21.0,{0 if i < 30 else 3000},{0.0}")
+    path = tmp_path / "lathe.csv"
+    path.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    recording = load_recording(path)
+    run = run_on_recording(PROGRAM, FIXTURES / "machines" / "lathe_828d.toml", recording, "Z", progress=False)
+    motor = recording.temperatures_C["temp_spindle_motor_C"]
+    expected_um = [max(0.0, float(t) - 30.0) * 10.0 for t in motor]
+    # sim_um is the applied compensation at each row: at most a minute (and a ramp) behind the column
+    late = [abs(sim - want) for sim, want in zip(run.sim_um, expected_um, strict=True)]
+    assert max(late) < 20.0 / 60.0 * 10.0 * 1.2 + 1.0
+    assert run.sim_um[-1] == pytest.approx(expected_um[-1], abs=4.0) and expected_um[-1] == pytest.approx(180.0)
