@@ -162,6 +162,9 @@ class DriveSettings:
     infeed_efficiency: float = 0.95
     # What a temperature index without a sensor reads (r0037).
     unmeasured_C: float = -200.0
+    # Transport size of read answers from the drive areas: 0x09 (octet string) as every NCK answer, or
+    # 0x07 (REAL), which a commented-out decoder of LSC tested for (no capture of a real answer found).
+    answer_transport_size: int = 0x09
 
 
 @dataclass(frozen=True)
@@ -569,7 +572,11 @@ def _drives(data: dict[str, Any], axes: tuple[Axis, ...], sensors: tuple[Sensor,
                                     line, high=1.0),
         unmeasured_C=_positive(table, "unmeasured_C", defaults.unmeasured_C, "drives.", source, line,
                                low=-1000.0, allow_low=True),
+        answer_transport_size=table.get("answer_transport_size", defaults.answer_transport_size),
     )
+    if settings.answer_transport_size not in (0x07, 0x09) or isinstance(settings.answer_transport_size, bool):
+        raise NckConfigError(f"expected 0x09 (octet string) or 0x07 (REAL), got {settings.answer_transport_size!r}",
+                             path=source, line=line, field="drives.answer_transport_size")
     rows = data.get("drive")
     if rows is None:
         # One drive per machine axis, drive n driving axis n (inferred: MD30110 CTRLOUT_MODULE_NR as

@@ -184,3 +184,13 @@ def test_p_parameters_obey_access_levels(lathe: Emulator) -> None:
     assert lathe.nck.read(NckAddress(NckArea.V, 2, 604, 1, 0x82), AccessContext(level=7)) == [120.0]
     with pytest.raises(NckAccessDenied):
         lathe.nck.write(NckAddress(NckArea.V, 1, 35, 1, 0x82), [1.0], AccessContext(level=0))
+
+
+def test_drive_answers_may_carry_transport_size_real(tmp_path: Path) -> None:
+    text = LATHE.read_text(encoding="utf-8").replace("[drives]\n", "[drives]\nanswer_transport_size = 0x07\n")
+    machine = tmp_path / "lathe_ts7.toml"
+    machine.write_text(text, encoding="utf-8")
+    session = session_for(Emulator(machine, clock=SimulatedClock()))
+    rc, ts, data = ask(session, R0026_DRIVE1)
+    assert (rc, ts, struct.unpack(">f", data)) == (0xFF, 0x07, (540.0,))
+    assert ask(session, H_NUMBER)[1] == 0x09       # the other areas keep 0x09
