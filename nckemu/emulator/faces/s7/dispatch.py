@@ -144,6 +144,8 @@ class Dispatcher:
         # The transport size of answers from the drive areas V and H (the machine's [drives]
         # answer_transport_size: 0x09 as all NCK answers, or 0x07 REAL; docs/assumptions.md).
         self.drive_transport_size = drive_transport_size
+        self._answer_ts_by_area = tuple(drive_transport_size if area in BIG_ENDIAN_AREAS else NCK_TRANSPORT_SIZE
+                                        for area in range(8))
         self.plc = plc
         self.userdata_not_served_error = userdata_not_served_error
         # The session answers a job this dispatcher returns None for with an ACK carrying this error.
@@ -377,9 +379,7 @@ class Dispatcher:
             raise NckObjectDoesNotExist(f"syntax ID 0x{address.syntax_id:02X}")
         nck_type, string_length, values = self.nck.read_typed(address, ctx)
         data = encode_nck_values(nck_type, values, area=address.area, string_length=string_length)
-        if address.area in BIG_ENDIAN_AREAS:
-            return s7.DataItem(RC_SUCCESS, self.drive_transport_size, data)
-        return s7.DataItem(RC_SUCCESS, NCK_TRANSPORT_SIZE, data)
+        return s7.DataItem(RC_SUCCESS, self._answer_ts_by_area[address.area], data)
 
     def _write_nck(self, address: NckAddress, value: s7.DataItem, ctx: AccessContext) -> bool:
         if address.syntax_id not in NCK_SYNTAX_IDS:
