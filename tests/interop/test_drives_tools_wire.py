@@ -103,3 +103,28 @@ def test_nckemu_vars_lists_the_drive_parameters(capsys: pytest.CaptureFixture[st
     assert main(["vars", "r0032"]) == 0
     out = capsys.readouterr().out
     assert "DRV_r0032" in out and "INF_r0032" in out and "V 0x81 col 32" in out
+
+
+def test_tshark_decodes_the_drive_items_and_their_answers(tmp_path: Path) -> None:
+    """The recorded job and answer of LSC's drive reads, as tshark (an independent decoder) reads them."""
+    from .tshark_tools import TSHARK, tshark_fields
+
+    if TSHARK is None:
+        pytest.skip("tshark is not installed")
+    capture = tmp_path / "drives.pcapng"
+    with EmulatorThread(LATHE, record_path=capture) as emu:
+        client = snap7_client(emu.port)
+        try:
+            read(client, LSC_ITEMS["r0035"], LSC_ITEMS["CU p0115"], item(0xA8, 35, 1, 0x82))
+        finally:
+            client.disconnect()
+    rows = tshark_fields(capture, ["s7comm.header.rosctr", "s7comm.param.item.nck.area", "s7comm.param.item.nck.unit",
+                                   "s7comm.param.item.nck.column", "s7comm.param.item.nck.module",
+                                   "s7comm.data.returncode", "s7comm.data.length", "_ws.malformed"])
+    (job,) = [r for r in rows if r["s7comm.header.rosctr"] == "1" and r["s7comm.param.item.nck.area"]]
+    assert (job["s7comm.param.item.nck.area"], job["s7comm.param.item.nck.unit"],
+            job["s7comm.param.item.nck.column"], job["s7comm.param.item.nck.module"]) == \
+        ("5,5,5", "1,1,8", "35,115,35", "0x82,0x80,0x82")
+    (answer,) = [r for r in rows if r["s7comm.header.rosctr"] == "3" and r["s7comm.data.returncode"]]
+    assert answer["s7comm.data.returncode"] == "0xff,0xff,0x0a" and not answer["_ws.malformed"]
+    assert answer["s7comm.data.length"].split(",")[:2] == ["4", "4"]
