@@ -39,7 +39,11 @@ _AREA_FOLDER = {NckArea.N: "Nck", NckArea.B: "Bag", NckArea.C: "Channel", NckAre
                 NckArea.V: "Drive", NckArea.H: "Drive", NckArea.M: "Mmc"}
 # First path segments of the controller's NC namespace: a well-formed id under one of them that this
 # machine's table lacks is "not configured", anything else "unknown".
-NC_ROOTS = frozenset({"nck", "channel", "bag", "tool", "axis", "drive", "nc", "nckemu", "hmi", "geometricaxis"})
+NC_ROOTS = frozenset({"nck", "channel", "bag", "tool", "axis", "drive", "nc", "nckemu", "hmi", "geometricaxis",
+                      "drivevsa"})
+# Public OPC UA collectors read a motor module's parameters both as /DriveVsa/Drive/r0035[uN] and as
+# /DriveVsa/DC/R0026[uN] (docs/assumptions.md): the second is served as another name of the first.
+_DRIVE_FOLDER, _DRIVE_ALIAS = "/DriveVsa/Drive/", "/DriveVsa/DC/"
 
 _PATH = re.compile(r"^(?P<path>/[A-Za-z0-9_/$]+?)\s*(?:\[(?P<index>[^\[\]]*)\])?$")
 _NC_DATA = re.compile(r"^/nc/_n_(?P<area>nc|ch|ax)_(?P<kind>sea|tea)_acx/\$(?P<sm>[sm])(?P<letter>[nca])_"
@@ -100,6 +104,8 @@ def node_paths(spec: VariableSpec) -> list[str]:
     paths: list[str] = []
     if spec.path:
         paths.append(spec.path)
+        if spec.path.startswith(_DRIVE_FOLDER):
+            paths.append(_DRIVE_ALIAS + spec.path[len(_DRIVE_FOLDER):])
     number = spec.number.upper()
     if number[:2] in ("SD", "MD") and number[2:].isdigit():
         kind, sm = ("SEA", "S") if number.startswith("SD") else ("TEA", "M")
@@ -112,7 +118,7 @@ def node_paths(spec: VariableSpec) -> list[str]:
 
 
 def realm_of(path: str) -> str:
-    """The SINUMERIK access realm a path belongs to (State, Frame, Sea, Tea, Tool, Gud, Plc)."""
+    """The SINUMERIK access realm a path belongs to (State, Frame, Sea, Tea, Tool, Drive, Gud, Plc)."""
     lower = path.lower()
     if lower.startswith(("/plc", "/random/plc")):
         return "Plc"
@@ -120,6 +126,8 @@ def realm_of(path: str) -> str:
         return "Sea" if "_sea_" in lower else "Gud" if "_gd" in lower else "Tea"
     if lower.startswith("/tool/"):
         return "Tool"
+    if lower.startswith(("/drivevsa/", "/nckemu/drive/")):
+        return "Drive"
     if "frame" in lower or "linshift" in lower:
         return "Frame"
     return "State"

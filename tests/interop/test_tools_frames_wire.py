@@ -16,7 +16,7 @@ from nckemu.emulator.runner import EmulatorThread
 
 from .test_field_catalogue_snap7 import item, read
 
-PARAMS, AXES = 25, 4    # the default machine: numCuttEdgeParams, machine axes X1 Y1 SP1 Z1
+PARAMS, AXES = 35, 4    # the default machine: numCuttEdgeParams, machine axes X1 Y1 SP1 Z1
 
 
 @pytest.fixture

@@ -64,6 +64,9 @@ class Sensor:
 EDGE_PARAMETERS: dict[str, int] = {
     "type": 1, "edge_position": 2, "length1_mm": 3, "length2_mm": 4, "length3_mm": 5, "radius_mm": 6,
     "wear_length1_mm": 12, "wear_length2_mm": 13, "wear_length3_mm": 14, "wear_radius_mm": 15,
+    # Beyond 25 (a machine with more cutting edge parameters): LSC reads line 26 of an edge as its H number
+    # and line 34 as its number of teeth (Siemens' $TC_DPH / $TC_DPNT by our reading; docs/assumptions.md).
+    "h_number": 26, "teeth": 34,
 }
 # numCuttEdgeParams: "currently 25 parameters are reserved for each tool edge" (A2, 802D sl); LSC reads
 # 35 lines of one 840D sl edge at once, so a machine may configure up to that.
@@ -91,12 +94,19 @@ class Tool:
     edges: tuple[tuple[float, ...], ...] = ()
 
 
+# actOriToolLength1..3 (S columns 113..115): the tool length along geometry axes X, Y, Z; which length
+# component (1..3) lies along each. G17 with a milling tool: L3 along X, L2 along Y, L1 along Z (W1); a
+# lathe with turning tools under G18: L1 along X, L2 along Z (write [1, 3, 2]). Inferred: no orientation.
+DEFAULT_ORI_LENGTH_COMPONENTS = (3, 2, 1)
+
+
 @dataclass(frozen=True)
 class ToolSettings:
     cutting_edge_params: int = STANDARD_EDGE_PARAMS
     # The tool and cutting edge active in channel 1 at start (actTNumber, actDNumber); 0: none.
     active_t: int = 0
     active_d: int = 0
+    ori_length_components: tuple[int, int, int] = DEFAULT_ORI_LENGTH_COMPONENTS
 
 
 @dataclass(frozen=True)
@@ -106,6 +116,55 @@ class WorkOffsets:
     active: int = 0
     count: int = DEFAULT_SETTABLE_FRAMES
     shifts_mm: dict[int, dict[int, float]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Drive:
+    """A SINAMICS drive the NCK reaches in its drive area V: unit = ``number``. Its motor module (drive
+    object 0x82) drives machine axis ``axis``; ratings set what current and power a load means."""
+
+    number: int
+    axis: int | None = None
+    # The [[sensor]] whose temperature the motor's r0035 reports (a recording's temp_<sensor>_C on a
+    # living machine); None: ambient plus a steady rise with the load (``DriveSettings``).
+    motor_sensor: str | None = None
+    rated_power_kW: float = 1.5
+    rated_current_A: float = 4.0
+    rated_speed_rpm: float = 3000.0
+    # Id of an induction motor (enters r0027); 0 for a synchronous servo motor.
+    magnetizing_current_A: float = 0.0
+    # Load (torque utilization, %) at standstill, and what turning at rated speed adds (friction and
+    # windage; no cutting is emulated). ``NckModel.set_drive_load`` overrides both.
+    standstill_load_pct: float = 2.0
+    speed_load_pct: float = 10.0
+
+
+# Defaults of a drive a machine file does not list, by what its axis is (inferred, not from a source):
+# a 1FK7-size feed motor and a 1PH8-size spindle motor.
+FEED_DRIVE = {"rated_power_kW": 1.5, "rated_current_A": 4.0, "rated_speed_rpm": 3000.0,
+              "magnetizing_current_A": 0.0, "standstill_load_pct": 2.0, "speed_load_pct": 10.0}
+SPINDLE_DRIVE = {"rated_power_kW": 7.5, "rated_current_A": 20.0, "rated_speed_rpm": 8000.0,
+                 "magnetizing_current_A": 7.0, "standstill_load_pct": 0.0, "speed_load_pct": 15.0}
+
+
+@dataclass(frozen=True)
+class DriveSettings:
+    """Values of the drive line-up as a whole ([drives]); docs/assumptions.md says where each comes from."""
+
+    # r0026 DC link voltage: an active line module on 3 AC 400 V regulates 600 V (inferred).
+    dc_link_V: float = 600.0
+    # Ambient of motors and power units, and their steady rises at rated load (inferred).
+    ambient_C: float = 25.0
+    motor_rise_K: float = 60.0
+    power_unit_rise_K: float = 30.0
+    # Motor module and infeed efficiencies (r0032 electrical power of a drive, of the infeed).
+    efficiency: float = 0.9
+    infeed_efficiency: float = 0.95
+    # What a temperature index without a sensor reads (r0037).
+    unmeasured_C: float = -200.0
+    # Transport size of read answers from the drive areas: 0x09 (octet string) as every NCK answer, or
+    # 0x07 (REAL), which a commented-out decoder of LSC tested for (no capture of a real answer found).
+    answer_transport_size: int = 0x09
 
 
 @dataclass(frozen=True)
@@ -152,6 +211,9 @@ class Machine:
     work_offsets: WorkOffsets = field(default_factory=WorkOffsets)
     # The [opcua] table as written (users and rights of the OPC UA face; checked by emulator/faces/opcua).
     opcua: dict[str, Any] = field(default_factory=dict)
+    # SINAMICS drives (area V): the file's [[drive]] rows, else one per machine axis (drive n = axis n).
+    drives: tuple[Drive, ...] = ()
+    drive_settings: DriveSettings = field(default_factory=DriveSettings)
 
     def tool(self, number: int) -> Tool | None:
         for tool in self.tools:
@@ -184,16 +246,18 @@ def _get(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: 
 _KNOWN_KEYS: dict[str, frozenset[str]] = {
     "": frozenset({"name", "ipo_cycle_s", "pdu_size_max", "max_amq", "channels", "connection_access_level",
                    "passwords", "settings", "axis", "sensor", "plc", "initial", "var", "tools", "tool",
-                   "work_offsets", "opcua"}),
+                   "work_offsets", "opcua", "drives", "drive"}),
     # every setting the dataclass has (a new setting needs no second list)
     "settings.": frozenset(setting.name for setting in fields(Settings)),
     "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
                        "tool_temp_comp_component", "recording"}),
     "sensor": frozenset({"name", "temperature_C", "plc_input", "raw_offset", "raw_per_C", "profile"}),
     "plc.": frozenset({"data_blocks"}),
-    "tools.": frozenset({"cutting_edge_params", "active_t", "active_d"}),
+    "tools.": frozenset({"cutting_edge_params", "active_t", "active_d", "ori_length_components"}),
     "tool": frozenset({"number", "ident", "edges"}),
     "edge": frozenset(EDGE_PARAMETERS),
+    "drives.": frozenset(setting.name for setting in fields(DriveSettings)),
+    "drive": frozenset(setting.name for setting in fields(Drive)),
 }
 
 
@@ -242,6 +306,10 @@ def _tool(table: Any, index: int, params: int, source: str, line: int | None) ->
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
                 raise NckConfigError(f"expected a number, got {value!r}", path=source, line=line,
                                      field=f"{edge_where}{key}")
+            if EDGE_PARAMETERS[key] > params:
+                raise NckConfigError(f"{key} is edge parameter {EDGE_PARAMETERS[key]}, but [tools] "
+                                     f"cutting_edge_params is {params}", path=source, line=line,
+                                     field=f"{edge_where}{key}")
             values[EDGE_PARAMETERS[key] - 1] = float(value)
         edges.append(tuple(values))
     return Tool(number=number, ident=ident, edges=tuple(edges))
@@ -276,7 +344,11 @@ def _tools(data: dict[str, Any], text: str, source: str) -> tuple[ToolSettings, 
         edges = 0 if active is None else len(active.edges)
         raise NckConfigError(f"T{active_t} has {edges} cutting edge(s), so no D{active_d}", path=source, line=line,
                              field="tools.active_d")
-    return ToolSettings(params, active_t, active_d), tuple(tools)
+    components = settings_table.get("ori_length_components", list(DEFAULT_ORI_LENGTH_COMPONENTS))
+    if not isinstance(components, list) or sorted(components) != [1, 2, 3]:
+        raise NckConfigError("expected the tool length components along X, Y, Z: a list of 1, 2, 3 in some "
+                             "order, e.g. [3, 2, 1]", path=source, line=line, field="tools.ori_length_components")
+    return ToolSettings(params, active_t, active_d, (components[0], components[1], components[2])), tuple(tools)
 
 
 def _work_offsets(table: Any, axes: tuple[Axis, ...], text: str, source: str) -> WorkOffsets:
@@ -421,6 +493,7 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
             raise NckConfigError("expected { unit = value }", path=source, field=f"initial.{name}")
         initial[name.upper()] = {int(unit): value for unit, value in per_unit.items()}
     tool_settings, tools = _tools(data, text, source)
+    drive_settings, drives = _drives(data, axes, sensors, text, source)
     work_offsets = _work_offsets(data.get("work_offsets", {}), axes, text, source)
     passwords = data.get("passwords", {})
     if not all(isinstance(v, int) and 0 <= v <= 7 for v in passwords.values()):
@@ -437,7 +510,92 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         variables=machine_table(data["var"], source, text) if "var" in data else (),
         tools=tools, tool_settings=tool_settings, work_offsets=work_offsets,
         opcua=_opcua_table(data.get("opcua", {}), source),
+        drives=drives, drive_settings=drive_settings,
     )
+
+
+def _positive(table: dict[str, Any], key: str, default: float, where: str, source: str, line: int | None,
+              *, low: float = 0.0, high: float = math.inf, allow_low: bool = False) -> float:
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
+            or not (low <= value if allow_low else low < value) or value > high:
+        raise NckConfigError(f"expected a number {'>=' if allow_low else '>'} {low:g}"
+                             f"{'' if high == math.inf else f' and <= {high:g}'}, got {value!r}",
+                             path=source, line=line, field=f"{where}{key}")
+    return float(value)
+
+
+def _drive(table: Any, index: int, axes: tuple[Axis, ...], sensors: tuple[Sensor, ...], source: str,
+           line: int | None) -> Drive:
+    where = f"drive[{index}]."
+    _check_keys(table, "drive", where, source, line)
+    if "number" not in table:
+        raise NckConfigError("missing (the drive number, the unit of area V)", path=source, line=line,
+                             field=f"{where}number")
+    number = _whole(table["number"], 1, 31, "a drive number", source, line, f"{where}number")
+    axis_ref = table.get("axis")
+    axis: Axis | None = None
+    if axis_ref is not None:
+        axis = next((a for a in axes if a.number == axis_ref or (isinstance(axis_ref, str)
+                                                                 and a.name.upper() == axis_ref.upper())), None)
+        if axis is None or isinstance(axis_ref, bool):
+            raise NckConfigError(f"no machine axis {axis_ref!r} (axes: {', '.join(a.name for a in axes)})",
+                                 path=source, line=line, field=f"{where}axis")
+    sensor = table.get("motor_sensor")
+    if sensor is not None and (not isinstance(sensor, str) or all(s.name != sensor for s in sensors)):
+        raise NckConfigError(f"no [[sensor]] named {sensor!r} (sensors: {', '.join(s.name for s in sensors)})",
+                             path=source, line=line, field=f"{where}motor_sensor")
+    defaults = SPINDLE_DRIVE if axis is not None and axis.spindle else FEED_DRIVE
+    values = {key: _positive(table, key, float(default), where, source, line,
+                             allow_low=key in ("magnetizing_current_A", "standstill_load_pct", "speed_load_pct"),
+                             high=1000.0 if key.endswith("_pct") else math.inf)
+              for key, default in defaults.items()}
+    return Drive(number=number, axis=None if axis is None else axis.number, motor_sensor=sensor, **values)
+
+
+def _drives(data: dict[str, Any], axes: tuple[Axis, ...], sensors: tuple[Sensor, ...], text: str,
+            source: str) -> tuple[DriveSettings, tuple[Drive, ...]]:
+    table = data.get("drives", {})
+    line = _header_line(text, "[drives]")
+    _check_keys(table, "drives.", "drives.", source, line)
+    defaults = DriveSettings()
+    settings = DriveSettings(
+        dc_link_V=_positive(table, "dc_link_V", defaults.dc_link_V, "drives.", source, line),
+        ambient_C=_positive(table, "ambient_C", defaults.ambient_C, "drives.", source, line, low=-50.0,
+                            allow_low=True, high=100.0),
+        motor_rise_K=_positive(table, "motor_rise_K", defaults.motor_rise_K, "drives.", source, line,
+                               allow_low=True),
+        power_unit_rise_K=_positive(table, "power_unit_rise_K", defaults.power_unit_rise_K, "drives.", source,
+                                    line, allow_low=True),
+        efficiency=_positive(table, "efficiency", defaults.efficiency, "drives.", source, line, high=1.0),
+        infeed_efficiency=_positive(table, "infeed_efficiency", defaults.infeed_efficiency, "drives.", source,
+                                    line, high=1.0),
+        unmeasured_C=_positive(table, "unmeasured_C", defaults.unmeasured_C, "drives.", source, line,
+                               low=-1000.0, allow_low=True),
+        answer_transport_size=table.get("answer_transport_size", defaults.answer_transport_size),
+    )
+    if settings.answer_transport_size not in (0x07, 0x09) or isinstance(settings.answer_transport_size, bool):
+        raise NckConfigError(f"expected 0x09 (octet string) or 0x07 (REAL), got {settings.answer_transport_size!r}",
+                             path=source, line=line, field="drives.answer_transport_size")
+    rows = data.get("drive")
+    if rows is None:
+        # One drive per machine axis, drive n driving axis n (inferred: MD30110 CTRLOUT_MODULE_NR as
+        # commissioned in axis order).
+        return settings, tuple(Drive(number=axis.number, axis=axis.number,
+                                     **(SPINDLE_DRIVE if axis.spindle else FEED_DRIVE))  # type: ignore[arg-type]
+                               for axis in axes)
+    if not isinstance(rows, list):
+        raise NckConfigError("expected [[drive]] tables", path=source, field="drive")
+    drive_lines = row_lines(text, "[[drive]]")
+    drives: list[Drive] = []
+    for index, row in enumerate(rows):
+        row_line = drive_lines[index] if index < len(drive_lines) else None
+        drive = _drive(row, index, axes, sensors, source, row_line)
+        if any(other.number == drive.number for other in drives):
+            raise NckConfigError(f"drive {drive.number} is declared twice", path=source, line=row_line,
+                                 field=f"drive[{index}].number")
+        drives.append(drive)
+    return settings, tuple(drives)
 
 
 def _opcua_table(table: object, source: str) -> dict[str, Any]:

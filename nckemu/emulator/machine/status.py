@@ -2,7 +2,7 @@
 
 Read from the model directly (no S7 job): axes with their commanded and actual positions and the
 temperature compensation (SD43900/43910/43920 as written, the value applied), sensors with their PLC
-words, spindles, channel 1's run state and parts, alarms, and the clients a face lists (the S7
+words, the drives' motor and power unit temperatures (r0035, r0037[0]) with their load and power, spindles, channel 1's run state and parts, alarms, and the clients a face lists (the S7
 connections with their job counts). Layers above the emulator add their parts through
 ``Emulator.status_sections``.
 """
@@ -58,6 +58,10 @@ def machine_status(emulator: Emulator, server: ClientList | None = None) -> dict
             word = emulator.plc.read(S7Area.P, 0, int(sensor.plc_input[3:]), 2)
             entry["raw"] = int.from_bytes(word, "big", signed=True)
         sensors.append(entry)
+    try:
+        drives = nck.drives.temperatures_C(nck)
+    except NckError:
+        drives = []
     channel = nck.channels.get(1)
     channel_state: dict[str, Any] = {}
     spindles = []
@@ -72,7 +76,7 @@ def machine_status(emulator: Emulator, server: ClientList | None = None) -> dict
     document: dict[str, Any] = {
         "machine": machine.name, "t_s": clock.now_s(),
         "speed": clock.speed if isinstance(clock, LiveClock) else 1.0,
-        "axes": axes, "sensors": sensors, "spindles": spindles, "channel": channel_state,
+        "axes": axes, "sensors": sensors, "drives": drives, "spindles": spindles, "channel": channel_state,
         "alarms": list(nck.alarms), "clients": clients,
     }
     for name, section in emulator.status_sections.items():

@@ -22,7 +22,7 @@ from .test_field_catalogue import CR_LSC, SETUP_LSC, answer_items, item, read_fr
 
 TO, FU, FA, S, Y, SEGA, SMA = 0x14, 0x12, 0x13, 0x7F, 0x10, 0x70, 0x74
 AU_TOOL, AU_CHAN, AU_NCK = 0x81, 0x41, 0x01
-PARAMS = 25        # the default machine's numCuttEdgeParams
+PARAMS = 35        # the default machine's numCuttEdgeParams
 AXES = 4           # X1, Y1, SP1, Z1
 
 
@@ -107,9 +107,10 @@ def test_tool_change_and_an_edge_write_follow_through(emulator: Emulator, sessio
 
 
 def test_tools_and_edges_that_do_not_exist(session: ServerSession) -> None:
-    # T3 is not in the table: object does not exist; T1 has one edge, so line 26 (D2 P1) is out of range
+    # T3 is not in the table: object does not exist; T1 has one edge, so D2 P1 is out of range, and so
+    # is a span of 10 lines from P(PARAMS - 5) of D1 that runs into D2
     no_tool, no_edge, spans = read(session, item(AU_TOOL, 3, 1, TO), item(AU_TOOL, 1, line_of(2, 1), TO),
-                                   item(AU_TOOL, 1, 20, TO, 10))
+                                   item(AU_TOOL, 1, PARAMS - 5, TO, 10))
     assert [no_tool[0], no_edge[0], spans[0]] == [0x0A, 0x05, 0x05]
     # the TO module is not served in the channel area (the sources read it in area T)
     ((rc, _ts, _data),) = read(session, item(AU_CHAN, 1, 1, TO))

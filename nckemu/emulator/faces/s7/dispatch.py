@@ -27,6 +27,7 @@ from nckemu.errors import (
 )
 from nckemu.protocol import cotp, pi, s7, szl, tpkt
 from nckemu.protocol.addresses import (
+    BIG_ENDIAN_AREAS,
     NCK_SYNTAX_IDS,
     NckAddress,
     S7AnyAddress,
@@ -137,8 +138,14 @@ class Dispatcher:
                  persist: Callable[[], None] | None = None,
                  default_access_level: int = 7,
                  userdata_not_served_error: int = USERDATA_NOT_SERVED,
-                 unsupported_function_error: int = HeaderError.NOT_IMPLEMENTED) -> None:
+                 unsupported_function_error: int = HeaderError.NOT_IMPLEMENTED,
+                 drive_transport_size: int = NCK_TRANSPORT_SIZE) -> None:
         self.nck = nck
+        # The transport size of answers from the drive areas V and H (the machine's [drives]
+        # answer_transport_size: 0x09 as all NCK answers, or 0x07 REAL; docs/assumptions.md).
+        self.drive_transport_size = drive_transport_size
+        self._answer_ts_by_area = tuple(drive_transport_size if area in BIG_ENDIAN_AREAS else NCK_TRANSPORT_SIZE
+                                        for area in range(8))
         self.plc = plc
         self.userdata_not_served_error = userdata_not_served_error
         # The session answers a job this dispatcher returns None for with an ACK carrying this error.
@@ -162,7 +169,8 @@ class Dispatcher:
             dispatcher = cls(emulator.nck, emulator.plc, persist=emulator.persist,
                              default_access_level=emulator.default_access_level,
                              userdata_not_served_error=settings.userdata_not_served_error,
-                             unsupported_function_error=settings.unsupported_function_error)
+                             unsupported_function_error=settings.unsupported_function_error,
+                             drive_transport_size=emulator.machine.drive_settings.answer_transport_size)
             _BY_MACHINE[emulator] = dispatcher
         return dispatcher
 
@@ -371,7 +379,7 @@ class Dispatcher:
             raise NckObjectDoesNotExist(f"syntax ID 0x{address.syntax_id:02X}")
         nck_type, string_length, values = self.nck.read_typed(address, ctx)
         data = encode_nck_values(nck_type, values, area=address.area, string_length=string_length)
-        return s7.DataItem(RC_SUCCESS, NCK_TRANSPORT_SIZE, data)
+        return s7.DataItem(RC_SUCCESS, self._answer_ts_by_area[address.area], data)
 
     def _write_nck(self, address: NckAddress, value: s7.DataItem, ctx: AccessContext) -> bool:
         if address.syntax_id not in NCK_SYNTAX_IDS:

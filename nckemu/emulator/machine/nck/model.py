@@ -30,6 +30,7 @@ from nckemu.emulator.machine.nck.compensation import (  # noqa: F401 (old import
     Compensation,
     Tc840c,
 )
+from nckemu.emulator.machine.nck.drives import Drives
 from nckemu.emulator.machine.nck.frames import Frames
 from nckemu.emulator.machine.nck.programs import Programs
 from nckemu.emulator.machine.nck.sensors import Sensors
@@ -74,6 +75,7 @@ class NckModel:
             specs = machine.variables or load_table()
         specs = tuple(specs)
         check_sources(specs, machine.source)
+        self.drives = Drives(machine)
         self.store = VariableStore(specs, self._units, machine.settings.limit_violation_return_code)
         self.store.apply_initial(machine.initial, self._finder(specs), machine.source)
         self.store.activate_all()
@@ -110,6 +112,8 @@ class NckModel:
                 units.extend(axis.number for axis in self.machine.axes)
             elif area == NckArea.C:
                 units.extend(range(1, self.machine.channels + 1))
+            elif area == NckArea.V:
+                units.extend(self.drives.units(spec.module))
             else:
                 units.append(1)
         return units
@@ -207,6 +211,10 @@ class NckModel:
     def set_spindle_speed(self, spindle: int, rpm: float | None, channel: int = 1) -> None:
         """The measured actual speed of a channel's spindle (actSpeed); None: the commanded one again."""
         self.channels[channel].set_measured_speed(spindle, rpm)
+
+    def set_drive_load(self, drive: int, load_pct: float | None) -> None:
+        """A drive's load (torque utilization, %) from outside; None: back to the model's own."""
+        self.drives.set_load(drive, load_pct)
 
     def select_tool(self, t_number: int, d_number: int, channel: int = 1) -> None:
         """A tool change (T, M6) and offset selection (D) in a channel: actTNumber, actDNumber,

@@ -15,6 +15,7 @@ from nckemu.emulator.machine.nck.alarms import Alarms
 from nckemu.emulator.machine.nck.axes import Axes
 from nckemu.emulator.machine.nck.channel import Channel
 from nckemu.emulator.machine.nck.compensation import Compensation
+from nckemu.emulator.machine.nck.drives import Drives
 from nckemu.emulator.machine.nck.frames import Frames
 from nckemu.emulator.machine.nck.programs import Programs
 from nckemu.emulator.machine.nck.sensors import Sensors
@@ -36,6 +37,7 @@ class NckParts(Protocol):
     channels: dict[int, Channel]
     tools: Tools
     frames: Frames
+    drives: Drives
 
     def actual_position_mm(self, axis: int) -> float: ...
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.nck.alarms import alarm_number
+from nckemu.emulator.machine.nck.drives import DRIVE_READERS
 from nckemu.errors import NckAccessDenied, NckAddressOutOfRange
 
 if TYPE_CHECKING:
@@ -156,6 +157,20 @@ def _active_length(component: int) -> Source:
     return Source(read)
 
 
+def _ori_length(axis: int) -> Source:
+    """actOriToolLength1..3: the active tool length along geometry axis X, Y or Z (1..3)."""
+    def read(model: NckParts, unit: int, _line: int) -> object:
+        state = _channel(model, unit).state
+        component = model.machine.tool_settings.ori_length_components[axis - 1]
+        return model.tools.active_length_mm(state.t_number, state.d_number, component)
+    return Source(read)
+
+
+def _active_h_number(model: NckParts, unit: int, _line: int) -> object:
+    state = _channel(model, unit).state
+    return model.tools.h_number(state.t_number, state.d_number)
+
+
 def _active_radius(model: NckParts, unit: int, _line: int) -> object:
     state = _channel(model, unit).state
     return model.tools.active_radius_mm(state.t_number, state.d_number)
@@ -221,6 +236,10 @@ SOURCES: dict[str, Source] = {
     "tools.active_length2": _active_length(2),
     "tools.active_length3": _active_length(3),
     "tools.active_radius": Source(_active_radius),
+    "tools.ori_length1": _ori_length(1),
+    "tools.ori_length2": _ori_length(2),
+    "tools.ori_length3": _ori_length(3),
+    "tools.active_h_number": Source(_active_h_number),
     # work offsets: settable frames (FU), active frames (FA), the active settable frame's index
     "frames.settable_shift": Source(lambda model, unit, line: model.frames.settable_shift_mm(unit, line),
                                     _set_settable_shift),
@@ -239,4 +258,6 @@ SOURCES: dict[str, Source] = {
         lambda model, _unit, line: model.sensors.temperature_C(_sensor_name(model, line)),
         lambda model, _unit, line, value: model.sensors.set_temperature(
             _sensor_name(model, line), float(value))),  # type: ignore[arg-type]
+    # SINAMICS drive parameters (area V): drives.py computes them
+    **{name: Source(read) for name, read in DRIVE_READERS.items()},
 }

@@ -16,6 +16,7 @@ P_LENGTH1 = EDGE_PARAMETERS["length1_mm"]
 P_RADIUS = EDGE_PARAMETERS["radius_mm"]
 P_WEAR_LENGTH1 = EDGE_PARAMETERS["wear_length1_mm"]
 P_WEAR_RADIUS = EDGE_PARAMETERS["wear_radius_mm"]
+P_H_NUMBER = EDGE_PARAMETERS["h_number"]
 
 
 class Tools:
@@ -58,6 +59,13 @@ class Tools:
         length it compensates with)."""
         return (self.parameter(t_number, d_number, P_LENGTH1 + component - 1)
                 + self.parameter(t_number, d_number, P_WEAR_LENGTH1 + component - 1))
+
+    def h_number(self, t_number: int, d_number: int) -> int:
+        """The H number of edge D of tool T (edge parameter 26); 0 when the machine's edges have fewer
+        parameters, or with T0 / D0."""
+        if self.params_per_edge < P_H_NUMBER:
+            return 0
+        return round(self.parameter(t_number, d_number, P_H_NUMBER))
 
     def active_radius_mm(self, t_number: int, d_number: int) -> float:
         return self.parameter(t_number, d_number, P_RADIUS) + self.parameter(t_number, d_number, P_WEAR_RADIUS)
