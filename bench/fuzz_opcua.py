@@ -544,7 +544,7 @@ def run(cases: int, seconds: float, seed: int, workers: int = 6, attack_scale: f
                 if watcher.is_alive():
                     watcher.kill()
         text = log.read_text(errors="replace")
-    tracebacks = text.count("Traceback (most recent call last)")
+    tracebacks = text.count("Traceback (most recent call last)") + text.count("internal error serving a request")
     first = re.findall(r"^.*(?:ERROR|CRITICAL).*$", text, re.MULTILINE)[:5]
     return {"cases": fuzzer.done, "seconds": round(elapsed_s, 1), "cases_per_s": round(fuzzer.done / fuzz_s, 1),
             "outcomes": dict(fuzzer.outcomes.most_common()), "by_message": dict(fuzzer.by_kind),

@@ -147,9 +147,12 @@ class _Processor(UaProcessor):
             result = await super()._process_message(typeid, requesthdr, seqhdr, body)
         except (ServiceError, UaStatusCodeError):
             raise
-        except _DECODING as exc:
+        except (*_DECODING, UaError) as exc:
             log.debug("OPC UA %s: a request that does not decode (%s: %s)", self.name, type(exc).__name__, exc)
             raise ServiceError(ua.StatusCodes.BadDecodingError) from exc
+        except Exception as exc:  # one line, not asyncua's traceback per request; the client gets the status
+            log.warning("OPC UA %s: internal error serving a request (%s: %s)", self.name, type(exc).__name__, exc)
+            raise ServiceError(ua.StatusCodes.BadInternalError) from exc
         if typeid == _CREATE_SESSION and self.session is not None:
             self.created.append(self.session)
         return result
