@@ -6,7 +6,7 @@ PORT   ?= 1102
 OPCUA_PORT ?= 4840
 HOST   ?= 127.0.0.1
 
-.PHONY: serve test tshark chromium npm lint bench
+.PHONY: serve test slow soak fuzz tshark chromium npm lint bench
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -52,6 +52,18 @@ npm:
 
 test: $(VENV)/.installed-test tshark chromium npm lint
 	$(PY) -m pytest
+
+# The slow suite (tests marked slow: seeds, run families, the README tour), two workers at once.
+slow: $(VENV)/.installed-test
+	$(PY) -m pytest -m slow -n 2 --durations=15
+
+# Trust under load and hostile input (docs/limits.md): SIZE=small|medium|full.
+SIZE ?= small
+soak: $(VENV)/.installed-test
+	$(PY) bench/soak_mixed.py --size $(SIZE)
+
+fuzz: $(VENV)/.installed-test
+	$(PY) bench/fuzz_opcua.py --size $(SIZE)
 
 bench: $(VENV)/.installed-test
 	@for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

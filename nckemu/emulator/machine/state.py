@@ -40,10 +40,21 @@ class RetainedStore:
         temporary = directory / f".{self.path.name}.tmp"
         fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         try:
-            os.write(fd, data)
+            # os.write may write part of it (a disk that fills up writes what fits and says how much):
+            # the rest is written until done or the next write raises (ENOSPC). Once, a single write
+            # left a truncated file that replaced the good one, with no error (a full tmpfs).
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
             os.fsync(fd)
-        finally:
+        except BaseException:
             os.close(fd)
+            try:
+                os.unlink(temporary)  # on a full disk, a half-written temporary file keeps it full
+            except OSError:
+                pass
+            raise
+        os.close(fd)
         os.replace(temporary, self.path)
         dir_fd = os.open(directory, os.O_RDONLY)
         try:

@@ -106,6 +106,7 @@ def test_seed003_table_through_the_loop() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1200)  # 3 min of CPU on its own; on a shared, loaded machine the default 180 s cut it off
 @pytest.mark.skipif(not FL_THERMAL.is_file(), reason="the shared FL_THERMAL recording is not here")
 def test_fl_thermal_through_the_loop() -> None:
     recording = load_recording(FL_THERMAL)

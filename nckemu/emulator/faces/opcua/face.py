@@ -34,7 +34,7 @@ from asyncua.crypto.permission_rules import User as UaUser
 from asyncua.server.address_space import AttributeService, AttributeValue, NodeData
 
 from nckemu.catalogue.node_ids import NcNodeName, NodeName, PlcNodeName, node_paths, parse_node_id
-from nckemu.emulator.faces.opcua import files, request, security, users
+from nckemu.emulator.faces.opcua import files, request, security, transport, users
 from nckemu.emulator.faces.opcua import shelf as address_cache
 from nckemu.emulator.faces.opcua.alarms import ALARM_RIGHTS, AlarmEvents
 from nckemu.emulator.faces.opcua.settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
@@ -80,11 +80,11 @@ class _UserManager:
 
     def get_user(self, iserver: Any, username: str | None = None, password: str | None = None,
                  certificate: Any = None) -> UaUser | None:
-        if not username:
+        if username is None and password is None:  # an anonymous token (a user name token needs a name)
             if not self.face.settings.allow_anonymous:
                 return None
             return UaUser(role=UserRole.User, name=None)  # asyncua refuses reads to its Anonymous role
-        if not self.face.users.login(username, password):
+        if not username or not self.face.users.login(username, password):
             return None
         return UaUser(role=UserRole.User, name=username)
 
@@ -146,6 +146,7 @@ class OpcUaFace:
         methods = await files.add_methods(self, server)
         await users.add_methods(self, server, methods, self.users)
         await self.alarm_events.start(server)
+        transport.install(server)  # hostile input answered with OPC UA errors, half-open connections closed
         # A port in use reaches the caller as OSError (serve says so in one line); asyncua would also
         # log it with a traceback.
         starting = logging.getLogger("asyncua.server.server")

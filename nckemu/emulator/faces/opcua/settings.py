@@ -107,6 +107,9 @@ class OpcUaSettings:
         if not isinstance(uri, str) or not uri:
             raise NckConfigError("expected a namespace URI", path=source, field="opcua.namespace_uri")
         anonymous = _rights(table.get("anonymous", sorted(cls.anonymous)), source, "opcua.anonymous")
+        if any(right.endswith("Write") for right in anonymous):  # the controller's rule (manual)
+            raise NckConfigError("anonymous sessions never write: give write rights to a user",
+                                 path=source, field="opcua.anonymous")
         admin = table.get("admin", cls.admin)
         if not isinstance(admin, str) or not admin:
             raise NckConfigError("expected the name of the user who manages users", path=source, field="opcua.admin")

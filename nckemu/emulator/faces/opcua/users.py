@@ -11,6 +11,7 @@ are retained data: with ``serve --state`` they survive a restart.
 
 from __future__ import annotations
 
+import hmac
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -70,8 +71,11 @@ class UserRegistry:
 
     # --------------------------------------------------------------- what sessions ask
     def login(self, name: str, password: str | None) -> bool:
+        # The same work whether the user or the password is wrong (no timing tells which part was).
         account = self.accounts.get(name)
-        return account is not None and account.password == password
+        expected = (account.password if account is not None else "\0 no such user").encode()
+        same = hmac.compare_digest(expected, (password if isinstance(password, str) else "").encode())
+        return account is not None and isinstance(password, str) and same
 
     def rights_of(self, name: str) -> frozenset[str] | None:
         account = self.accounts.get(name)
