@@ -511,7 +511,9 @@ def make_transient_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily
     seed for seed, and differ only by the truth). Baseline: ``baseline_model()``.
 
     - ``skin_core_days``: ``transient_gradient(front)``, tau 1.5 h, 4 um/K on top of the baseline.
-    - ``pair_days``: 3 um/K x rear - 1.5 um/K x front (temperature terms, 20 C reference).
+    - ``pair_days``: 3 um/K x rear - 1.5 um/K x front (temperature terms, 20 C reference): the
+      hydraulic unit's heat cancels, the chips' heat (seen by the rear alone, a quarter of its
+      reading's swing) is left.
     - ``null_skin_core_days``: the same days, nothing left out."""
     if name not in TRANSIENT_FAMILIES:
         raise ValueError(f"unknown run family {name!r}; known: {', '.join(TRANSIENT_FAMILIES)}")
@@ -528,8 +530,8 @@ def make_transient_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily
         ambient = rng.uniform(18.0, 24.0) + 0.4 * np.sin(2 * np.pi * (grid / 86400.0 + rng.random()))
         sensors = {"spindle": _lag_from(grid, ambient + 8.0 * spindle_load, 1200.0),
                    "bed": _lag_from(grid, ambient + 2.0 * spindle_load + 1.5 * axis_load, 3 * 3600.0),
-                   "front": _lag_from(grid, ambient + 10.0 * hydraulic_load, 2400.0),
-                   "rear": _lag_from(grid, ambient + 5.0 * hydraulic_load + 3.0 * chip_load, 2400.0),
+                   "front": _lag_from(grid, ambient + 12.0 * hydraulic_load, 2400.0),
+                   "rear": _lag_from(grid, ambient + 6.0 * hydraulic_load + 2.0 * chip_load, 2400.0),
                    "ambient": ambient,
                    "coolant": _lag_from(grid, ambient + 1.0 * spindle_load, 2400.0)}
         truth = 3.0 * (sensors["spindle"] - 20.0) + 2.0 * (sensors["bed"] - 20.0)

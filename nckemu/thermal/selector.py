@@ -332,8 +332,19 @@ class Selector:
             reduction = (diagonal[second] * moment[first] ** 2 - 2 * cross * moment[first] * moment[second]
                          + diagonal[first] * moment[second] ** 2) / determinant
         reduction = np.where(usable & np.isfinite(reduction), reduction, -np.inf)
-        order = [k for k in np.argsort(-reduction, kind="stable")[: self.settings.pair_beam] if reduction[k] > 0]
-        return [(int(first[k]), int(second[k])) for k in order]
+        # Pairs that span the same columns with the design (temperature(a) + temperature(b), or the
+        # gradient a - b and either; a sensor of the design and a gradient with it) fit alike: the
+        # simplest stands for them, and the beam holds moves that differ.
+        complexity = np.array([e.candidate.term.spec.complexity for e in pool])
+        scale = float(np.max(reduction)) if np.isfinite(np.max(reduction)) and np.max(reduction) > 0 else 1.0
+        order = np.lexsort((complexity[first] + complexity[second], -np.round(reduction / scale, 7)))
+        chosen: list[int] = []
+        for k in order:
+            if len(chosen) == self.settings.pair_beam or not reduction[k] > 0:
+                break
+            if not any(abs(reduction[k] - reduction[c]) <= 1e-6 * reduction[c] for c in chosen):
+                chosen.append(int(k))
+        return [(int(first[k]), int(second[k])) for k in chosen]
 
     def evaluate_pair(self, path: Path, a: Evaluation, b: Evaluation) -> Move:
         full = np.column_stack([path.design, a.candidate.feature, b.candidate.feature])
