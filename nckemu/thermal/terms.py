@@ -52,7 +52,9 @@ EFFECTS: dict[str, EffectSpec] = {spec.effect: spec for spec in (
                "the structure follows a sensor through a first-order lag"),
     EffectSpec("heating_cooling_hysteresis", "coeff_um_per_K", ("sensor", "tau_heat_s", "tau_cool_s"),
                {"t_ref_C": 20.0}, 4, "different lags while heating and while cooling"),
-    EffectSpec("transient_gradient", "coeff_um_per_K", ("sensor", "tau_s"), {}, 3,
+    # Two responses of one sensor (more than a lag): beside the sensor's own temperature it spans what
+    # its lag spans, and then the lag, the simpler, is named.
+    EffectSpec("transient_gradient", "coeff_um_per_K", ("sensor", "tau_s"), {}, 4,
                "bending while heat crosses a structure (skin-core): a sensor minus its own lagged value, "
                "rising with the sensor, then straightening as the structure evens out"),
 )}
