@@ -153,7 +153,8 @@ def evidence(chosen: Evaluation, best: Evaluation, equivalent: list[Evaluation],
 
 # ---------------------------------------------------------------------- when nothing passes
 FAMILY_ORDER = ("offset", "time_drift", "temperature", "quadratic_temperature", "thermal_gradient",
-                "centrifugal_growth", "position_dependent_expansion", "thermal_lag", "heating_cooling_hysteresis")
+                "centrifugal_growth", "position_dependent_expansion", "thermal_lag", "heating_cooling_hysteresis",
+                "transient_gradient")
 
 
 def detectable_um(evaluations: list[Evaluation], base_rms_um: float, t_critical: float,

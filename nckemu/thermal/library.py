@@ -22,8 +22,10 @@ from .terms import Term, asymmetric_lag, first_order_lag
 
 # Effects of one sensor that contain another as a special case (a time constant going to zero, or
 # heating and cooling at the same rate).
+# A transient gradient whose time constant goes to infinity is the sensor's temperature (less its
+# value at the start, which each run's offset or the offset term holds).
 _EXTENDS = {("thermal_lag", "temperature"), ("heating_cooling_hysteresis", "temperature"),
-            ("heating_cooling_hysteresis", "thermal_lag")}
+            ("heating_cooling_hysteresis", "thermal_lag"), ("transient_gradient", "temperature")}
 
 
 @dataclass
@@ -61,7 +63,7 @@ def bounded(term: Term) -> bool:
     """Parameters a machine can have."""
     p = term.parameters
     c = term.coefficient
-    if term.effect == "thermal_lag":
+    if term.effect in ("thermal_lag", "transient_gradient"):
         return 60.0 <= float(p["tau_s"]) <= 48 * 3600.0
     if term.effect == "heating_cooling_hysteresis":
         return all(60.0 <= float(p[key]) <= 48 * 3600.0 for key in ("tau_heat_s", "tau_cool_s"))
@@ -228,6 +230,33 @@ class Library:
         return self._filtered_column(("lag", sensor, tau_s), sensor,
                                      lambda t, signal: first_order_lag(t, signal, tau_s))
 
+    def transient_column(self, sensor: str, tau_s: float) -> np.ndarray:
+        """The sensor less its own lag (on the coarse grid, like ``lag_column``, whose cache it shares)."""
+        plain = self._filtered_column(("plain", sensor), sensor, lambda t, signal: signal)
+        return plain - self.lag_column(sensor, tau_s)
+
+    def best_time_constant(self, design: np.ndarray, column: Callable[[float], np.ndarray],
+                           duration_s: float) -> tuple[float, float, int] | None:
+        """(in-sample RMS, tau_s, values tried): the grid of ``Settings.lag_grid_s`` up to a third of a
+        run, then refined around the best grid point."""
+        best: tuple[float, float] | None = None
+        tried = 0
+        for tau in self.settings.lag_grid_s:
+            if tau > duration_s / 3:
+                continue
+            tried += 1
+            score = self._in_sample(design, column(tau))
+            if best is None or score < best[0]:
+                best = (score, tau)
+        if best is None:
+            return None
+        for tau in best[1] * np.geomspace(0.8, 1.25, 9):
+            tried += 1
+            score = self._in_sample(design, column(float(tau)))
+            if score < best[0]:
+                best = (score, float(tau))
+        return best[0], best[1], tried
+
     def asymmetric_column(self, sensor: str, tau_heat_s: float, tau_cool_s: float) -> np.ndarray:
         return self._filtered_column(("hysteresis", sensor, tau_heat_s, tau_cool_s), sensor,
                                      lambda t, signal: asymmetric_lag(t, signal, tau_heat_s, tau_cool_s))
@@ -311,24 +340,21 @@ class Library:
         for sensor in sensors:
             if f"thermal_lag:{sensor}" in present:
                 continue
-            best: tuple[float, float] | None = None
-            tried = 0
-            for tau in self.settings.lag_grid_s:
-                if tau > duration_s / 3:
-                    continue
-                tried += 1
-                score = self._in_sample(design, self.lag_column(sensor, tau))
-                if best is None or score < best[0]:
-                    best = (score, tau)
-            if best is not None:
-                for tau in best[1] * np.geomspace(0.8, 1.25, 9):
-                    tried += 1
-                    score = self._in_sample(design, self.lag_column(sensor, float(tau)))
-                    if score < best[0]:
-                        best = (score, float(tau))
-                lag_scores.append((best[0], sensor, best[1]))
-                add(Term("thermal_lag", {"sensor": sensor, "t_ref_C": self.t_ref(sensor), "tau_s": best[1],
-                                         "coeff_um_per_K": 0.0}), tried)
+            found = self.best_time_constant(design, lambda tau, sensor=sensor: self.lag_column(sensor, tau),
+                                            duration_s)
+            if found is not None:
+                lag_scores.append((found[0], sensor, found[1]))
+                add(Term("thermal_lag", {"sensor": sensor, "t_ref_C": self.t_ref(sensor), "tau_s": found[1],
+                                         "coeff_um_per_K": 0.0}), found[2])
+        # Transients (skin-core): the sensor less its own lag, the time constant picked the same way.
+        for sensor in sensors:
+            if f"transient_gradient:{sensor}" in present:
+                continue
+            found = self.best_time_constant(design, lambda tau, sensor=sensor: self.transient_column(sensor, tau),
+                                            duration_s)
+            if found is not None:
+                add(Term("transient_gradient", {"sensor": sensor, "tau_s": found[1], "coeff_um_per_K": 0.0}),
+                    found[2])
         for _score, sensor, _tau in sorted(lag_scores)[:2]:
             if f"heating_cooling_hysteresis:{sensor}" in present:
                 continue

@@ -28,9 +28,11 @@ class Glitches:
 
 
 def find_glitches(t_s: np.ndarray, values_C: np.ndarray, *, width_samples: int = 11, sigmas: float = 8.0,
-                  min_jump_K: float = 0.3) -> Glitches | None:
+                  min_jump_K: float = 0.3, max_span_s: float = 600.0) -> Glitches | None:
     """Bursts shorter than half of ``width_samples`` that leave the running median by more than
-    ``sigmas`` robust sigma of the sensor's scatter around it, and by at least ``min_jump_K``."""
+    ``sigmas`` robust sigma of the sensor's scatter around it, and by at least ``min_jump_K``, and are
+    over within ``max_span_s`` (from the good reading before to the good reading after): logged every
+    few minutes, a heating pulse of a spindle spans a few samples too, and that is heat, not a glitch."""
     n = len(values_C)
     if n < width_samples:
         return None
@@ -44,6 +46,7 @@ def find_glitches(t_s: np.ndarray, values_C: np.ndarray, *, width_samples: int =
     flagged, deviation, _ = _off_the_median(values_C, bridge(t_s, values_C, first), width_samples, sigmas,
                                             min_jump_K, threshold)
     flagged &= first
+    flagged = _brief(t_s, flagged, max_span_s)
     if not flagged.any():
         return None
     widened = _widened(flagged)
@@ -62,6 +65,17 @@ def _off_the_median(values_C: np.ndarray, reference_C: np.ndarray, width_samples
         sigma = robust_sigma(deviation)
         threshold = max(sigmas * sigma, min_jump_K) if np.isfinite(sigma) else min_jump_K
     return np.abs(deviation) > threshold, deviation, threshold
+
+
+def _brief(t_s: np.ndarray, flagged: np.ndarray, max_span_s: float) -> np.ndarray:
+    """The flagged bursts whose good neighbours are at most ``max_span_s`` apart."""
+    out = flagged.copy()
+    edges = np.diff(np.concatenate(([0], flagged.astype(np.int8), [0])))
+    for start, end in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        before, after = t_s[max(start - 1, 0)], t_s[min(end, len(t_s) - 1)]
+        if after - before > max_span_s:
+            out[start:end] = False
+    return out
 
 
 def _widened(flagged: np.ndarray) -> np.ndarray:

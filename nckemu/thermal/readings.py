@@ -58,7 +58,8 @@ def bridge_glitches(recording: Recording, settings: Settings) -> tuple[dict[str,
     repaired = dict(recording.temperatures_C)
     for name, values in recording.temperatures_C.items():
         glitches = quality.find_glitches(recording.t_s, values, sigmas=settings.glitch_sigmas,
-                                         min_jump_K=settings.glitch_min_K)
+                                         min_jump_K=settings.glitch_min_K,
+                                         max_span_s=settings.glitch_max_span_s)
         if glitches is None:
             continue
         repaired[name] = quality.bridge(recording.t_s, values, glitches.samples)

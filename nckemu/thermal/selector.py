@@ -37,6 +37,30 @@ class Evaluation:
 
 
 @dataclass
+class Move:
+    """Two effects judged as one move, tried when no single effect passes: physics that comes in pairs
+    (a temperature and its lag, two sensors of one gradient) may show only together."""
+    alone: tuple[Evaluation, Evaluation]    # each effect on its own, from the round's evaluations
+    cv: stats.CrossValidation
+    t_values: tuple[float, float]
+    coefficients: tuple[float, float]
+    fold_wins: int
+    ranked_rms_um: float
+    runs_with: np.ndarray | None            # runs that have the columns of both (None: all)
+    # Each effect's share of what the move improves: how much the held-out figure rises without it.
+    shares: tuple[float, float] = (math.nan, math.nan)
+
+    @property
+    def terms(self) -> tuple[Term, Term]:
+        return (self.alone[0].candidate.term.with_coefficient(self.coefficients[0]),
+                self.alone[1].candidate.term.with_coefficient(self.coefficients[1]))
+
+    @property
+    def label(self) -> str:
+        return " + ".join(e.candidate.label for e in self.alone)
+
+
+@dataclass
 class Baseline:
     """What every search path shares: the baseline's columns, the folds and the baseline's figures."""
     base_design: np.ndarray
@@ -117,21 +141,71 @@ class Selector:
         return Evaluation(candidate, cv, result.t_value(full.shape[1] - 1), float(result.coefficients[-1]), wins,
                           ranked)
 
-    def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> tuple[bool, bool]:
-        """(passes every guard, passes every guard but the held-out bar)."""
-        s = self.settings
+    @property
+    def per_run(self) -> bool:
+        return len(self.library.problem.runs) > 1
+
+    def reference_folds(self, base_cv: stats.CrossValidation) -> tuple[float, ...]:
+        """Per fold, what a candidate must beat: the current model refitted, or the model exactly as
+        given when that predicts held-out data better (as for the pooled reference)."""
+        given = self.baseline.given_cv
+        return given.fold_rms_um if self.baseline.given_heldout_um < base_cv.rms_um else base_cv.fold_rms_um
+
+    def run_figures(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
+                    runs_with: np.ndarray | None) -> dict[str, Any]:
+        """Several runs: each run's held-out RMS (its own offset fitted on it, everything else on the
+        other runs) before and after, over the runs that have the columns: the median, how many
+        improve, the worst run."""
+        before = np.asarray(self.reference_folds(base_cv))
+        after = np.asarray(cv.fold_rms_um)
+        counted = np.ones(len(after), dtype=bool) if runs_with is None else np.asarray(runs_with, dtype=bool)
+        names = [run.name for run in self.library.problem.runs]
+        worst = int(np.flatnonzero(counted)[np.argmax(after[counted])])
+        return {"median_before_um": round(float(np.median(before[counted])), 4),
+                "median_after_um": round(float(np.median(after[counted])), 4),
+                "runs_improved": int(np.sum(after[counted] < before[counted])), "runs": int(counted.sum()),
+                "worst_before_um": round(float(np.max(before[counted])), 4),
+                "worst_after_um": round(float(after[worst]), 4), "worst_run": names[worst]}
+
+    def heldout_gain(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
+                     runs_with: np.ndarray | None = None) -> float:
+        """The relative drop of the held-out figure admission rests on: pooled RMS for one recording;
+        with several runs, the median over runs of each run's held-out RMS (the few largest runs
+        dominate a pooled figure)."""
+        if self.per_run:
+            before = np.asarray(self.reference_folds(base_cv))
+            after = np.asarray(cv.fold_rms_um)
+            if runs_with is not None:
+                before, after = before[runs_with], after[runs_with]
+            reference = float(np.median(before))
+            return 1.0 - float(np.median(after)) / reference if reference > 0 else 0.0
         # Beat both the current model (refitted) and the model exactly as given: refitting a right
         # model on autocorrelated data can make it worse, and a candidate must not win by undoing that.
         reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
-        improved = evaluation.cv.rms_um <= (1 - s.min_improvement) * reference_um
+        return 1.0 - cv.rms_um / reference_um if reference_um > 0 else 0.0
+
+    def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
+              t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
+              t_crit: float) -> tuple[bool, bool]:
+        """Every guard, on a single effect or on a move of two as a whole: (passes every guard, passes
+        every guard but the held-out bar)."""
+        s = self.settings
         # Several runs: a candidate is judged on the runs that have its columns.
-        folds = len(base_cv.fold_rms_um) if evaluation.candidate.runs_with is None \
-            else int(evaluation.candidate.runs_with.sum())
-        consistent = evaluation.fold_wins >= math.ceil(s.min_fold_share * folds)
-        significant = abs(evaluation.t_value) >= t_crit
+        folds = len(base_cv.fold_rms_um) if runs_with is None else int(runs_with.sum())
+        consistent = fold_wins >= math.ceil(s.min_fold_share * folds)
+        significant = all(abs(t) >= t_crit for t in t_values)
+        rest = consistent and significant and all(bounded(term) for term in terms)
+        if rest and self.per_run:  # ... and it must not leave the worst run worse
+            figures = self.run_figures(cv, base_cv, runs_with)
+            rest = figures["worst_after_um"] <= (1 + s.equivalence) * figures["worst_before_um"]
+        gain = self.heldout_gain(cv, base_cv, runs_with)
+        return gain >= s.min_improvement and rest, rest and gain >= s.likely_min_improvement
+
+    def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> tuple[bool, bool]:
+        """(passes every guard, passes every guard but the held-out bar)."""
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
-        rest = consistent and significant and bounded(term)
-        return improved and rest, rest and evaluation.cv.rms_um <= (1 - s.likely_min_improvement) * reference_um
+        return self.judge(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
+                          (evaluation.t_value,), (term,), base_cv, t_crit)
 
     def passes(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> bool:
         return self._guards(evaluation, base_cv, t_crit)[0]
@@ -192,7 +266,7 @@ class Selector:
         if self.library.problem.per_run_offset:
             path.present.add("offset")  # each run's own offset is in the baseline
         for _round in range(self.settings.max_effects):
-            if not self.round(path):
+            if len(path.added) >= self.settings.max_effects or not self.round(path):
                 break
         path.final = stats.fit(path.design, self.y) if path.design.shape[1] else None
         return path
@@ -209,6 +283,9 @@ class Selector:
         t_crit = t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1 - setup.extra_parameters)
         evaluations = [self.evaluate(design, path.noise, c, path.base_cv) for c in candidates]
         passing = [e for e in evaluations if self.passes(e, path.base_cv, t_crit)]
+        if not passing and s.pair_moves and len(path.added) + 2 <= s.max_effects \
+                and self.pair_round(path, evaluations, tests):
+            return True
         if not passing:
             path.rejected, path.rejected_t_critical = evaluations, t_crit
             return False
@@ -221,6 +298,8 @@ class Selector:
             self.t_s, chosen.coefficient * (chosen.candidate.feature - np.median(chosen.candidate.feature)))
         record = explain.evidence(chosen, best, equivalent, margin, path.base_cv.rms_um, t_crit, len(folds),
                                   window[0][:2] if window else None, EFFECTS[term.effect].description)
+        if self.per_run:
+            record["runs"] = self.run_figures(chosen.cv, path.base_cv, chosen.candidate.runs_with)
         path.discovered.append({"effect": term.effect, "parameters": {
             k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()}, "evidence": record})
         path.added.append(term)
@@ -229,6 +308,125 @@ class Selector:
         path.noise = np.column_stack([path.noise, chosen.candidate.noise])
         path.base_cv = chosen.cv
         return True
+
+    # ------------------------------------------------------------------ moves of two effects
+    def screen_pairs(self, design: np.ndarray, pool: list[Evaluation]) -> list[tuple[int, int]]:
+        """The ``pair_beam`` pairs of ``pool`` that lower the in-sample residual most beside ``design``:
+        the features and the gauge projected off the design once, then every pair's fit is a 2 x 2
+        solve on one Gram matrix (no fit of n samples per pair)."""
+        features = np.column_stack([e.candidate.feature for e in pool])
+        target = self.y
+        if design.shape[1]:
+            stacked = np.column_stack([features, target])
+            stacked = stacked - design @ stats.least_squares(design, stacked)
+            features, target = stacked[:, :-1], stacked[:, -1]
+        gram = features.T @ features
+        moment = features.T @ target
+        diagonal = np.diag(gram)
+        first, second = np.triu_indices(len(pool), 1)
+        cross = gram[first, second]
+        determinant = diagonal[first] * diagonal[second] - cross ** 2
+        # Near-collinear pairs (a lag and a slightly longer lag) are one effect fitted twice: skipped.
+        usable = determinant > 1e-6 * diagonal[first] * diagonal[second]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            reduction = (diagonal[second] * moment[first] ** 2 - 2 * cross * moment[first] * moment[second]
+                         + diagonal[first] * moment[second] ** 2) / determinant
+        reduction = np.where(usable & np.isfinite(reduction), reduction, -np.inf)
+        # Pairs that span the same columns with the design (temperature(a) + temperature(b), or the
+        # gradient a - b and either; a sensor of the design and a gradient with it) fit alike: the
+        # simplest stands for them, and the beam holds moves that differ.
+        complexity = np.array([e.candidate.term.spec.complexity for e in pool])
+        scale = float(np.max(reduction)) if np.isfinite(np.max(reduction)) and np.max(reduction) > 0 else 1.0
+        order = np.lexsort((complexity[first] + complexity[second], -np.round(reduction / scale, 7)))
+        chosen: list[int] = []
+        for k in order:
+            if len(chosen) == self.settings.pair_beam or not reduction[k] > 0:
+                break
+            if not any(abs(reduction[k] - reduction[c]) <= 1e-6 * reduction[c] for c in chosen):
+                chosen.append(int(k))
+        return [(int(first[k]), int(second[k])) for k in chosen]
+
+    def evaluate_pair(self, path: Path, a: Evaluation, b: Evaluation) -> Move:
+        full = np.column_stack([path.design, a.candidate.feature, b.candidate.feature])
+        cv = self.baseline.cross_validate(full, self.y, self.baseline.folds)
+        result = stats.fit(full, self.y)
+        columns = full.shape[1]
+        runs_with = None
+        if a.candidate.runs_with is not None or b.candidate.runs_with is not None:
+            everywhere = np.ones(len(cv.fold_rms_um), dtype=bool)
+            runs_with = (everywhere if a.candidate.runs_with is None else a.candidate.runs_with) \
+                & (everywhere if b.candidate.runs_with is None else b.candidate.runs_with)
+        counted = runs_with if runs_with is not None else [True] * len(cv.fold_rms_um)
+        wins = sum(after < before for after, before, count in zip(cv.fold_rms_um, path.base_cv.fold_rms_um, counted,
+                                                                  strict=True) if count)
+        noise = np.column_stack([path.noise, a.candidate.noise, b.candidate.noise])
+        carried = float(np.mean(np.square(noise @ result.coefficients)))
+        move = Move((a, b), cv, (result.t_value(columns - 2), result.t_value(columns - 1)),
+                    (float(result.coefficients[-2]), float(result.coefficients[-1])), wins,
+                    math.sqrt(max(cv.rms_um ** 2 - carried, 0.0)), runs_with)
+        # Without one effect the move is the other alone: its share is what the move loses then.
+        lost = [max(self.heldout_gain(move.cv, other.cv, runs_with), 0.0) for other in (b, a)]
+        total = sum(lost)
+        move.shares = (lost[0] / total, lost[1] / total) if total > 0 else (0.5, 0.5)
+        return move
+
+    def pair_round(self, path: Path, evaluations: list[Evaluation], single_tests: int) -> bool:
+        """No single effect passed: screen the pairs of the round's candidates, cross-validate the best
+        few, and admit the simplest passing move as two effects. Every guard applies to the move as a
+        whole (both coefficients past the t-test, Bonferroni-corrected over every pair of hypotheses),
+        and each effect must earn its place in it: the move must clear the held-out bar over either
+        effect alone."""
+        s, setup = self.settings, self.baseline
+        pool = sorted(evaluations, key=lambda e: e.ranked_rms_um)[: s.pair_pool]
+        if len(pool) < 2:
+            return False
+        pairs = self.screen_pairs(path.design, pool)
+        grid = np.array([e.candidate.grid_points for e in pool], dtype=float)
+        tests = single_tests + int((grid.sum() ** 2 - float(np.sum(grid ** 2))) / 2)
+        t_crit = t_critical(s.alpha, tests, len(self.y) - path.design.shape[1] - 2 - setup.extra_parameters)
+        passing = []
+        for first, second in pairs:
+            move = self.evaluate_pair(path, pool[first], pool[second])
+            if self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv, t_crit)[0] \
+                    and all(self.heldout_gain(move.cv, alone.cv, move.runs_with) >= s.min_improvement
+                            for alone in move.alone):
+                passing.append(move)
+        if not passing:
+            return False
+        best = min(passing, key=lambda m: m.ranked_rms_um)
+        margin = s.equivalence * (1 + sum(time_constants(term) for term in best.terms))
+        equivalent = [m for m in passing if m.ranked_rms_um <= best.ranked_rms_um * (1 + margin)]
+        chosen = min(equivalent, key=lambda m: (sum(t.spec.complexity for t in m.terms), m.ranked_rms_um))
+        self.admit_move(path, chosen, [m for m in equivalent if m is not chosen], t_crit)
+        return True
+
+    def admit_move(self, path: Path, move: Move, equivalent: list[Move], t_crit: float) -> None:
+        folds = len(self.baseline.folds)
+        figures = self.run_figures(move.cv, path.base_cv, move.runs_with) if self.per_run else None
+        together = {"terms": [e.candidate.label for e in move.alone],
+                    "heldout_rms_after_um": round(move.cv.rms_um, 4),
+                    "alone_heldout_rms_um": [round(e.cv.rms_um, 4) for e in move.alone],
+                    "shares": [round(share, 3) for share in move.shares],
+                    "equivalent": [{"effects": m.label, "heldout_rms_um": round(m.cv.rms_um, 4)} for m in equivalent],
+                    "why": "no single effect passed the guards; these two pass them together, and each is "
+                           "needed (the pair clears the held-out bar over either alone)"}
+        for index, (alone, term) in enumerate(zip(move.alone, move.terms, strict=True)):
+            member = Evaluation(alone.candidate, move.cv, move.t_values[index], move.coefficients[index],
+                                move.fold_wins, move.ranked_rms_um)
+            record = explain.evidence(member, member, [member], 0.0, path.base_cv.rms_um, t_crit, folds, None,
+                                      EFFECTS[term.effect].description)
+            record["move"] = {**together, "share": round(move.shares[index], 3)}
+            record["preferred"] = f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
+            if figures is not None:
+                record["runs"] = figures
+            path.discovered.append({"effect": term.effect, "parameters": {
+                k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
+                "evidence": record})
+            path.added.append(term)
+            path.present.add(present_key(term))
+        path.design = np.column_stack([path.design] + [e.candidate.feature for e in move.alone])
+        path.noise = np.column_stack([path.noise] + [e.candidate.noise for e in move.alone])
+        path.base_cv = move.cv
 
     def near_misses(self, path: Path) -> list[Evaluation]:
         """Candidates of the last round that pass every guard but the held-out bar (and still lower

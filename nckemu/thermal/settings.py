@@ -24,6 +24,7 @@ class Settings:
     calibrated_tolerance: float = 0.002
     glitch_sigmas: float = 8.0          # sensor bursts beyond this many robust sigma are glitches
     glitch_min_K: float = 0.3           # ... and beyond this many kelvin
+    glitch_max_span_s: float = 600.0    # ... and over within this time (slower is heat a structure follows)
     # Temperature readings are averaged over this centred window before features are built: a
     # structure does not follow a sensor's white noise, and a difference of two sensors (a gradient)
     # carries the noise of both against a small signal (errors in variables).
@@ -39,3 +40,10 @@ class Settings:
     # "Likely, not proven": a term that passes every guard but the held-out bar, and still lowers
     # held-out RMS by at least this share, is reported with its figures, apart from the findings.
     likely_min_improvement: float = 0.02
+    # When no single effect passes, moves of two effects are tried (issue 31: physics often comes in
+    # pairs): every pair of the round's candidates is screened in-sample through one Gram matrix
+    # (at most ``pair_pool`` candidates, the best alone first), the ``pair_beam`` best pairs are
+    # cross-validated and judged as one move under every guard.
+    pair_moves: bool = True
+    pair_pool: int = 60
+    pair_beam: int = 8

@@ -52,6 +52,11 @@ EFFECTS: dict[str, EffectSpec] = {spec.effect: spec for spec in (
                "the structure follows a sensor through a first-order lag"),
     EffectSpec("heating_cooling_hysteresis", "coeff_um_per_K", ("sensor", "tau_heat_s", "tau_cool_s"),
                {"t_ref_C": 20.0}, 4, "different lags while heating and while cooling"),
+    # Two responses of one sensor (more than a lag): beside the sensor's own temperature it spans what
+    # its lag spans, and then the lag, the simpler, is named.
+    EffectSpec("transient_gradient", "coeff_um_per_K", ("sensor", "tau_s"), {}, 4,
+               "bending while heat crosses a structure (skin-core): a sensor minus its own lagged value, "
+               "rising with the sensor, then straightening as the structure evens out"),
 )}
 
 
@@ -136,6 +141,10 @@ class Term:
             return first_order_lag(t, sensor, float(p["tau_s"])) - t_ref
         if self.effect == "heating_cooling_hysteresis":
             return asymmetric_lag(t, sensor, float(p["tau_heat_s"]), float(p["tau_cool_s"])) - t_ref
+        if self.effect == "transient_gradient":
+            # The skin (the sensor) against the core (the sensor through a first-order lag of tau_s): a
+            # fast and a slow response of opposite sign, zero once the structure has evened out.
+            return sensor - first_order_lag(t, sensor, float(p["tau_s"]))
         raise NckConfigError(f"no feature for effect {self.effect!r}")
 
 

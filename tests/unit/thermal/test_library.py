@@ -9,7 +9,7 @@ from nckemu.thermal.problem import Problem
 from nckemu.thermal.readings import prepare
 from nckemu.thermal.scenarios import make_scenario
 from nckemu.thermal.settings import Settings
-from nckemu.thermal.terms import Term
+from nckemu.thermal.terms import Term, first_order_lag, parse_model, render_model
 
 
 def _library(runs: int = 1) -> Library:
@@ -65,3 +65,35 @@ def test_term_helpers() -> None:
     assert time_constants(lag) == 1 and bounded(lag) and not bounded(Term("thermal_lag", {"tau_s": 10.0}))
     assert label(Term("thermal_gradient", {"sensors": ["a", "b"]})) == "thermal_gradient(a - b)"
     assert present_key(lag) == "thermal_lag:a" and present_key(Term("offset", {})) == "offset"
+
+
+def test_the_transient_family_reads_as_an_engineer_reads_it() -> None:
+    """transient_gradient(sensor, tau): the sensor less its own first-order lag, in um/K, no reference
+    temperature (the difference has none); it extends the plain temperature of the same sensor."""
+    transient = Term("transient_gradient", {"sensor": "a", "tau_s": 5400.0, "coeff_um_per_K": 4.0})
+    plain = Term("temperature", {"sensor": "a", "coeff_um_per_K": 1.0})
+    assert label(transient) == "transient_gradient(a)" and present_key(transient) == "transient_gradient:a"
+    assert extends(transient, plain) and time_constants(transient) == 1 and bounded(transient)
+    assert not bounded(Term("transient_gradient", {"sensor": "a", "tau_s": 30.0}))
+    model = parse_model('axis = "Z"\n[[term]]\neffect = "transient_gradient"\nsensor = "front"\ntau_s = 5400\n'
+                        'coeff_um_per_K = 4.0\n')
+    assert render_model(model).count("t_ref_C") == 0
+    recording = make_scenario("thermal_lag", 1).recording
+    feature = model.terms[0].feature(recording, "Z")
+    front = recording.sensor("front")
+    assert np.allclose(feature, front - first_order_lag(recording.t_s, front, 5400.0))
+    assert feature[0] == 0.0  # settled at the start
+
+
+def test_a_round_offers_a_transient_per_sensor_with_its_time_constant_fitted() -> None:
+    library = _library()
+    design = np.column_stack([library.problem.feature(t) for t in library.problem.base_terms])
+    transients = [c for c in library.candidates(design, set()) if c.term.effect == "transient_gradient"]
+    assert {c.term.parameters["sensor"] for c in transients} == set(library.sensors())
+    assert all(c.grid_points > 10 and 60 <= c.term.parameters["tau_s"] <= library.duration_s() / 3 * 1.25
+               for c in transients)
+    column = library.transient_column("front", 3600.0)
+    assert column.shape == library.problem.y.shape
+    assert "transient_gradient:front" not in {present_key(c.term) for c in
+                                              library.candidates(design, {"transient_gradient:front"})
+                                              if c.term.effect == "transient_gradient"}
