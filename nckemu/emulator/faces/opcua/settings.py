@@ -33,7 +33,12 @@ RIGHTS = frozenset({f"{realm}{what}" for realm in REALMS for what in ("Read", "W
 ALLOWED_INTERVALS_MS = (100, 250, 500, 1000, 2500, 5000)
 _KEYS = frozenset({"anonymous", "users", "max_sessions", "max_subscriptions", "sample_interval_ms",
                    "namespace_uri", "max_samples_per_s", "security", "allow_anonymous", "accept_certificates",
-                   "trusted_certificates", "certificate", "private_key", "admin", "session_timeout_s"})
+                   "trusted_certificates", "certificate", "private_key", "admin", "session_timeout_s",
+                   "models", "identification", "nodesets"})
+# The companion models the face can serve (models.py): OPC 40501-1 MachineTool (umati), OPC 40502 CNC.
+MODELS = ("MachineTool", "CNC")
+IDENTIFICATION_KEYS = frozenset({"manufacturer", "model", "serial_number", "software_revision", "location",
+                                 "year_of_construction", "product_instance_uri", "product_code"})
 # The controller offers "encryption None, 128 bit or 256 bit": None; 128 bit as the AES-128 policy; 256
 # bit as Basic256Sha256 (the common one) and the AES-256 policy (docs/assumptions.md). Sign alone too.
 SECURITY = ("None", "Basic256Sha256_Sign", "Basic256Sha256_SignAndEncrypt", "Aes128Sha256RsaOaep_Sign",
@@ -79,6 +84,11 @@ class OpcUaSettings:
     trusted_certificates: str | None = None   # a directory of trusted client certificates (DER or PEM)
     certificate: str | None = None     # the server's certificate and key; None: made at first start
     private_key: str | None = None
+    # The companion models served beside the SINUMERIK namespace (all by default), the machine's
+    # identification they show ([opcua.identification]) and a directory holding their NodeSet files.
+    models: tuple[str, ...] = MODELS
+    identification: dict[str, Any] = field(default_factory=dict)
+    nodesets: str | None = None
 
     @classmethod
     def from_machine(cls, table: dict[str, Any], source: str = "machine") -> OpcUaSettings:
@@ -112,7 +122,7 @@ class OpcUaSettings:
             raise NckConfigError("expected the name of the user who manages users", path=source, field="opcua.admin")
         limits["admin"] = admin
         return cls(namespace_uri=uri, anonymous=anonymous, users=users, **limits,
-                   **_security(table, source))
+                   **_security(table, source), **_models(table, source))
 
 
 def _rights(value: object, source: str, where: str) -> frozenset[str]:
@@ -160,4 +170,38 @@ def _security(table: dict[str, Any], source: str) -> dict[str, Any]:
     if found.get("accept_certificates") is False and "trusted_certificates" not in found:
         raise NckConfigError("accept_certificates = false needs trusted_certificates (a directory of client "
                              "certificates)", path=source, field="opcua.accept_certificates")
+    return found
+
+
+def _models(table: dict[str, Any], source: str) -> dict[str, Any]:
+    """``models = ["MachineTool", "CNC"]``, ``nodesets = "DIR"`` and ``[opcua.identification]``, checked."""
+    found: dict[str, Any] = {}
+    if "models" in table:
+        models = table["models"]
+        if not isinstance(models, list) or not all(isinstance(m, str) for m in models) \
+                or sorted(set(models) - set(MODELS)):
+            raise NckConfigError(f"expected a list of models from {', '.join(MODELS)} ([] for none)", path=source,
+                                 field="opcua.models")
+        found["models"] = tuple(m for m in MODELS if m in models)
+    if "nodesets" in table:
+        value = table["nodesets"]
+        if not isinstance(value, str) or not value.strip():
+            raise NckConfigError("expected a directory holding the NodeSet files", path=source, field="opcua.nodesets")
+        base = Path(source).parent if source and Path(source).suffix == ".toml" else Path(".")
+        found["nodesets"] = str(Path(value) if Path(value).is_absolute() else base / value)
+    if "identification" in table:
+        ident = table["identification"]
+        if not isinstance(ident, dict):
+            raise NckConfigError("expected a table", path=source, field="opcua.identification")
+        for key, value in ident.items():
+            where = f"opcua.identification.{key}"
+            if key not in IDENTIFICATION_KEYS:
+                raise NckConfigError(f"unknown key (known: {', '.join(sorted(IDENTIFICATION_KEYS))})", path=source,
+                                     field=where)
+            if key == "year_of_construction":
+                if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 65535:
+                    raise NckConfigError("expected a year such as 2024", path=source, field=where)
+            elif not isinstance(value, str):
+                raise NckConfigError("expected a string", path=source, field=where)
+        found["identification"] = dict(ident)
     return found
