@@ -19,8 +19,8 @@ from asyncua import Server, ua
 
 from nckemu import __version__
 from nckemu.emulator.faces.opcua import nodesets
+from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
-from nckemu.emulator.faces.opcua.models import Feed
 from nckemu.emulator.faces.opcua.values import raw_reader
 
 if TYPE_CHECKING:

@@ -17,15 +17,15 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
-from asyncua.server.address_space import AttributeValue, NodeData
+from asyncua.server.address_space import AttributeValue
 
-from nckemu.emulator.faces.opcua import nodesets, request
+from nckemu.emulator.faces.opcua import cnc, nodesets, request, umati
+from nckemu.emulator.faces.opcua.feeds import FedMonitored, Feed
 from nckemu.emulator.faces.opcua.instances import Instantiator, Types
 from nckemu.emulator.faces.opcua.settings import may
 from nckemu.emulator.faces.opcua.values import UaStatus
@@ -39,35 +39,6 @@ INSTANCE_NAMESPACE = "urn:nckemu:instances"
 MODELS = ("MachineTool", "CNC")
 _TYPES: dict[Path, Types] = {}   # per models' shelf, shared by the faces of a process
 _TOLD_MISSING = False
-
-
-@dataclass
-class Feed:
-    """How a fed variable gets its value: ``reader()`` gives a raw value (cheap to compare), ``variant``
-    turns it into the value; ``realm`` is the SINUMERIK realm whose Read right it needs (None: anyone)."""
-
-    reader: Callable[[], object]
-    variant: Callable[[object], ua.Variant]
-    realm: str | None = None
-
-
-class FedMonitored:
-    """A monitored fed variable, in the shape the face's capture and push expect (``face._Monitored``)."""
-
-    __slots__ = ("node", "name", "reader", "raw", "nc", "block", "first_byte", "end_byte", "_variant")
-
-    def __init__(self, node: NodeData, feed: Feed) -> None:
-        self.node, self.name, self.reader, self._variant = node, None, feed.reader, feed.variant
-        try:
-            self.raw: object = feed.reader()
-        except Exception:  # read errors are the client's to see on its reads
-            self.raw = None
-        self.nc = True       # NC writes capture it (the model's values all come from the NCK)
-        self.block = None    # no PLC memory
-        self.first_byte = self.end_byte = 0
-
-    def to_variant(self, raw: object) -> ua.Variant:
-        return self._variant(raw)
 
 
 class Models:
@@ -119,8 +90,6 @@ class Models:
     async def start(self, server: Server) -> None:
         if self.shelf_used is None:
             return
-        from nckemu.emulator.faces.opcua import cnc, umati  # only with the models
-
         namespaces = await server.get_namespace_array()
         self.namespaces = {uri: index for index, uri in enumerate(namespaces)}
         self.instance_namespace = await server.register_namespace(INSTANCE_NAMESPACE)
@@ -145,6 +114,23 @@ class Models:
 
     def ns(self, uri: str) -> int:
         return self.namespaces[uri]
+
+    @property
+    def ns_uri(self) -> str:
+        """The namespace of the instances' own nodes (the entries of lists: channels, spindles, tools ...)."""
+        return INSTANCE_NAMESPACE
+
+    def cnc_alarm_type(self) -> ua.NodeId | None:
+        """OPC 40502's CncAlarmType when the CNC model is on."""
+        if not any(isinstance(part, cnc.CncInterfaceInstance) for part in self.parts):
+            return None
+        return _TYPES[self.shelf_used.path].find(self.ns(nodesets.CNC), "CncAlarmType")  # type: ignore[union-attr]
+
+    def cnc_interface(self) -> ua.NodeId | None:
+        for part in self.parts:
+            if isinstance(part, cnc.CncInterfaceInstance) and part.made is not None:
+                return part.made.root
+        return None
 
     # ------------------------------------------------------------------ values
     def bind(self, nodeid: ua.NodeId, feed: Feed) -> None:

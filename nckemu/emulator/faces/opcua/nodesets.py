@@ -243,7 +243,10 @@ async def _build(directory: Path, path: Path) -> tuple[str, ...]:
     node written to the shelf at ``path``."""
     server = Server()
     standard = address_cache.ready_shelf()
-    await server.init(standard)
+    building = address_cache.new_shelf() if standard is None else None
+    await server.init(standard or building)  # without a standard shelf: build that too, as a face would
+    if building is not None:
+        address_cache.publish(building)
     await server.register_namespace(FACE_NAMESPACE_PLACEHOLDER)
     await import_models(server, directory)
     namespaces = tuple(await server.get_namespace_array())

@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING, Any
 from asyncua import Server, ua
 
 from nckemu.emulator.faces.opcua import nodesets
+from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
-from nckemu.emulator.faces.opcua.models import Feed
 from nckemu.emulator.faces.opcua.values import raw_reader, read_value
 from nckemu.emulator.machine.nck.alarms import AlarmEvent
 
