@@ -391,3 +391,34 @@ def test_the_face_starts_fast_from_the_cache(faces: tuple[EmulatorThread, OpcUaF
     took, made = asyncio.run_coroutine_threadsafe(start_stop(), emulator._loop).result(timeout=120)
     assert made > 300
     assert took < 10.0  # the import alone takes 10-50 s
+
+
+def test_nck_alarms_are_alerts_of_notification_messages(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """An alarm raised and cleared on the NCK's alarm list: two AlertType events from Messages, active then
+    not, with the alarm's number as ErrorCode and its text."""
+    emulator, face = faces
+    seen: list[dict[str, Any]] = []
+
+    class Handler:
+        def event_notification(self, event: Any) -> None:
+            seen.append(event.get_event_props_as_fields_dict())
+
+    async def go() -> None:
+        async with Client(face.url, timeout=30) as client:
+            messages = await _umati(client, "Notification", "Messages")
+            mt = (await client.get_namespace_array()).index(nodesets.MACHINE_TOOL)
+            alert_type = await client.nodes.base_event_type.get_child(
+                ["0:ConditionType", "0:AcknowledgeableConditionType", "0:AlarmConditionType", f"{mt}:AlertType"])
+            subscription = await client.create_subscription(100, Handler())
+            await subscription.subscribe_events(messages, alert_type)
+            await asyncio.sleep(0.3)
+            alarms = emulator.emulator.nck.alarm_list
+            alarms.raise_alarm("spindle too warm", 700123, ("SP1",))
+            await asyncio.sleep(0.5)
+            alarms.clear("spindle too warm")
+            await asyncio.sleep(0.8)
+
+    run(go())
+    mine = [e for e in seen if e["ErrorCode"].Value == "700123"]
+    assert [(e["ActiveState/Id"].Value, e["Retain"].Value, e["Message"].Value.Text) for e in mine] == [
+        (True, True, "spindle too warm"), (False, False, "spindle too warm")]

@@ -22,14 +22,20 @@ are ours (docs/assumptions.md).
 
 from __future__ import annotations
 
+import asyncio
+import copy
 import logging
 import re
+import threading
+import zlib
 from collections.abc import Callable
+from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
 
 from nckemu.emulator.faces.opcua import nodesets
+from nckemu.emulator.faces.opcua.alarms import severity_of
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
 from nckemu.emulator.faces.opcua.values import raw_reader, read_value
@@ -88,6 +94,7 @@ class MachineToolInstance:
         self.messages: ua.NodeId | None = None
         self._template: Any = None
         self._pending: list[AlarmEvent] = []
+        self._sender: asyncio.Task[None] | None = None
         self.alerts_sent = 0
 
     # ------------------------------------------------------------------ helpers
@@ -306,50 +313,60 @@ class MachineToolInstance:
         listeners = self.emulator.nck.alarm_list.listeners
         if self._told in listeners:
             listeners.remove(self._told)
+        if self._sender is not None:
+            self._sender.cancel()
 
     def _told(self, event: AlarmEvent) -> None:
+        """An alarm raised or cleared (on any thread): sent in order by one sender task on the face's loop."""
         self._pending.append(event)
-        loop = self.face._loop or None
-        import asyncio
-        import threading
-        try:
-            running = asyncio.get_running_loop()
-        except RuntimeError:
-            running = None
-        if running is not None and (loop is None or running is loop):
-            running.create_task(self._send_pending())
-        elif loop is not None and threading.get_ident() != self.face._loop_thread:
-            loop.call_soon_threadsafe(lambda: loop.create_task(self._send_pending()))
+        loop = self.face._loop
+        if self._sender is not None or loop is None:
+            return
+        if threading.get_ident() == self.face._loop_thread:
+            self._start_sender()
+        else:
+            loop.call_soon_threadsafe(self._start_sender)
+
+    def _start_sender(self) -> None:
+        if self._sender is None and self.face._loop is not None:
+            self._sender = self.face._loop.create_task(self._send_pending())
 
     async def _send_pending(self) -> None:
-        import copy
-        from datetime import UTC, datetime
+        try:
+            while self._pending:
+                await self._send(self._pending.pop(0))
+        except Exception:  # an event that cannot be sent must not stop the ones after it
+            log.exception("OPC UA alert event")
+        finally:
+            self._sender = None
+            if self._pending:
+                self._start_sender()
 
-        from nckemu.emulator.faces.opcua.alarms import severity_of
-        while self._pending:
-            event = self._pending.pop(0)
-            alarm, active = event.alarm, event.raised
-            fields = copy.copy(self._template)
-            values = {
-                "SourceName": "NCK", "Message": ua.LocalizedText(alarm.text), "Severity": severity_of(alarm),
-                "ConditionName": str(alarm.number), "Retain": active,
-                "ActiveState": ua.LocalizedText("Active" if active else "Inactive"),
-                "ErrorCode": str(alarm.number),
-            }
-            for name, value in values.items():
-                if hasattr(fields, name):
-                    setattr(fields, name, value)
-            for name, value in (("ActiveState/Id", active), ("EnabledState/Id", True), ("AckedState/Id", True),
-                                ("EnabledState", ua.LocalizedText("Enabled")),
-                                ("AckedState", ua.LocalizedText("Acknowledged"))):
-                if name in getattr(fields, "internal_properties", ()) or hasattr(fields, name):
-                    setattr(fields, name, value)
-            self.alerts.event = fields
-            try:
-                await self.alerts.trigger(time_attr=datetime.now(UTC))
-                self.alerts_sent += 1
-            except Exception:
-                log.exception("OPC UA alert event")
+    async def _send(self, event: AlarmEvent) -> None:
+        """An ``AlertType`` event from Notification/Messages: the alarm's number as ErrorCode and condition
+        name, its text, severity (as the CncAlarmType events), active state and retain."""
+        alarm, active = event.alarm, event.raised
+        fields = copy.copy(self._template)  # one object per event: asyncua keeps the retained ones
+        values: dict[str, Any] = {
+            "SourceName": "NCK", "Message": ua.LocalizedText(alarm.text), "Severity": severity_of(alarm),
+            "ConditionName": str(alarm.number), "Retain": active, "ErrorCode": str(alarm.number),
+            "ActiveState": ua.LocalizedText("Active" if active else "Inactive"), "ActiveState/Id": active,
+            "EnabledState": ua.LocalizedText("Enabled"), "EnabledState/Id": True,
+            "AckedState": ua.LocalizedText("Acknowledged"), "AckedState/Id": True,
+            "NodeId": ua.NodeId(f"MachineTool/Notification/Messages/{alarm.number}/"
+                                f"{zlib.crc32(alarm.text.encode()):08x}", self.models.instance_namespace),
+        }
+        for name, value in values.items():
+            setattr(fields, name, value)
+            if not fields.data_types.get(name):  # asyncua found no data type for some imported fields
+                fields.data_types[name] = _VARIANT_OF.get(type(value), ua.VariantType.Variant)
+        self.alerts.event = fields
+        await self.alerts.trigger(time_attr=datetime.now(UTC))
+        self.alerts_sent += 1
+
+
+_VARIANT_OF = {str: ua.VariantType.String, bool: ua.VariantType.Boolean, int: ua.VariantType.UInt16,
+               ua.LocalizedText: ua.VariantType.LocalizedText, ua.NodeId: ua.VariantType.NodeId}
 
 
 def _machines_folder(types: Any, machinery: int) -> ua.NodeId:
