@@ -422,3 +422,59 @@ def test_nck_alarms_are_alerts_of_notification_messages(faces: tuple[EmulatorThr
     mine = [e for e in seen if e["ErrorCode"].Value == "700123"]
     assert [(e["ActiveState/Id"].Value, e["Retain"].Value, e["Message"].Value.Text) for e in mine] == [
         (True, True, "spindle too warm"), (False, False, "spindle too warm")]
+
+
+def test_a_living_machine_three_paths_and_a_subscription(tmp_path: Path) -> None:
+    """`nckemu serve --inputs REC --plc PROG --speed 600x --opcua 0`: the spindle turns and rests as the
+    recording says. asyncua subscribes to umati's IsRotating and reads, between two S7 reads of actSpeed that
+    agree (no recording step between), the same speed as /Channel/Spindle/actSpeed and as the CNC model's
+    CncSpindle ActSpeed."""
+    from .live_tools import MACHINE, PROGRAM, serve, write_recording
+
+    recording = write_recording(tmp_path / "rec.csv", hours=3.0)
+    with serve("--machine", str(MACHINE), "--inputs", str(recording), "--plc", str(PROGRAM), "--speed", "600x",
+               "--opcua", "0") as served:
+        url = str(served.ready["opcua"])
+        seen: list[bool] = []
+        agreed: list[tuple[float, float, float]] = []
+
+        class Handler:
+            def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
+                seen.append(value)
+
+        async def go() -> None:
+            async with Client(url, timeout=30) as client:
+                ns = await client.get_namespace_index("SinumerikVarProvider")
+                cnc_ns = (await client.get_namespace_array()).index(nodesets.CNC)
+                rotating = await _umati(client, "Monitoring", "SP1", "IsRotating")
+                btss = client.get_node(ua.NodeId("/Channel/Spindle/actSpeed[u1,1]", ns))
+                cnc = await _cnc_spindle_speed(client, cnc_ns)
+                subscription = await client.create_subscription(100, Handler())
+                await subscription.subscribe_data_change(rotating)
+                deadline = time.monotonic() + 8.0
+                with NckClient("127.0.0.1", served.port) as nck:
+                    while time.monotonic() < deadline:
+                        before = nck.get("/Channel/Spindle/actSpeed[u1,1]")[0]
+                        over_btss, over_cnc = await btss.read_value(), await cnc.read_value()
+                        after = nck.get("/Channel/Spindle/actSpeed[u1,1]")[0]
+                        if before == after:
+                            agreed.append((before, over_btss, over_cnc))
+                        await asyncio.sleep(0.05)
+
+        run(go())
+    assert {speed for speed, _, _ in agreed} == {0.0, 6000.0}   # both the rest and the turning were read
+    assert all(s7 == btss == cnc for s7, btss, cnc in agreed), agreed[:10]
+    assert True in seen and False in seen                       # IsRotating followed the recording
+    assert all(a != b for a, b in zip(seen, seen[1:], strict=False))  # a change each time, none repeated
+
+
+async def _cnc_spindle_speed(client: Client, cnc_ns: int) -> Any:
+    node = await client.nodes.objects.get_child(f"{cnc_ns}:CncInterface")
+    for name in ("CncSpindleList", "SP1", "ActSpeed"):
+        for description in await node.get_children_descriptions():
+            if description.BrowseName.Name == name:
+                node = client.get_node(description.NodeId)
+                break
+        else:
+            raise AssertionError(f"no {name} in the CNC interface")
+    return node
