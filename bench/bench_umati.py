@@ -8,16 +8,45 @@ Each case runs in a fresh Python process (so that memory and caches are the proc
 - ``without models``: ``[opcua] models = []`` from the same cache.
 
 Prints one line per case: wall seconds to ``start()``, the process's peak RSS after it, nodes the models
-added. ``python bench/bench_umati.py`` (needs the NodeSets: ``make nodesets``).
+added.
+
+Then, in the same run, one face (default machine, both models) and one client process monitoring 1000
+items at 100 ms twice: on umati/CNC variables (the overrides: Monitoring/<channel>/FeedOverride and
+RapidOverride, Monitoring/MachineTool/FeedOverride, Monitoring/<spindle>/Override, the CNC channel's and
+spindle's Act/CmdOverride; each node 125 times) and on the SINUMERIK variables they show
+(feedRateIpoOvr, rapFeedRateOvr, speedOvr), while the server writes the three overrides into the model
+every 100 ms (as an S7 put would). Server CPU per update delivered, for each.
+
+``python bench/bench_umati.py [--seconds 5]`` (needs the NodeSets: ``make nodesets``).
 """
 
 from __future__ import annotations
 
+import argparse
+import asyncio
 import json
 import os
 import subprocess
 import sys
 import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve()
+ITEMS = 1000
+CYCLE_S = 0.1
+# (umati/CNC node id in the instance namespace, the SINUMERIK node id it shows)
+PAIRS = (
+    ("MachineTool/Monitoring/Channel1/FeedOverride", "/Channel/State/feedRateIpoOvr[u1]"),
+    ("MachineTool/Monitoring/MachineTool/FeedOverride", "/Channel/State/feedRateIpoOvr[u1]"),
+    ("CncInterface/CncChannelList/Channel1/ActOverride", "/Channel/State/feedRateIpoOvr[u1]"),
+    ("CncInterface/CncChannelList/Channel1/CmdOverride", "/Channel/State/feedRateIpoOvr[u1]"),
+    ("MachineTool/Monitoring/Channel1/RapidOverride", "/Channel/State/rapFeedRateOvr[u1]"),
+    ("MachineTool/Monitoring/Spindle1/Override", "/Channel/Spindle/speedOvr[u1,1]"),
+    ("CncInterface/CncSpindleList/SP1/ActOverride", "/Channel/Spindle/speedOvr[u1,1]"),
+    ("CncInterface/CncSpindleList/SP1/CmdOverride", "/Channel/Spindle/speedOvr[u1,1]"),
+)
 
 CHILD = r"""
 import asyncio, dataclasses, json, resource, sys, time
@@ -51,9 +80,103 @@ def run(cache: str, models: bool, faces: int) -> list[dict[str, float]]:
     return json.loads(done.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
 
 
+async def serve_overrides() -> None:
+    """A face whose overrides change every cycle (the cycle number modulo 200, in percent)."""
+    import dataclasses
+
+    from nckemu.catalogue.node_ids import parse_node_id
+    from nckemu.emulator.faces.opcua import OpcUaFace
+    from nckemu.emulator.faces.opcua.settings import OpcUaSettings
+    from nckemu.emulator.machine.core import Emulator
+    from nckemu.emulator.machine.nck.access import HIGHEST_LEVEL, AccessContext
+
+    emulator = Emulator()
+    settings = dataclasses.replace(OpcUaSettings.from_machine(emulator.machine.opcua, emulator.machine.source),
+                                   max_samples_per_s=100_000)  # 1000 items at 100 ms: ten times the 840D sl cap
+    face = await OpcUaFace(emulator, "127.0.0.1", 0, settings=settings).start()
+    print(json.dumps({"port": face.port, "ns": face.models.instance_namespace}), flush=True)
+    specs = emulator.nck.store.specs
+    addresses = [parse_node_id(node_id, specs).address for node_id in sorted({btss for _u, btss in PAIRS})]
+    ctx = AccessContext(level=HIGHEST_LEVEL, client="bench")
+    loop = asyncio.get_running_loop()
+    due, cycle = loop.time(), 0
+    while True:
+        cycle += 1
+        for address in addresses:
+            emulator.nck.write(address, [float(cycle % 200)], ctx)
+        due += CYCLE_S
+        await asyncio.sleep(max(0.0, due - loop.time()))
+
+
+async def subscribe(url: str, ns: int, kind: str, seconds: float) -> None:
+    from asyncua import Client, ua
+
+    counted = {"on": False, "n": 0}
+
+    class Handler:
+        def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
+            if counted["on"]:
+                counted["n"] += 1
+
+    ids = [(ua.NodeId(umati, ns) if kind == "umati" else ua.NodeId(btss, 2)) for umati, btss in PAIRS]
+    async with Client(url, timeout=30) as client:
+        subscription = await client.create_subscription(100, Handler())
+        nodes = [client.get_node(ids[i % len(ids)]) for i in range(ITEMS)]
+        await subscription.subscribe_data_change(nodes, queuesize=10, sampling_interval=100)
+        await asyncio.sleep(1.0)
+        counted["on"] = True
+        start = time.monotonic()
+        await asyncio.sleep(seconds)
+        counted["on"] = False
+        elapsed = time.monotonic() - start
+    print(json.dumps({"updates_per_s": counted["n"] / elapsed}), flush=True)
+
+
+def _cpu_s(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def monitoring(seconds: float) -> dict[str, dict[str, float]]:
+    server = subprocess.Popen([sys.executable, str(HERE), "--serve"], stdout=subprocess.PIPE, text=True)
+    results: dict[str, dict[str, float]] = {}
+    try:
+        assert server.stdout is not None
+        ready = json.loads(server.stdout.readline())
+        url = f"opc.tcp://127.0.0.1:{ready['port']}/"
+        for kind in ("sinumerik", "umati"):
+            subscriber = subprocess.Popen([sys.executable, str(HERE), "--subscribe", url, "--ns", str(ready["ns"]),
+                                           "--kind", kind, "--seconds", str(seconds)], stdout=subprocess.PIPE,
+                                          text=True)
+            time.sleep(2.0)
+            cpu0, t0 = _cpu_s(server.pid), time.monotonic()
+            out, _ = subscriber.communicate(timeout=180)
+            cpu = (_cpu_s(server.pid) - cpu0) / (time.monotonic() - t0)
+            updates = json.loads(out.strip().splitlines()[-1])["updates_per_s"]
+            results[kind] = {"server_cpu": cpu, "updates_per_s": updates,
+                             "us_per_update": cpu / updates * 1e6 if updates else float("nan")}
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+    return results
+
+
 def main() -> int:
     from nckemu.emulator.faces.opcua import nodesets
 
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--serve", action="store_true")
+    parser.add_argument("--subscribe")
+    parser.add_argument("--ns", type=int, default=0)
+    parser.add_argument("--kind", default="umati")
+    args = parser.parse_args()
+    if args.serve:
+        asyncio.run(serve_overrides())
+        return 0
+    if args.subscribe:
+        asyncio.run(subscribe(args.subscribe, args.ns, args.kind, args.seconds))
+        return 0
     if nodesets.find() is None:
         print(nodesets.how_to_get())
         return 0
@@ -66,6 +189,13 @@ def main() -> int:
     for label, row in rows:
         print(f"{label:28s} start {row['start_s']:6.2f} s   peak RSS {row['rss_mb']:6.1f} MB "
               f"(+{row['rss_mb'] - row['rss_before_mb']:5.1f})   model nodes {row['nodes']:.0f}")
+    measured = monitoring(args.seconds)
+    print(f"{ITEMS} monitored items at 100 ms, the overrides written every {CYCLE_S * 1000:.0f} ms, "
+          f"{args.seconds:g} s each")
+    for kind, label in (("sinumerik", "SINUMERIK nodes"), ("umati", "umati/CNC nodes")):
+        row = measured[kind]
+        print(f"{label:18s} updates delivered/s {row['updates_per_s']:8.0f} (of {ITEMS / CYCLE_S:.0f})   "
+              f"server CPU {row['server_cpu']:.2f} cores   {row['us_per_update']:6.1f} us per update")
     return 0
 
 

@@ -84,8 +84,10 @@ class Made:
 class Types:
     """The type definitions of an address space (read once; shared by every face of the process)."""
 
-    def __init__(self, nodes: MutableMapping[ua.NodeId, NodeData]) -> None:
+    def __init__(self, nodes: MutableMapping[ua.NodeId, NodeData],
+                 named: dict[tuple[int, str], ua.NodeId] | None = None) -> None:
         self.nodes = nodes
+        self.named = named or {}   # (namespace index, browse name) -> type (nodesets.py writes the index)
         self._children: dict[ua.NodeId, dict[str, tuple[ua.NodeId, ua.NodeId]]] = {}
 
     def node(self, nodeid: ua.NodeId) -> NodeData:
@@ -151,27 +153,12 @@ class Types:
         return found
 
     def find(self, namespace: int, name: str) -> ua.NodeId:
-        """A type by namespace and browse name (the models' numeric ids are looked up, not written here)."""
-        key = (namespace, name)
-        index = getattr(self, "_by_name", None)
-        if index is None:
-            index = self._by_name = {}
-        if key not in index:
+        """A model's type by namespace index and browse name (the models' numeric ids are looked up, not
+        written here)."""
+        found = self.named.get((namespace, name))
+        if found is None:
             raise KeyError(f"no type {name} in ns={namespace}")
-        return index[key]  # type: ignore[no-any-return]
-
-    def index_types(self, roots: Iterable[ua.NodeId]) -> None:
-        """Learn the browse names of every subtype below ``roots`` (for ``find``)."""
-        index: dict[tuple[int, str], ua.NodeId] = getattr(self, "_by_name", None) or {}
-        todo = list(roots)
-        while todo:
-            current = todo.pop()
-            name = self.browse_name(current)
-            index.setdefault((name.NamespaceIndex, name.Name), current)
-            for ref in self.node(current).references:
-                if ref.IsForward and ref.ReferenceTypeId == HAS_SUBTYPE:
-                    todo.append(ref.NodeId)
-        self._by_name = index
+        return found
 
     def variant_type(self, data_type: ua.NodeId) -> ua.VariantType:
         """The built-in type values of ``data_type`` travel as (enumerations as Int32)."""

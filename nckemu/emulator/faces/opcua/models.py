@@ -96,9 +96,12 @@ class Models:
         nodes = server.iserver.aspace._nodes
         types = _TYPES.get(self.shelf_used.path)
         if types is None:
-            types = _TYPES[self.shelf_used.path] = Types(nodes)
-            types.index_types([ua.NodeId(ua.ObjectIds.BaseObjectType), ua.NodeId(ua.ObjectIds.BaseDataType),
-                               ua.NodeId(ua.ObjectIds.BaseVariableType)])
+            named = {}
+            for key, nodeid in self.shelf_used.types.items():
+                uri, name = key.split("|", 1)
+                if uri in self.namespaces:
+                    named[(self.namespaces[uri], name)] = ua.NodeId.from_string(nodeid)
+            types = _TYPES[self.shelf_used.path] = Types(nodes, named)
         maker = Instantiator(types, nodes, self.instance_namespace)
         if "MachineTool" in self.wanted:
             self.parts.append(umati.MachineToolInstance(self, maker).build())

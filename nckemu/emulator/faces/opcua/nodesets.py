@@ -70,6 +70,7 @@ FILES: tuple[tuple[str, str], ...] = (
 # The namespace the face's own (SINUMERIK) namespace takes in the shelf: it stays ns=2.
 FACE_NAMESPACE_PLACEHOLDER = "urn:nckemu:face-namespace"
 NAMESPACES_FILE = "namespaces.json"
+TYPES_FILE = "types.json"   # the models' types by namespace URI and browse name (found without browsing)
 
 _UA_NODESET = "{http://opcfoundation.org/UA/2011/03/UANodeSet.xsd}"
 _UA_TYPES = "{http://opcfoundation.org/UA/2008/02/Types.xsd}"
@@ -182,13 +183,18 @@ class ModelsShelf:
 
     path: Path
     namespaces: tuple[str, ...]
+    types: dict[str, str]   # "namespace URI|browse name" -> node id string
 
 
 _PROCESS_SHELVES: dict[str, ModelsShelf] = {}
 
 
+# Changes with what a models' shelf holds beside the nodes (its files, the way it is built).
+SHELF_FORMAT = 2
+
+
 def _shelf_kind(directory: Path) -> str:
-    return f"models-{digest(directory)}"
+    return f"models{SHELF_FORMAT}-{digest(directory)}"
 
 
 def ready(directory: Path) -> ModelsShelf | None:
@@ -201,10 +207,11 @@ def ready(directory: Path) -> ModelsShelf | None:
         return None
     try:
         namespaces = tuple(json.loads((shelf.parent / NAMESPACES_FILE).read_text(encoding="utf-8")))
+        types = dict(json.loads((shelf.parent / TYPES_FILE).read_text(encoding="utf-8")))
     except (OSError, ValueError):
         address_cache.discard(shelf)
         return None
-    return ModelsShelf(shelf, namespaces)
+    return ModelsShelf(shelf, namespaces, types)
 
 
 async def models_shelf(directory: Path) -> ModelsShelf:
@@ -222,11 +229,12 @@ async def models_shelf(directory: Path) -> ModelsShelf:
         scratch = Path(tempfile.mkdtemp(prefix="nckemu-models-"))
         atexit.register(shutil.rmtree, scratch, True)
         building = scratch / address_cache.SHELF_NAME
-    namespaces = await _build(directory, building)
+    namespaces, types = await _build(directory, building)
     (building.parent / NAMESPACES_FILE).write_text(json.dumps(list(namespaces)), encoding="utf-8")
+    (building.parent / TYPES_FILE).write_text(json.dumps(types, indent=0, sort_keys=True), encoding="utf-8")
     if private:
         building.touch()
-        built = ModelsShelf(building, namespaces)
+        built = ModelsShelf(building, namespaces, types)
         _PROCESS_SHELVES[kind] = built
     else:
         address_cache.publish(building, kind)
@@ -238,7 +246,7 @@ async def models_shelf(directory: Path) -> ModelsShelf:
     return built
 
 
-async def _build(directory: Path, path: Path) -> tuple[str, ...]:
+async def _build(directory: Path, path: Path) -> tuple[tuple[str, ...], dict[str, str]]:
     """A server of our own: standard address space, the face's namespace at index 2, the models; every
     node written to the shelf at ``path``."""
     server = Server()
@@ -255,9 +263,14 @@ async def _build(directory: Path, path: Path) -> tuple[str, ...]:
     source = getattr(nodes, "source", None)  # a shelf-backed address space: the nodes never touched too
     if source is not None:
         keys += [ua.NodeId.from_string(key) for key in source.keys()]
+    types: dict[str, str] = {}
+    type_classes = {ua.NodeClass.ObjectType, ua.NodeClass.VariableType, ua.NodeClass.DataType}
     with shelve.open(str(path), "n", protocol=pickle.HIGHEST_PROTOCOL) as out:
         for nodeid in dict.fromkeys(keys):
             node = nodes[nodeid]
+            if nodeid.NamespaceIndex > 2 and node.attributes[ua.AttributeIds.NodeClass].value.Value.Value in type_classes:
+                name = node.attributes[ua.AttributeIds.BrowseName].value.Value.Value
+                types.setdefault(f"{namespaces[nodeid.NamespaceIndex]}|{name.Name}", nodeid.to_string())
             # asyncua's importer also gives every type the inverse references of its instances (PropertyType
             # some 900): its standard address space carries none, and loading them cost each face a second.
             node.references = [ref for ref in node.references if ref.IsForward
@@ -269,7 +282,7 @@ async def _build(directory: Path, path: Path) -> tuple[str, ...]:
             out[nodeid.to_string()] = node
     if source is not None:
         source.close()
-    return namespaces
+    return namespaces, types
 
 
 async def restore_namespaces(server: Server, shelf: ModelsShelf, face_namespace: str) -> None:
