@@ -17,7 +17,10 @@ spindle's Act/CmdOverride; each node 125 times) and on the SINUMERIK variables t
 (feedRateIpoOvr, rapFeedRateOvr, speedOvr), while the server writes the three overrides into the model
 every 100 ms (as an S7 put would). Server CPU per update delivered, for each.
 
-``python bench/bench_umati.py [--seconds 5]`` (needs the NodeSets: ``make nodesets``).
+Fleet (``--fleet N``, 0 skips): ``nckemu fleet --count N --opcua-base-port`` with both models and with
+``models = []``, same run: RSS of the fleet process and seconds until every face listens.
+
+``python bench/bench_umati.py [--seconds 5] [--fleet 100]`` (needs the NodeSets: ``make nodesets``).
 """
 
 from __future__ import annotations
@@ -161,6 +164,29 @@ def monitoring(seconds: float) -> dict[str, dict[str, float]]:
     return results
 
 
+def fleet(count: int) -> dict[str, dict[str, float]]:
+    """A fleet of ``count`` machines with an OPC UA face each, with and without the models."""
+    sys.path.insert(0, str(HERE.parent.parent))
+    from bench.bench_fleet import free_range, rss_mb, start_fleet
+
+
+    default = (HERE.parent.parent / "nckemu/emulator/machine/machines/default.toml").read_text("utf-8")
+    results: dict[str, dict[str, float]] = {}
+    with tempfile.TemporaryDirectory() as folder:
+        plain = Path(folder) / "plain.toml"
+        plain.write_text(default.replace("[opcua]\n", "[opcua]\nmodels = []\n", 1), encoding="utf-8")
+        for label, extra in (("without models", ("--machine", str(plain))), ("with both models", ())):
+            base = free_range(2 * count)
+            started = time.monotonic()
+            process, _ports = start_fleet(count, base, "--opcua-base-port", str(base + count), *extra)
+            try:
+                results[label] = {"ready_s": time.monotonic() - started, "rss_mb": rss_mb(process.pid)}
+            finally:
+                process.terminate()
+                process.wait()
+    return results
+
+
 def main() -> int:
     from nckemu.emulator.faces.opcua import nodesets
 
@@ -170,6 +196,7 @@ def main() -> int:
     parser.add_argument("--subscribe")
     parser.add_argument("--ns", type=int, default=0)
     parser.add_argument("--kind", default="umati")
+    parser.add_argument("--fleet", type=int, default=0, help="machines of the OPC UA fleet (0: skip)")
     args = parser.parse_args()
     if args.serve:
         asyncio.run(serve_overrides())
@@ -196,6 +223,10 @@ def main() -> int:
         row = measured[kind]
         print(f"{label:18s} updates delivered/s {row['updates_per_s']:8.0f} (of {ITEMS / CYCLE_S:.0f})   "
               f"server CPU {row['server_cpu']:.2f} cores   {row['us_per_update']:6.1f} us per update")
+    if args.fleet > 0:
+        for label, row in fleet(args.fleet).items():
+            print(f"fleet of {args.fleet} with OPC UA faces, {label:17s} RSS {row['rss_mb']:6.0f} MB   "
+                  f"every face listening after {row['ready_s']:6.1f} s")
     return 0
 
 

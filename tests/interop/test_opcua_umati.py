@@ -289,17 +289,21 @@ def test_one_value_three_paths_after_an_s7_write(faces: tuple[EmulatorThread, Op
 
 
 def test_subscriptions_follow_the_machine(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
-    """A start over S7 (the channel command), a spindle override put over S7 and the model's own change
-    (the spindle turning) each reach the umati subscriptions, as the SINUMERIK node's do."""
+    """A start over S7 (the channel command), spindle override puts over S7, a PI program select over S7
+    and the model's own change (the spindle turning) each reach the umati subscriptions as the SINUMERIK
+    node's do: every value, and in the same push (one source timestamp for both)."""
     emulator, face = faces
     seen: dict[str, list[Any]] = {}
+    stamps: dict[str, dict[Any, Any]] = {}
 
     class Handler:
         def __init__(self, names: dict[Any, str]) -> None:
             self.names = names
 
         def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
-            seen.setdefault(self.names[node.nodeid], []).append(value)
+            name = self.names[node.nodeid]
+            seen.setdefault(name, []).append(value)
+            stamps.setdefault(name, {})[value] = data.monitored_item.Value.SourceTimestamp
 
     async def go() -> None:
         async with Client(face.url, timeout=30) as client:
@@ -307,18 +311,23 @@ def test_subscriptions_follow_the_machine(faces: tuple[EmulatorThread, OpcUaFace
             nodes = {
                 "state": await _umati(client, "Monitoring", "CHAN1", "ChannelState"),
                 "program": await _umati(client, "Production", "ActiveProgram", "State", "CurrentState"),
+                "name": await _umati(client, "Production", "ActiveProgram", "Name"),
                 "override": await _umati(client, "Monitoring", "SP1", "Override"),
                 "rotating": await _umati(client, "Monitoring", "SP1", "IsRotating"),
                 "btss": client.get_node(ua.NodeId("/Channel/State/chanStatus[u1]", ns)),
+                "btss override": client.get_node(ua.NodeId("/Channel/Spindle/speedOvr[u1,1]", ns)),
+                "btss name": client.get_node(ua.NodeId("/Channel/ProgramInfo/progName[u1]", ns)),
             }
             subscription = await client.create_subscription(100, Handler({n.nodeid: k for k, n in nodes.items()}))
             await subscription.subscribe_data_change(list(nodes.values()))
             await asyncio.sleep(0.5)
+            model = emulator.emulator.nck
+            model.add_program("/_N_MPF_DIR/_N_UMATI_MPF")
             with NckClient("127.0.0.1", emulator.port) as nck:
+                nck.pi_service("_N_SELECT", "201", "/_N_MPF_DIR/_N_UMATI_MPF")  # sampled: no write
                 nck.put({"NCKEMU_CHAN_COMMAND[C1]": 1})   # start: active, running
                 for step in (50.0, 60.0, 70.0):
                     nck.put({"/Channel/Spindle/speedOvr[u1,1]": step})
-            model = emulator.emulator.nck
             model.set_spindle_speed(1, 1200.0)             # the machine's own change: no write
             await asyncio.sleep(1.0)
             with NckClient("127.0.0.1", emulator.port) as nck:
@@ -330,8 +339,12 @@ def test_subscriptions_follow_the_machine(faces: tuple[EmulatorThread, OpcUaFace
     assert seen["state"] == [2, 0, 2]               # Reset, Active, Reset
     assert seen["btss"] == [0, 1, 0]
     assert [text.Text for text in seen["program"]] == ["Aborted", "Running", "Aborted"]
-    assert seen["override"][-3:] == [50.0, 60.0, 70.0]   # every write, none lost
+    assert seen["override"][-3:] == seen["btss override"][-3:] == [50.0, 60.0, 70.0]   # every write, none lost
     assert seen["rotating"] == [False, True, False]
+    assert seen["name"][-1] == seen["btss name"][-1] == "_N_UMATI_MPF"
+    for value in (50.0, 60.0, 70.0):
+        assert stamps["override"][value] == stamps["btss override"][value]
+    assert stamps["name"]["_N_UMATI_MPF"] == stamps["btss name"]["_N_UMATI_MPF"]
 
 
 def test_realms_guard_the_umati_view(tmp_path: Path) -> None:
