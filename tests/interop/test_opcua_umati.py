@@ -377,7 +377,8 @@ def test_realms_guard_the_umati_view(tmp_path: Path) -> None:
 def test_models_off_in_the_machine_file(tmp_path: Path) -> None:
     machine = tmp_path / "m.toml"
     text = DEFAULT_MACHINE.read_text("utf-8")
-    machine.write_text(text.replace('[opcua]\n', '[opcua]\nmodels = ["CNC"]\n'), encoding="utf-8")
+    assert 'models = ["MachineTool", "CNC"]' in text
+    machine.write_text(text.replace('models = ["MachineTool", "CNC"]', 'models = ["CNC"]'), encoding="utf-8")
     with two_faces(machine) as (_emulator, face):
         async def go() -> tuple[int, list[str]]:
             async with Client(face.url, timeout=30) as client:
@@ -491,3 +492,47 @@ async def _cnc_spindle_speed(client: Client, cnc_ns: int) -> Any:
         else:
             raise AssertionError(f"no {name} in the CNC interface")
     return node
+
+
+def test_the_stacklight_follows_its_plc_bits(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """The default machine's stack light: Lamp1 (red) is Q0.0. python-snap7 writes the output byte; the
+    lamp's SignalOn and /Plc/Q0.0 change in the same push, each time."""
+    import snap7
+    from snap7.type import Area
+
+    emulator, face = faces
+    seen: dict[str, list[tuple[bool, Any]]] = {}
+
+    class Handler:
+        def __init__(self, names: dict[Any, str]) -> None:
+            self.names = names
+
+        def datachange_notification(self, node: Any, value: Any, data: Any) -> None:
+            seen.setdefault(self.names[node.nodeid], []).append(
+                (value, data.monitored_item.Value.SourceTimestamp))
+
+    async def go() -> tuple[int, Any]:
+        async with Client(face.url, timeout=30) as client:
+            ns = await client.get_namespace_index("SinumerikVarProvider")
+            lamp = await _umati(client, "Monitoring", "Stacklight", "Lamp1")
+            color = await (await _umati(client, "Monitoring", "Stacklight", "Lamp1", "SignalColor")).read_value()
+            nodes = {"lamp": await _umati(client, "Monitoring", "Stacklight", "Lamp1", "SignalOn"),
+                     "btss": client.get_node(ua.NodeId("/Plc/Q0.0", ns))}
+            subscription = await client.create_subscription(100, Handler({n.nodeid: k for k, n in nodes.items()}))
+            await subscription.subscribe_data_change(list(nodes.values()))
+            await asyncio.sleep(0.4)
+            plc = snap7.Client()
+            plc.connect("127.0.0.1", 0, 2, emulator.port)
+            try:
+                for byte in (1, 0, 1, 0):
+                    plc.write_area(Area.PA, 0, 0, bytearray([byte]))
+            finally:
+                plc.disconnect()
+            await asyncio.sleep(0.8)
+            return color, lamp
+
+    color, _lamp = run(go())
+    assert color == 1  # Red
+    assert [value for value, _ in seen["lamp"]] == [value for value, _ in seen["btss"]] == [
+        False, True, False, True, False]
+    assert [stamp for _, stamp in seen["lamp"][1:]] == [stamp for _, stamp in seen["btss"][1:]]

@@ -449,6 +449,7 @@ class OpcUaFace:
                 fed = self.models.monitor(nodeid)  # a companion model's variable fed from the machine
                 if fed is not None:
                     monitored[nodeid] = fed  # type: ignore[assignment]
+                    self._plc_index = None
             return result
 
         def delete_datachange_callback(handle: int) -> None:

@@ -18,6 +18,9 @@ class Feed:
     reader: Callable[[], object]
     variant: Callable[[object], ua.Variant]
     realm: str | None = None
+    # PLC memory it reads, (area, DB number, first byte, end byte): PLC writes there capture it at write
+    # time; None: an NC value (NC writes capture it)
+    plc: tuple[int, int, int, int] | None = None
 
 
 class FedMonitored:
@@ -31,9 +34,12 @@ class FedMonitored:
             self.raw: object = feed.reader()
         except Exception:  # read errors are the client's to see on its reads
             self.raw = None
-        self.nc = True       # NC writes capture it (the model's values all come from the NCK)
-        self.block = None    # no PLC memory
+        self.nc = feed.plc is None   # NC writes capture it
+        self.block: tuple[int, int] | None = None
         self.first_byte = self.end_byte = 0
+        if feed.plc is not None:     # PLC writes to these bytes capture it
+            area, db, self.first_byte, self.end_byte = feed.plc
+            self.block = (area, db)
 
     def to_variant(self, raw: object) -> ua.Variant:
         return self._variant(raw)

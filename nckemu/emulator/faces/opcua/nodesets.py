@@ -171,9 +171,17 @@ def readable_xml(path: Path) -> tuple[str, int]:
 async def import_models(server: Server, directory: Path) -> int:
     """Import every file into ``server`` (after its standard address space); the nodes added."""
     added = 0
-    for _uri, name in FILES:
-        text, _left_out = readable_xml(directory / name)
-        added += len(await server.import_xml(xmlstring=text, auto_load_definitions=False))
+    # asyncua's importer warns about the files' quirks it works around (duplicate parents, structures it
+    # does not generate classes for); they are the files', not the user's, to know.
+    importer = logging.getLogger("asyncua.common.xmlimporter")
+    level = importer.level
+    importer.setLevel(logging.ERROR)
+    try:
+        for _uri, name in FILES:
+            text, _left_out = readable_xml(directory / name)
+            added += len(await server.import_xml(xmlstring=text, auto_load_definitions=False))
+    finally:
+        importer.setLevel(level)
     return added
 
 

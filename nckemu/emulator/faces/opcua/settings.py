@@ -20,12 +20,14 @@ rights = ["SinuReadAll", "SinuWriteAll"]   # or realms: StateRead, SeaWrite, Plc
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from nckemu.errors import NckConfigError
 
+_PLC_BIT = re.compile(r"^(?:[IQM]\d{1,5}\.[0-7]|DB\d{1,5}\.DBX\d{1,5}\.[0-7])$")
 REALMS = ("State", "Frame", "Sea", "Tea", "Tool", "Drive", "Gud", "FS", "Plc")
 RIGHTS = frozenset({f"{realm}{what}" for realm in REALMS for what in ("Read", "Write")}
                    | {"SinuReadAll", "SinuWriteAll", "AlarmRead", "RandomRead", "RandomWrite"})
@@ -34,9 +36,11 @@ ALLOWED_INTERVALS_MS = (100, 250, 500, 1000, 2500, 5000)
 _KEYS = frozenset({"anonymous", "users", "max_sessions", "max_subscriptions", "sample_interval_ms",
                    "namespace_uri", "max_samples_per_s", "security", "allow_anonymous", "accept_certificates",
                    "trusted_certificates", "certificate", "private_key", "admin", "session_timeout_s",
-                   "models", "identification", "nodesets"})
+                   "models", "identification", "nodesets", "stacklight"})
 # The companion models the face can serve (models.py): OPC 40501-1 MachineTool (umati), OPC 40502 CNC.
 MODELS = ("MachineTool", "CNC")
+# IA's SignalColor names (a stack light's lamps, [[opcua.stacklight]]).
+SIGNAL_COLORS = ("Off", "Red", "Green", "Blue", "Yellow", "Purple", "Cyan", "White")
 IDENTIFICATION_KEYS = frozenset({"manufacturer", "model", "serial_number", "software_revision", "location",
                                  "year_of_construction", "product_instance_uri", "product_code"})
 # The controller offers "encryption None, 128 bit or 256 bit": None; 128 bit as the AES-128 policy; 256
@@ -89,6 +93,8 @@ class OpcUaSettings:
     models: tuple[str, ...] = MODELS
     identification: dict[str, Any] = field(default_factory=dict)
     nodesets: str | None = None
+    # A stack light's lamps, top first: (colour, the PLC bit that lights it, e.g. "Q0.0").
+    stacklight: tuple[tuple[str, str], ...] = ()
 
     @classmethod
     def from_machine(cls, table: dict[str, Any], source: str = "machine") -> OpcUaSettings:
@@ -204,4 +210,18 @@ def _models(table: dict[str, Any], source: str) -> dict[str, Any]:
             elif not isinstance(value, str):
                 raise NckConfigError("expected a string", path=source, field=where)
         found["identification"] = dict(ident)
+    if "stacklight" in table:
+        lamps = table["stacklight"]
+        if not isinstance(lamps, list):
+            raise NckConfigError("expected [[opcua.stacklight]] tables with color and plc", path=source,
+                                 field="opcua.stacklight")
+        parsed = []
+        for number, lamp in enumerate(lamps, start=1):
+            where = f"opcua.stacklight[{number}]"
+            if not isinstance(lamp, dict) or set(lamp) != {"color", "plc"} or lamp["color"] not in SIGNAL_COLORS \
+                    or not isinstance(lamp["plc"], str) or not _PLC_BIT.match(lamp["plc"]):
+                raise NckConfigError(f"expected color = one of {', '.join(SIGNAL_COLORS)} and plc = a PLC bit such "
+                                     f"as \"Q0.0\", \"M5.1\" or \"DB130.DBX0.0\"", path=source, field=where)
+            parsed.append((lamp["color"], lamp["plc"]))
+        found["stacklight"] = tuple(parsed)
     return found

@@ -38,8 +38,10 @@ from nckemu.emulator.faces.opcua import nodesets
 from nckemu.emulator.faces.opcua.alarms import severity_of
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
-from nckemu.emulator.faces.opcua.values import raw_reader, read_value
+from nckemu.emulator.faces.opcua.settings import SIGNAL_COLORS
+from nckemu.emulator.faces.opcua.values import PLC_AREAS, raw_reader, read_value
 from nckemu.emulator.machine.nck.alarms import AlarmEvent
+from nckemu.protocol.addresses import S7Area
 
 if TYPE_CHECKING:
     from nckemu.emulator.faces.opcua.models import Models
@@ -136,11 +138,13 @@ class MachineToolInstance:
                       "Monitoring/MachineTool/FeedOverride", "Monitoring/MachineTool/PowerOnDuration",
                       "Production/ProductionPlan", "Production/Statistics/PartsProducedInLifetime",
                       "Production/ActiveProgram/JobIdentifier", "Production/ActiveProgram/JobNodeId",
-                      "Notification/Messages", "Equipment/Tools"))
+                      "Notification/Messages", "Equipment/Tools")
+            + (("Monitoring/Stacklight",) if self.face.settings.stacklight else ()))
         self._identification(made)
         self._monitoring(made, types, mt)
         self._production(made, types, mt)
         self._tools(made, types, mt)
+        self._stacklight(made, types)
         self.messages = made["Notification/Messages"]
         return self
 
@@ -293,6 +297,27 @@ class MachineToolInstance:
             for path, (value, kind) in fixed.items():
                 self.models.bind(entry[path], Feed(constant(value), lambda raw, kind=kind: ua.Variant(raw, kind),
                                                    "Tool"))
+
+    def _stacklight(self, made: Made, types: Any) -> None:
+        """The machine file's lamps (``[[opcua.stacklight]]``), each lit by its PLC bit."""
+        lamps = self.face.settings.stacklight
+        if not lamps:
+            return
+        ia = self.models.ns(nodesets.IA)
+        self._set(made, "Monitoring/Stacklight/StacklightMode", ua.Variant(0, ua.VariantType.Int32))  # Segmented
+        lamp_type = types.find(ia, "StackElementLightType")
+        for number, (color, bit) in enumerate(lamps):
+            entry = self.maker.make(made["Monitoring/Stacklight"], lamp_type, f"Lamp{number + 1}",
+                                    root=f"MachineTool/Monitoring/Stacklight/Lamp{number + 1}",
+                                    reference=HAS_ORDERED_COMPONENT, optional=("SignalColor", "SignalOn", "SignalMode"))
+            self.models.set(entry["NumberInList"], ua.Variant(number, ua.VariantType.UInt32))
+            self.models.set(entry["SignalColor"], ua.Variant(SIGNAL_COLORS.index(color), ua.VariantType.Int32))
+            self.models.set(entry["SignalMode"], ua.Variant(0, ua.VariantType.Int32))  # Continuous
+            name = self.face.node_name(f"/Plc/{bit}")
+            area = PLC_AREAS[name.area]
+            self.models.bind(entry["SignalOn"], Feed(
+                raw_reader(self.emulator, name), lambda raw: ua.Variant(bool(raw[0]), ua.VariantType.Boolean),  # type: ignore[index]
+                name.realm, plc=(area, name.db if area == S7Area.DB else 0, name.byte, name.byte + 1)))
 
     # ------------------------------------------------------------------ alarms as alerts
     async def start(self, server: Server) -> None:
