@@ -165,6 +165,10 @@ def monitoring(seconds: float, order: tuple[str, ...] = ("sinumerik", "umati", "
     finally:
         server.terminate()
         server.wait(timeout=30)
+    for row in results.values():
+        row["server_cpu"] /= row["runs"]
+        row["updates_per_s"] /= row["runs"]
+        row["us_per_update"] = row["server_cpu"] / row["updates_per_s"] * 1e6 if row["updates_per_s"] else float("nan")
     return results
 
 
@@ -172,7 +176,6 @@ def fleet(count: int) -> dict[str, dict[str, float]]:
     """A fleet of ``count`` machines with an OPC UA face each, with and without the models."""
     sys.path.insert(0, str(HERE.parent.parent))
     from bench.bench_fleet import free_range, rss_mb, start_fleet
-
 
     default = (HERE.parent.parent / "nckemu/emulator/machine/machines/default.toml").read_text("utf-8")
     results: dict[str, dict[str, float]] = {}

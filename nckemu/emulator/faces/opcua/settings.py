@@ -12,6 +12,10 @@ allow_anonymous = true               # false: no anonymous logins at all (the en
 accept_certificates = true           # false: only client certificates in trusted_certificates (a directory)
 # certificate = "server.der" and private_key = "server.pem": the server's own (default: made at first start)
 admin = "nckemu"                     # the user who may call AddUser, DeleteUser, GiveUserAccess ...
+models = ["MachineTool", "CNC"]      # the umati and CNC companion models (docs/opcua.md); [] for none
+# nodesets = "DIR"                   # where their NodeSet files are (default: make nodesets' install)
+stacklight = [{ color = "Red", plc = "Q0.0" }]   # umati Monitoring/Stacklight, a lamp per PLC bit
+[opcua.identification]               # umati Identification: manufacturer, model, serial_number, ...
 [opcua.users.nckemu]
 password = "SUNRISE"
 rights = ["SinuReadAll", "SinuWriteAll"]   # or realms: StateRead, SeaWrite, PlcRead, ...
