@@ -14,6 +14,7 @@ What each node shows and where it comes from is listed in docs/opcua.md; in shor
   ``progStatus``) and the statistics' parts in lifetime (``totalParts``).
 - Notification/Messages: the NCK's alarms as ``AlertType`` events, raised and cleared with the alarm list.
 - Equipment/Tools: one ``ToolType`` per tool of the NCK's tool table (T number, identifier).
+- Monitoring/Stacklight: the machine file's lamps (``[opcua] stacklight``), each lit by a PLC bit.
 
 Every value is read from the model through the BTSS variable it mirrors (``values.raw_reader``) on every
 read and guarded by that variable's realm; the mappings of SINUMERIK codes to the model's enumerations
@@ -60,8 +61,6 @@ CHANNEL_STATE = {0: 2, 1: 0, 2: 1}
 PROGRAM_STATE = {1: "Interrupted", 2: "Interrupted", 3: "Running", 4: "Interrupted", 5: "Aborted"}
 PERCENT = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=20529,
                            DisplayName=ua.LocalizedText("%"), Description=ua.LocalizedText("percent"))
-IDENTIFICATION_KEYS = frozenset({"manufacturer", "model", "serial_number", "software_revision", "location",
-                                 "year_of_construction", "product_instance_uri", "product_code"})
 
 
 def _int(kind: ua.VariantType, mapping: dict[int, int] | None = None, default: int = 0) -> Callable[[object], ua.Variant]:
@@ -97,6 +96,8 @@ class MachineToolInstance:
         self._template: Any = None
         self._pending: list[AlarmEvent] = []
         self._sender: asyncio.Task[None] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._loop_thread = 0
         self.alerts_sent = 0
 
     # ------------------------------------------------------------------ helpers
@@ -329,6 +330,8 @@ class MachineToolInstance:
             ua.EventNotifier.SubscribeToEvents, ua.VariantType.Byte)))
         self.alerts = await server.get_event_generator(alert_type, messages)
         self._template = self.alerts.event
+        self._loop = asyncio.get_running_loop()
+        self._loop_thread = threading.get_ident()
         alarm_list = self.emulator.nck.alarm_list
         alarm_list.listeners.append(self._told)
         for alarm in alarm_list.pending:
@@ -344,17 +347,17 @@ class MachineToolInstance:
     def _told(self, event: AlarmEvent) -> None:
         """An alarm raised or cleared (on any thread): sent in order by one sender task on the face's loop."""
         self._pending.append(event)
-        loop = self.face._loop
+        loop = self._loop
         if self._sender is not None or loop is None:
             return
-        if threading.get_ident() == self.face._loop_thread:
+        if threading.get_ident() == self._loop_thread:
             self._start_sender()
         else:
             loop.call_soon_threadsafe(self._start_sender)
 
     def _start_sender(self) -> None:
-        if self._sender is None and self.face._loop is not None:
-            self._sender = self.face._loop.create_task(self._send_pending())
+        if self._sender is None and self._loop is not None:
+            self._sender = self._loop.create_task(self._send_pending())
 
     async def _send_pending(self) -> None:
         try:
