@@ -6,7 +6,7 @@ PORT   ?= 1102
 OPCUA_PORT ?= 4840
 HOST   ?= 127.0.0.1
 
-.PHONY: serve test slow soak fuzz tshark chromium npm lint bench
+.PHONY: serve test slow soak fuzz tshark chromium npm nodesets lint bench
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -20,7 +20,7 @@ $(VENV)/.installed-test: pyproject.toml | $(VENV)/bin/python
 	$(PY) -m pip install -q -e '.[test]'
 	touch $@ $(VENV)/.installed
 
-serve: $(VENV)/.installed
+serve: $(VENV)/.installed nodesets
 	$(VENV)/bin/nckemu serve --host $(HOST) --port $(PORT) --opcua $(OPCUA_PORT)
 
 # tshark is the independent decoder the interop tests compare against; install it when we may.
@@ -50,7 +50,20 @@ npm:
 	  || echo "npm install failed: the node-opcua tests will skip"; \
 	else echo "npm is missing: the node-opcua tests will skip"; fi
 
-test: $(VENV)/.installed-test tshark chromium npm lint
+# The OPC Foundation NodeSets of the umati (MachineTool) and CNC models, from npm's node-opcua-nodesets,
+# into the cache directory; then the face's address-space cache with them (once, ~10-50 s). Without npm
+# the OPC UA face serves the SINUMERIK namespace alone and says so.
+NODESETS_VERSION := 2.185.0
+nodesets: $(VENV)/.installed
+	@prefix=$$($(PY) -m nckemu.emulator.faces.opcua.prepare --prefix); \
+	if [ -f "$$prefix/node_modules/node-opcua-nodesets/nodesets/Opc.Ua.MachineTool.NodeSet2.xml" ]; then :; \
+	elif command -v npm >/dev/null 2>&1; then \
+	  mkdir -p "$$prefix" && npm install --prefix "$$prefix" --no-audit --no-fund --silent \
+	    node-opcua-nodesets@$(NODESETS_VERSION) >/dev/null || echo "npm install failed: the OPC UA face serves without the umati/CNC models"; \
+	else echo "npm is missing: the OPC UA face serves without the umati/CNC models"; fi
+	@$(PY) -m nckemu.emulator.faces.opcua.prepare
+
+test: $(VENV)/.installed-test tshark chromium npm nodesets lint
 	$(PY) -m pytest
 
 # The slow suite (tests marked slow: seeds, run families, the README tour), two workers at once.

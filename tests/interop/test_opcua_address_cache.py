@@ -4,6 +4,7 @@ standard nodes as a face that built its own, and a damaged or unwritable cache o
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,7 @@ from asyncua import Client, ua
 
 from nckemu.emulator.faces.opcua import OpcUaFace
 from nckemu.emulator.faces.opcua import shelf as address_cache
+from nckemu.emulator.faces.opcua.settings import OpcUaSettings
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.machine_file import load_machine
 
@@ -31,7 +33,10 @@ async def _server_view(face: OpcUaFace) -> tuple[list[str], int, str]:
 
 
 async def _start_and_view() -> tuple[Any, ...]:
-    face = await OpcUaFace(Emulator(load_machine(None)), "127.0.0.1", 0).start()
+    emulator = Emulator(load_machine(None))
+    # the standard address space's cache alone (the models' cache: test_opcua_umati.py)
+    settings = dataclasses.replace(OpcUaSettings.from_machine(emulator.machine.opcua), models=())
+    face = await OpcUaFace(emulator, "127.0.0.1", 0, settings=settings).start()
     try:
         nodes = len(face.server.iserver.aspace._nodes)
         return (*await _server_view(face), nodes)

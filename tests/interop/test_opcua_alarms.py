@@ -17,6 +17,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from nckemu.clients import NckClient
+from nckemu.emulator.faces.opcua import nodesets
 from nckemu.emulator.faces.opcua.alarms import CNC_NAMESPACE, SEVERITIES, condition_id, event_fields
 from nckemu.emulator.machine.nck.alarms import ALARM_RETAINED_STATE, Alarm, AlarmEvent
 
@@ -37,7 +38,9 @@ class Events:
 
 
 async def _alarm_type(client: Client) -> Any:
-    cnc = await client.get_namespace_index(CNC_NAMESPACE)
+    """CncAlarmType: the CNC NodeSet's (models on) or the face's own (models off)."""
+    namespaces = await client.get_namespace_array()
+    cnc = namespaces.index(nodesets.CNC if nodesets.CNC in namespaces else CNC_NAMESPACE)
     return await client.nodes.base_event_type.get_child(
         ["0:ConditionType", "0:AcknowledgeableConditionType", "0:AlarmConditionType", "0:DiscreteAlarmType",
          f"{cnc}:CncAlarmType"])

@@ -119,8 +119,9 @@ def test_alarm_events_reach_node_opcua(tmp_path: Path) -> None:
     """An alarm the emulator raises (its retained state cannot be written) arrives at node-opcua's event
     monitor on the Server object with its number, text and active state; its clearing too."""
     blocker = tmp_path / ".state.json.tmp"
-    fields = ["Message", "Severity", "3:AlarmIdentifier", "ActiveState.Id", "Retain"]
     with two_faces(state_path=tmp_path / "state.json") as (emulator, face):
+        cnc = face.alarm_events.namespace_index  # the CNC NodeSet's namespace, or the face's own CNC one
+        fields = ["Message", "Severity", f"{cnc}:AlarmIdentifier", "ActiveState.Id", "Retain"]
         job = {"url": face.url, "user": None, "password": None,
                "ops": [{"events": "i=2253", "fields": fields, "ms": 2500}]}
         process = _subscribed_client(job)
@@ -140,3 +141,30 @@ def test_alarm_events_reach_node_opcua(tmp_path: Path) -> None:
     alarms = [dict(zip(fields, event, strict=True)) for event in events if event[2] == "700999"]
     assert [(a["ActiveState.Id"], a["Retain"], a["Severity"]) for a in alarms] == [(True, True, 500), (False, False, 500)]
     assert alarms[0]["Message"].startswith("retained state not saved")
+
+
+MACHINERY = "http://opcfoundation.org/UA/Machinery/"
+MACHINE_TOOL = "http://opcfoundation.org/UA/MachineTool/"
+
+
+def test_browses_machines_to_the_umati_instance_then_reads_and_subscribes(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """Objects/Machines -> the MachineToolType instance -> Monitoring -> the channel's feed override: read,
+    then subscribed while S7 puts change it."""
+    emulator, face = faces
+    if not face.models.on:
+        pytest.skip("the umati/CNC NodeSets are not installed (make nodesets)")
+    to_override = [[MACHINERY, "Machines"], "*", [MACHINE_TOOL, "Monitoring"], [face.models.ns_uri, "CHAN1"],
+                   [MACHINE_TOOL, "FeedOverride"]]
+    results = node_client(face, [{"browse": to_override[:2]}, {"browse": to_override}, {"read": "$browsed"}])
+    assert results[0]["typeDefinition"] == "MachineToolType"
+    assert results[2] == {"status": "Good", "value": 100.0}
+    job = {"url": face.url, "ops": [{"browse": to_override}, {"subscribe": "$browsed", "ms": 2000}]}
+    process = _subscribed_client(job)
+    try:
+        with NckClient("127.0.0.1", emulator.port) as nck:
+            for value in (55.0, 65.0, 75.0):
+                nck.put({"feedRateIpoOvr[C1]": value})
+        out, _ = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    assert _result(out.splitlines())[1]["values"] == [100.0, 55.0, 65.0, 75.0]

@@ -4,6 +4,9 @@
 //      {"write": "ns=2;s=...", "value": 1.5, "type": "Double"}
 //      {"subscribe": "ns=2;s=...", "ms": 1500, "after_ms": 300}   (records changes; prints when done)
 //      {"events": "i=2253", "fields": ["Message", "3:AlarmIdentifier", "ActiveState.Id"], "ms": 1500}   (records events)
+//      {"browse": [["http://opcfoundation.org/UA/Machinery/", "Machines"], "*", [uri, "Monitoring"]]}
+//          (from Objects by browse names, "*" the only child; later ops may name the node found "$browsed";
+//           the result has its node id and type definition)
 // optional: "security": "Basic256Sha256", "mode": "SignAndEncrypt" (or "Sign"), "pki": a folder for the client's own certificate
 // Prints one line "RESULT <json>" (node-opcua logs on stdout too): a list with one result per op ({"status": "Good", "value": ...}).
 "use strict";
@@ -25,9 +28,32 @@ async function main() {
     : { type: opcua.UserTokenType.Anonymous };
   const session = await client.createSession(identity);
   const results = [];
+  let browsed = null;
+  const resolve = (id) => (id === "$browsed" ? browsed : id);
   try {
-    for (const op of job.ops) {
-      if (op.read) {
+    for (const raw of job.ops) {
+      const op = Object.assign({}, raw);
+      for (const key of ["read", "subscribe", "events"]) if (op[key]) op[key] = resolve(op[key]);
+      if (op.browse) {
+        const namespaces = await session.readNamespaceArray();
+        let nodeId = "i=85";
+        let typeDefinition = null;
+        for (const step of op.browse) {
+          const result = await session.browse({
+            nodeId, referenceTypeId: "HierarchicalReferences", includeSubtypes: true,
+            browseDirection: opcua.BrowseDirection.Forward, resultMask: 63,
+          });
+          const refs = result.references || [];
+          const found = step === "*" ? (refs.length === 1 ? refs[0] : null)
+            : refs.find((r) => r.browseName.name === step[1] && namespaces[r.browseName.namespaceIndex] === step[0]);
+          if (!found) throw new Error("browse: no " + JSON.stringify(step) + " below " + nodeId);
+          nodeId = found.nodeId.toString();
+          typeDefinition = found.typeDefinition.toString();
+        }
+        browsed = nodeId;
+        const typeNode = await session.read({ nodeId: typeDefinition, attributeId: opcua.AttributeIds.BrowseName });
+        results.push({ status: "Good", nodeId, typeDefinition: typeNode.value.value.name });
+      } else if (op.read) {
         const dv = await session.read({ nodeId: op.read, attributeId: opcua.AttributeIds.Value });
         let value = dv.value ? dv.value.value : null;
         if (value && typeof value === "object" && value.length !== undefined) value = Array.from(value);

@@ -7,7 +7,9 @@ Here each alarm raised or cleared on the NCK's alarm list (``nck/alarms.py``) be
 with ``Retain`` and ``ActiveState/Id`` true, cleared with both false. asyncua keeps the retained ones
 and sends them again between RefreshStart and RefreshEnd events when a client calls ConditionRefresh.
 Acknowledge and AddComment are not offered (no method nodes on the type): the controller supports
-neither. Which severity an alarm gets is ours (``severity_of``, docs/assumptions.md).
+neither. With the CNC model on (models.py), the type is the CNC NodeSet's own ``CncAlarmType`` (namespace
+``http://opcfoundation.org/UA/CNC``) and each event's SourceNode is the ``CncInterface`` object; without
+it, a type of the same name and fields is made in ``http://opcfoundation.org/UA/CNC/``. Which severity an alarm gets is ours (``severity_of``, docs/assumptions.md).
 """
 
 from __future__ import annotations
@@ -77,6 +79,8 @@ class AlarmEvents:
         self.face = face
         self._generator: Any = None
         self._template: Any = None
+        self._source: ua.NodeId | None = None
+        self.namespace_index = 0   # the namespace of CncAlarmType's own fields (AlarmIdentifier ...)
         self._pending: list[AlarmEvent] = []
         self._sender: asyncio.Task[None] | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -84,13 +88,19 @@ class AlarmEvents:
         self.sent = 0
 
     async def start(self, server: Server) -> None:
-        cnc = await server.register_namespace(CNC_NAMESPACE)
-        event_type = await server.create_custom_event_type(
-            cnc, "CncAlarmType", ua.ObjectIds.DiscreteAlarmType,
-            [("AlarmIdentifier", ua.VariantType.String), ("AuxParameters", ua.VariantType.String),
-             ("HelpSource", ua.VariantType.String)])
+        official = self.face.models.cnc_alarm_type()  # OPC 40502's own type when its NodeSet is loaded
+        if official is not None:
+            event_type: Any = official
+            self.namespace_index = official.NamespaceIndex
+        else:
+            self.namespace_index = await server.register_namespace(CNC_NAMESPACE)
+            event_type = await server.create_custom_event_type(
+                self.namespace_index, "CncAlarmType", ua.ObjectIds.DiscreteAlarmType,
+                [("AlarmIdentifier", ua.VariantType.String), ("AuxParameters", ua.VariantType.String),
+                 ("HelpSource", ua.VariantType.String)])
         self._generator = await server.get_event_generator(event_type, ua.ObjectIds.Server)
         self._template = self._generator.event
+        self._source = self.face.models.cnc_interface()  # the alarms' source: the CncInterface object
         self._loop = asyncio.get_running_loop()
         self._loop_thread = threading.get_ident()
         alarms = self.face.emulator.nck.alarm_list
@@ -133,6 +143,8 @@ class AlarmEvents:
         fields = copy.copy(self._template)  # one object per event: asyncua keeps the retained ones
         for name, value in event_fields(event, self.face.namespace).items():
             setattr(fields, name, value)
+        if self._source is not None:
+            fields.SourceNode = self._source
         self._generator.event = fields
         await self._generator.trigger(time_attr=datetime.now(UTC))
         self.sent += 1

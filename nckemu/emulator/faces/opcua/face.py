@@ -37,6 +37,7 @@ from nckemu.catalogue.node_ids import NcNodeName, NodeName, PlcNodeName, node_pa
 from nckemu.emulator.faces.opcua import files, request, security, transport, users
 from nckemu.emulator.faces.opcua import shelf as address_cache
 from nckemu.emulator.faces.opcua.alarms import ALARM_RIGHTS, AlarmEvents
+from nckemu.emulator.faces.opcua.models import Models
 from nckemu.emulator.faces.opcua.settings import ALLOWED_INTERVALS_MS, OpcUaSettings, may
 from nckemu.emulator.faces.opcua.users import STATE_KEY as USERS_STATE
 from nckemu.emulator.faces.opcua.users import UserRegistry
@@ -118,6 +119,7 @@ class OpcUaFace:
         self._sessions: list[Any] = []
         self.updates_pushed = 0
         self.alarm_events = AlarmEvents(self)
+        self.models = Models(self)  # the umati and CNC companion models (models.py)
 
     @property
     def specs(self) -> tuple[Any, ...]:
@@ -143,6 +145,7 @@ class OpcUaFace:
         self._wrap_sessions(iserver)
         self._cap_samples(iserver.subscription_service)
         await self._build_browse_tree()
+        await self.models.start(server)
         methods = await files.add_methods(self, server)
         await users.add_methods(self, server, methods, self.users)
         await self.alarm_events.start(server)
@@ -165,17 +168,21 @@ class OpcUaFace:
         return self
 
     async def _init_server(self) -> None:
-        """asyncua's standard address space from the shared shelf (built by the first face to start)."""
-        shelf = address_cache.ready_shelf()
+        """asyncua's standard address space from the shared shelf (built by the first face to start), with
+        the companion models when they are on (their own shelf, ``models.py``)."""
+        shelf = await self.models.shelf() or address_cache.ready_shelf()
         self.server.iserver.bind_condition_methods = True  # ConditionRefresh (alarm events), off by default
         if shelf is not None:
+            address_cache.share(self.server)
             try:
                 await self.server.init(shelf)
+                await self.models.after_init(self.server)
                 return
             except Exception as exc:  # a damaged cache costs the time to build it again, nothing else
                 log.warning("OPC UA: the address-space cache %s did not load (%s); building it again",
                             shelf.parent, exc)
                 address_cache.discard(shelf)
+                self.models.dropped()
                 self.server = Server(user_manager=_UserManager(self))
                 self.server.iserver.bind_condition_methods = True
         building = address_cache.new_shelf()
@@ -206,6 +213,7 @@ class OpcUaFace:
     async def stop(self) -> None:
         self._unlisten()
         await self.alarm_events.stop()
+        await self.models.stop()
         if self._pusher is not None:
             self._pusher.cancel()
         if self._sampler is not None:
@@ -407,8 +415,12 @@ class OpcUaFace:
                 if not rights & ALARM_RIGHTS:  # alarm events need AlarmRead (the controller's realm)
                     denied.add(position)
                 continue
-            if item.ItemToMonitor.AttributeId != ua.AttributeIds.Value or nodeid.NamespaceIndex != self.namespace \
-                    or not isinstance(nodeid.Identifier, str):
+            if item.ItemToMonitor.AttributeId == ua.AttributeIds.Value and nodeid.NamespaceIndex != self.namespace:
+                realm = self.models.realm_of(nodeid)  # a companion model's variable: its BTSS variable's realm
+                if realm is not None and not may(rights, realm, write=False):
+                    denied.add(position)
+                continue
+            if item.ItemToMonitor.AttributeId != ua.AttributeIds.Value or not isinstance(nodeid.Identifier, str):
                 continue
             try:
                 name = self.node_name(nodeid.Identifier)
@@ -433,6 +445,11 @@ class OpcUaFace:
                 if name is not None and nodeid not in monitored:
                     # The baseline is the value the monitored item has just read itself.
                     monitored[nodeid] = _Monitored(aspace._nodes[nodeid], name, raw_reader(self.emulator, name))
+                    self._plc_index = None
+            elif attr == ua.AttributeIds.Value and nodeid not in monitored and result[0].is_good():
+                fed = self.models.monitor(nodeid)  # a companion model's variable fed from the machine
+                if fed is not None:
+                    monitored[nodeid] = fed  # type: ignore[assignment]
                     self._plc_index = None
             return result
 
@@ -542,8 +559,8 @@ class OpcUaFace:
         pushed = 0
         for entry, raw in batch:
             try:
-                variant = variant_from_raw(entry.name, raw)
-            except (UaStatus, ValueError, TypeError):
+                variant = entry.to_variant(raw)
+            except (UaStatus, ValueError, TypeError, IndexError):
                 continue
             value = _PushedValue(variant, SourceTimestamp=now, ServerTimestamp=now)
             for handle, callback in list(entry.node.attributes[value_attribute].datachange_callbacks.items()):
@@ -578,6 +595,9 @@ class _Monitored:
             self.block = (area, name.db if area == S7Area.DB else 0)
             self.first_byte = name.byte
             self.end_byte = name.byte + (_STRING_BYTES if name.kind == "STRING" else max(1, name.size_bytes))
+
+    def to_variant(self, raw: object) -> ua.Variant:
+        return variant_from_raw(self.name, raw)
 
 
 _STRING_BYTES = 256  # an S7 string: maximum length, length, up to 254 characters
@@ -652,7 +672,7 @@ class _LazyNodes(dict):  # type: ignore[type-arg]
         face = self._face
         if not isinstance(nodeid, ua.NodeId):
             return None
-        if nodeid.NamespaceIndex == 0:
+        if nodeid.NamespaceIndex != face.namespace:  # standard and companion-model nodes: from the shelf
             try:
                 node = self._standard[nodeid]
             except KeyError:

@@ -12,6 +12,10 @@ allow_anonymous = true               # false: no anonymous logins at all (the en
 accept_certificates = true           # false: only client certificates in trusted_certificates (a directory)
 # certificate = "server.der" and private_key = "server.pem": the server's own (default: made at first start)
 admin = "nckemu"                     # the user who may call AddUser, DeleteUser, GiveUserAccess ...
+models = ["MachineTool", "CNC"]      # the umati and CNC companion models (docs/opcua.md); [] for none
+# nodesets = "DIR"                   # where their NodeSet files are (default: make nodesets' install)
+stacklight = [{ color = "Red", plc = "Q0.0" }]   # umati Monitoring/Stacklight, a lamp per PLC bit
+[opcua.identification]               # umati Identification: manufacturer, model, serial_number, ...
 [opcua.users.nckemu]
 password = "SUNRISE"
 rights = ["SinuReadAll", "SinuWriteAll"]   # or realms: StateRead, SeaWrite, PlcRead, ...
@@ -20,12 +24,14 @@ rights = ["SinuReadAll", "SinuWriteAll"]   # or realms: StateRead, SeaWrite, Plc
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from nckemu.errors import NckConfigError
 
+_PLC_BIT = re.compile(r"^(?:[IQM]\d{1,5}\.[0-7]|DB\d{1,5}\.DBX\d{1,5}\.[0-7])$")
 REALMS = ("State", "Frame", "Sea", "Tea", "Tool", "Drive", "Gud", "FS", "Plc")
 RIGHTS = frozenset({f"{realm}{what}" for realm in REALMS for what in ("Read", "Write")}
                    | {"SinuReadAll", "SinuWriteAll", "AlarmRead", "RandomRead", "RandomWrite"})
@@ -33,7 +39,14 @@ RIGHTS = frozenset({f"{realm}{what}" for realm in REALMS for what in ("Read", "W
 ALLOWED_INTERVALS_MS = (100, 250, 500, 1000, 2500, 5000)
 _KEYS = frozenset({"anonymous", "users", "max_sessions", "max_subscriptions", "sample_interval_ms",
                    "namespace_uri", "max_samples_per_s", "security", "allow_anonymous", "accept_certificates",
-                   "trusted_certificates", "certificate", "private_key", "admin", "session_timeout_s"})
+                   "trusted_certificates", "certificate", "private_key", "admin", "session_timeout_s",
+                   "models", "identification", "nodesets", "stacklight"})
+# The companion models the face can serve (models.py): OPC 40501-1 MachineTool (umati), OPC 40502 CNC.
+MODELS = ("MachineTool", "CNC")
+# IA's SignalColor names (a stack light's lamps, [[opcua.stacklight]]).
+SIGNAL_COLORS = ("Off", "Red", "Green", "Blue", "Yellow", "Purple", "Cyan", "White")
+IDENTIFICATION_KEYS = frozenset({"manufacturer", "model", "serial_number", "software_revision", "location",
+                                 "year_of_construction", "product_instance_uri", "product_code"})
 # The controller offers "encryption None, 128 bit or 256 bit": None; 128 bit as the AES-128 policy; 256
 # bit as Basic256Sha256 (the common one) and the AES-256 policy (docs/assumptions.md). Sign alone too.
 SECURITY = ("None", "Basic256Sha256_Sign", "Basic256Sha256_SignAndEncrypt", "Aes128Sha256RsaOaep_Sign",
@@ -79,6 +92,13 @@ class OpcUaSettings:
     trusted_certificates: str | None = None   # a directory of trusted client certificates (DER or PEM)
     certificate: str | None = None     # the server's certificate and key; None: made at first start
     private_key: str | None = None
+    # The companion models served beside the SINUMERIK namespace (all by default), the machine's
+    # identification they show ([opcua.identification]) and a directory holding their NodeSet files.
+    models: tuple[str, ...] = MODELS
+    identification: dict[str, Any] = field(default_factory=dict)
+    nodesets: str | None = None
+    # A stack light's lamps, top first: (colour, the PLC bit that lights it, e.g. "Q0.0").
+    stacklight: tuple[tuple[str, str], ...] = ()
 
     @classmethod
     def from_machine(cls, table: dict[str, Any], source: str = "machine") -> OpcUaSettings:
@@ -115,7 +135,7 @@ class OpcUaSettings:
             raise NckConfigError("expected the name of the user who manages users", path=source, field="opcua.admin")
         limits["admin"] = admin
         return cls(namespace_uri=uri, anonymous=anonymous, users=users, **limits,
-                   **_security(table, source))
+                   **_security(table, source), **_models(table, source))
 
 
 def _rights(value: object, source: str, where: str) -> frozenset[str]:
@@ -163,4 +183,52 @@ def _security(table: dict[str, Any], source: str) -> dict[str, Any]:
     if found.get("accept_certificates") is False and "trusted_certificates" not in found:
         raise NckConfigError("accept_certificates = false needs trusted_certificates (a directory of client "
                              "certificates)", path=source, field="opcua.accept_certificates")
+    return found
+
+
+def _models(table: dict[str, Any], source: str) -> dict[str, Any]:
+    """``models = ["MachineTool", "CNC"]``, ``nodesets = "DIR"`` and ``[opcua.identification]``, checked."""
+    found: dict[str, Any] = {}
+    if "models" in table:
+        models = table["models"]
+        if not isinstance(models, list) or not all(isinstance(m, str) for m in models) \
+                or sorted(set(models) - set(MODELS)):
+            raise NckConfigError(f"expected a list of models from {', '.join(MODELS)} ([] for none)", path=source,
+                                 field="opcua.models")
+        found["models"] = tuple(m for m in MODELS if m in models)
+    if "nodesets" in table:
+        value = table["nodesets"]
+        if not isinstance(value, str) or not value.strip():
+            raise NckConfigError("expected a directory holding the NodeSet files", path=source, field="opcua.nodesets")
+        base = Path(source).parent if source and Path(source).suffix == ".toml" else Path(".")
+        found["nodesets"] = str(Path(value) if Path(value).is_absolute() else base / value)
+    if "identification" in table:
+        ident = table["identification"]
+        if not isinstance(ident, dict):
+            raise NckConfigError("expected a table", path=source, field="opcua.identification")
+        for key, value in ident.items():
+            where = f"opcua.identification.{key}"
+            if key not in IDENTIFICATION_KEYS:
+                raise NckConfigError(f"unknown key (known: {', '.join(sorted(IDENTIFICATION_KEYS))})", path=source,
+                                     field=where)
+            if key == "year_of_construction":
+                if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 65535:
+                    raise NckConfigError("expected a year such as 2024", path=source, field=where)
+            elif not isinstance(value, str):
+                raise NckConfigError("expected a string", path=source, field=where)
+        found["identification"] = dict(ident)
+    if "stacklight" in table:
+        lamps = table["stacklight"]
+        if not isinstance(lamps, list):
+            raise NckConfigError("expected [[opcua.stacklight]] tables with color and plc", path=source,
+                                 field="opcua.stacklight")
+        parsed = []
+        for number, lamp in enumerate(lamps, start=1):
+            where = f"opcua.stacklight[{number}]"
+            if not isinstance(lamp, dict) or set(lamp) != {"color", "plc"} or lamp["color"] not in SIGNAL_COLORS \
+                    or not isinstance(lamp["plc"], str) or not _PLC_BIT.match(lamp["plc"]):
+                raise NckConfigError(f"expected color = one of {', '.join(SIGNAL_COLORS)} and plc = a PLC bit such "
+                                     f"as \"Q0.0\", \"M5.1\" or \"DB130.DBX0.0\"", path=source, field=where)
+            parsed.append((lamp["color"], lamp["plc"]))
+        found["stacklight"] = tuple(parsed)
     return found

@@ -14,12 +14,15 @@ written or read only costs the time: the face then builds the address space itse
 
 from __future__ import annotations
 
+import collections.abc
 import logging
 import os
+import shelve
 import shutil
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import asyncua
 
@@ -39,17 +42,19 @@ def cache_root() -> Path | None:
     return (Path(xdg) if xdg else Path.home() / ".cache") / "nckemu"
 
 
-def shelf_dir(root: Path) -> Path:
+def shelf_dir(root: Path, kind: str = "") -> Path:
+    """Where a shelf lives: the standard address space's (``kind`` ""), or another kind beside it (the
+    companion models', ``nodesets.py``)."""
     version = getattr(asyncua, "__version__", "unknown")
-    return root / f"asyncua-{version}-py{sys.version_info[0]}.{sys.version_info[1]}"
+    return root / f"asyncua-{version}-py{sys.version_info[0]}.{sys.version_info[1]}{'-' + kind if kind else ''}"
 
 
-def ready_shelf() -> Path | None:
+def ready_shelf(kind: str = "") -> Path | None:
     """The shelf to load, if one was built completely; None otherwise."""
     root = cache_root()
     if root is None:
         return None
-    where = shelf_dir(root)
+    where = shelf_dir(root, kind)
     if not (where / COMPLETE).is_file():
         return None
     shelf = where / SHELF_NAME
@@ -62,7 +67,7 @@ def ready_shelf() -> Path | None:
     return shelf
 
 
-def new_shelf() -> Path | None:
+def new_shelf(kind: str = "") -> Path | None:
     """Where a face that finds no shelf builds one (a private directory; ``publish`` moves it in place)."""
     root = cache_root()
     if root is None:
@@ -75,7 +80,7 @@ def new_shelf() -> Path | None:
         return None
 
 
-def publish(built: Path) -> None:
+def publish(built: Path, kind: str = "") -> None:
     """Make a shelf built by ``new_shelf``'s caller the one later faces load. Two processes building at
     once: the first rename wins, the other's copy is removed."""
     building = built.parent
@@ -84,12 +89,66 @@ def publish(built: Path) -> None:
         if root is None or not any(building.glob(f"{SHELF_NAME}*")):
             raise OSError("nothing was written")
         built.touch()
-        (building / COMPLETE).write_text("asyncua standard address space\n", encoding="utf-8")
-        building.rename(shelf_dir(root))
+        (building / COMPLETE).write_text(f"asyncua {kind or 'standard'} address space\n", encoding="utf-8")
+        building.rename(shelf_dir(root, kind))
     except OSError:
         shutil.rmtree(building, ignore_errors=True)
 
 
 def discard(shelf: Path) -> None:
     """A shelf that failed to load is removed, so that the next face builds a new one."""
+    for key in [key for key in _OPEN if key[0] == str(shelf)]:
+        _OPEN.pop(key).close()
     shutil.rmtree(shelf.parent, ignore_errors=True)
+
+
+# Shelves opened by this process, by path and the files' change times: asyncua opens a shelf for every
+# server, and the "dumb" dbm reads its whole index each time (0.1-1 s for the models' shelf); the faces of
+# one process (a fleet, a test run) share one open shelf instead, each keeping its own copies of the nodes.
+_OPEN: dict[tuple[str, float], shelve.Shelf[Any]] = {}
+
+
+class ShelfNodes(collections.abc.MutableMapping):  # type: ignore[type-arg]
+    """asyncua's ``LazyLoadingDict`` over a shared open shelf: a node is read from the shelf when first
+    named and kept in this server's own dict; nodes made later live in that dict only."""
+
+    def __init__(self, source: shelve.Shelf[Any]) -> None:
+        self.source = source
+        self.cache: dict[Any, Any] = {}
+
+    def __getitem__(self, key: Any) -> Any:
+        try:
+            return self.cache[key]
+        except KeyError:
+            node = self.cache[key] = self.source[key.to_string()]
+            return node
+
+    def __setitem__(self, key: Any, value: Any) -> None:
+        self.cache[key] = value
+
+    def __contains__(self, key: object) -> bool:
+        return key in self.cache or (hasattr(key, "to_string") and key.to_string() in self.source)
+
+    def __delitem__(self, key: Any) -> None:
+        del self.cache[key]
+
+    def __iter__(self) -> Any:
+        return iter(self.cache.keys())
+
+    def __len__(self) -> int:
+        return len(self.cache)
+
+
+def share(server: Any) -> None:
+    """Make ``server`` load its shelf (``Server.init(shelf)``) from the process's open copy."""
+    aspace = server.iserver.aspace
+
+    def load(path: Path) -> None:
+        stamps = [p.stat().st_mtime for p in Path(path).parent.glob(f"{Path(path).name}*")]
+        key = (str(path), max(stamps, default=0.0))
+        source = _OPEN.get(key)
+        if source is None:
+            source = _OPEN[key] = shelve.open(str(path), "r")
+        aspace._nodes = ShelfNodes(source)
+
+    aspace.load_aspace_shelf = load
