@@ -139,6 +139,8 @@ def run_replay(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(report.to_json()))
     else:
+        for note in report.notes:
+            print(f"note: {note}")
         print(f"{_count(report.jobs, 'job')} replayed: {_count(report.matching_items, 'item')} "
               f"{'matches' if report.matching_items == 1 else 'match'}, "
               f"{_count(report.differing_values, 'value')} {_differ(report.differing_values)}, "

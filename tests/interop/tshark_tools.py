@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -23,5 +24,7 @@ def tshark_fields(path: Path, fields: list[str], *, port: int = 102, display_fil
         command += ["-d", f"tcp.port=={port},tpkt"]
     for field in fields:
         command += ["-e", field]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=120, check=True)
+    # Times (S7 timestamps) printed in UTC whatever the machine's zone: they are compared as written.
+    result = subprocess.run(command, capture_output=True, text=True, timeout=120, check=True,
+                            env={**os.environ, "TZ": "UTC"})
     return [dict(zip(fields, line.split("\t"), strict=False)) for line in result.stdout.splitlines() if line]
