@@ -22,7 +22,11 @@ def _duration_s(text: str) -> float:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    plc = subparsers.add_parser("plc", help="run a PLC program (STL/AWL) in awlsim against the emulator")
+    plc = subparsers.add_parser(
+        "plc", help="run a PLC program (STL/AWL) in awlsim against the emulator",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  nckemu plc run fixtures/plc/tc_z.awl --machine fixtures/machines/bed_ramp.toml\n"
+               "  nckemu plc stubs stubs/\n")
     commands = plc.add_subparsers(dest="plc_command", metavar="COMMAND")
     run = commands.add_parser(
         "run", help="run an STL program on simulated time", formatter_class=argparse.RawDescriptionHelpFormatter,
