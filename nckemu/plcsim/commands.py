@@ -76,6 +76,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     loop.add_argument("--report", metavar="loop.html", help="write one self-contained HTML report")
     add_json_options(loop, out=True)
     loop.add_argument("--write-stl", metavar="NEW.awl", help="write the generated program (fitted on all data)")
+    loop.add_argument("--quiet", action="store_true",
+                      help="no line on stderr as each phase begins (they say how long the rest will take)")
     loop.set_defaults(func=run_loop_command)
     serve = subparsers.choices.get("serve")
     if serve is not None:  # a living machine: the recording and the PLC live here, the server never imports plcsim
@@ -281,7 +283,9 @@ def run_loop_command(args: argparse.Namespace) -> int:
     for option, path in (("--report", args.report), ("--json-out", args.json_out), ("--write-stl", args.write_stl)):
         check_output(path, option)
     recording = load_recording(args.inputs)
-    result = run_loop(args.program, args.machine, recording, args.axis, cycle_s=cycle_s, folds=args.folds)
+    say = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))
+    result = run_loop(args.program, args.machine, recording, args.axis, cycle_s=cycle_s, folds=args.folds,
+                      on_phase=say)
     for warning in result.warnings:
         print(f"nckemu loop: warning: {warning}", file=sys.stderr)
     if args.write_stl:
