@@ -25,7 +25,7 @@ def _connection_options(parser: argparse.ArgumentParser) -> None:
                         help="controller or emulator address (default: $NCKEMU_HOST, else 127.0.0.1)")
     parser.add_argument("--port", type=port_number, default=None,
                         help="TCP port (default: $NCKEMU_PORT, else 102; make serve uses 1102)")
-    parser.add_argument("--rack", type=int, default=0)
+    parser.add_argument("--rack", type=int, default=0, help="rack of the called TSAP (0, as on every NCU)")
     parser.add_argument("--slot", type=int, default=4, help="4 = 840D sl NCK (some use 3), 2 = PLC")
     parser.add_argument("--timeout", type=float, default=5.0, help="seconds to wait for an answer")
     parser.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
@@ -45,7 +45,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
     put = subparsers.add_parser("put", help="write NCK variables in one job (FB3 PUT)", formatter_class=raw,
                                 epilog="example: nckemu put --port 1102 SD43900[AX4]=0.3 SD43920[AX4]=0\n")
-    put.add_argument("assignments", nargs="+", metavar="VAR=VALUE")
+    put.add_argument("assignments", nargs="+", metavar="VAR=VALUE",
+                     help="e.g. SD43900[AX4]=0.3 (a value in the variable's unit: mm, degC, ...); all in one job")
     put.add_argument("--password", help="log in first (_N_LOGIN_), e.g. EVENING for machine data")
     put.add_argument("--real32", action="store_true", help="round REAL8 values through a 32-bit REAL, as a PLC")
     _connection_options(put)
@@ -53,8 +54,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
     pi = subparsers.add_parser("pi", help="start a PI service (FB4 PI_SERV)", formatter_class=raw,
                                epilog="example: nckemu pi --port 1102 _N_SELECT 201 /_N_MPF_DIR/_N_TEST_MPF\n")
-    pi.add_argument("service")
-    pi.add_argument("arguments", nargs="*")
+    pi.add_argument("service", help="the PI service's name, e.g. _N_SELECT, _N_LOGIN_, _N_CONFIG")
+    pi.add_argument("arguments", nargs="*",
+                    help="its arguments as strings, e.g. 201 /_N_MPF_DIR/_N_TEST_MPF for _N_SELECT")
     _connection_options(pi)
     pi.set_defaults(func=run_pi)
 
@@ -63,7 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         epilog="examples:\n"
                "  nckemu comp840c --port 1102 --axis 4 --k0 0.3\n"
                "  nckemu comp840c --port 1102 --slot 2 --axis 4 --k0 0.3 --slope 0.00001 --p0 100 --flags UA\n")
-    comp.add_argument("--axis", type=int, required=True)
+    comp.add_argument("--axis", type=int, required=True, help="machine axis number, e.g. 4 (Z1 of the default machine)")
     comp.add_argument("--k0", type=float, default=0.0, help="K_TCabs in mm")
     comp.add_argument("--slope", type=float, default=0.0, help="tan(beta), dimensionless")
     comp.add_argument("--p0", type=float, default=None,
@@ -72,7 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                       help="U: position independent, A: position dependent (default: UA with --slope or "
                            "--p0, else U)")
     comp.add_argument("--db", type=int, default=131,
-                      help="user DB number (131; the default machine has DB41, DB100, DB130, DB131)")
+                      help="user DB number (131; the default machine has DB2, DB8, DB41, DB100, DB130, DB131)")
     comp.add_argument("--dw", type=int, default=0, help="first data word n in the user DB (0)")
     _connection_options(comp)
     comp.set_defaults(func=run_comp840c, slot=2)

@@ -43,7 +43,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--record", help="write every frame both ways to this pcapng file")
     parser.add_argument("--lec", action="append", default=[],
                         help="leadscrew compensation NC program to load at start (repeatable)")
-    parser.add_argument("--max-connections", type=int, default=ServerLimits.max_connections)
+    parser.add_argument("--max-connections", type=int, default=ServerLimits.max_connections,
+                        help=f"connections served at once; one more is refused at connect "
+                             f"(default {ServerLimits.max_connections})")
     parser.add_argument("--idle-timeout", type=float, default=ServerLimits.idle_timeout_s,
                         help="seconds without a byte before a connection is closed")
     parser.add_argument("--partial-frame-timeout", type=float, default=ServerLimits.partial_frame_timeout_s,
@@ -58,7 +60,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--json", action="store_true", help="print the ready line as JSON on stdout")
     parser.set_defaults(func=run_serve)
 
-    machine = subparsers.add_parser("machine", help="show a machine: axes, sensors, PLC memory, passwords")
+    machine = subparsers.add_parser(
+        "machine", help="show a machine: axes, sensors, PLC memory, passwords",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  nckemu machine show\n  nckemu machine show --machine fixtures/machines/bed_ramp.toml\n")
     machine_commands = machine.add_subparsers(dest="machine_command", metavar="COMMAND")
     show = machine_commands.add_parser(
         "show", help="what a machine TOML (or the built-in default machine) serves",

@@ -23,7 +23,7 @@ a fleet file:
   [[machine]]
   name = "mill-01"
   port = 21001                  # or host = "127.0.0.12" and port = 102 (as root)
-  opcua = 24841                 # optional: its OPC UA face (about 55 MB and 1.5 s to start each)
+  opcua = 24841                 # optional: its OPC UA face (about 4 MB and well under a second each)
   [[machine]]
   name = "lathe-02"
   port = 21002

@@ -22,7 +22,11 @@ def _duration_s(text: str) -> float:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    plc = subparsers.add_parser("plc", help="run a PLC program (STL/AWL) in awlsim against the emulator")
+    plc = subparsers.add_parser(
+        "plc", help="run a PLC program (STL/AWL) in awlsim against the emulator",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  nckemu plc run fixtures/plc/tc_z.awl --machine fixtures/machines/bed_ramp.toml\n"
+               "  nckemu plc stubs stubs/\n")
     commands = plc.add_subparsers(dest="plc_command", metavar="COMMAND")
     run = commands.add_parser(
         "run", help="run an STL program on simulated time", formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -76,6 +80,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     loop.add_argument("--report", metavar="loop.html", help="write one self-contained HTML report")
     add_json_options(loop, out=True)
     loop.add_argument("--write-stl", metavar="NEW.awl", help="write the generated program (fitted on all data)")
+    loop.add_argument("--quiet", action="store_true",
+                      help="no line on stderr as each phase begins (they say how long the rest will take)")
     loop.set_defaults(func=run_loop_command)
     serve = subparsers.choices.get("serve")
     if serve is not None:  # a living machine: the recording and the PLC live here, the server never imports plcsim
@@ -281,7 +287,9 @@ def run_loop_command(args: argparse.Namespace) -> int:
     for option, path in (("--report", args.report), ("--json-out", args.json_out), ("--write-stl", args.write_stl)):
         check_output(path, option)
     recording = load_recording(args.inputs, map_path=args.map)
-    result = run_loop(args.program, args.machine, recording, args.axis, cycle_s=cycle_s, folds=args.folds)
+    say = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))
+    result = run_loop(args.program, args.machine, recording, args.axis, cycle_s=cycle_s, folds=args.folds,
+                      on_phase=say)
     for warning in result.warnings:
         print(f"nckemu loop: warning: {warning}", file=sys.stderr)
     if args.write_stl:

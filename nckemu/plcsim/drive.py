@@ -7,6 +7,13 @@ take the recording's ``temp_<name>_C`` (linear between rows), so the PLC reads t
 sensor's ``plc_input`` scaling; axes with a ``pos_<letter>_mm`` column take it; ``spindle_rpm``
 drives a ``spindle_rpm`` input and the NCK's actual speed of spindle 1. Past the last row the last
 row's inputs hold, or, looping, the recording starts over at its first row.
+
+A spindle that turns means a program runs: the recording's spindle speed also drives channel 1 as an
+HMI would see it. When the spindle starts, the channel is started (active, program running, its net
+program time counting; the mode group is in AUTOMATIC, the machine file's default); when it has stood
+still for ``PROGRAM_END_IDLE_S`` of recording time, the program has ended (M30: a part counted, the
+net time kept as the last program's, the channel reset). A stop shorter than that (a tool change)
+leaves the program running.
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nckemu.emulator.machine.machine_file import Machine
+from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE
 from nckemu.emulator.machine.nck.model import NckModel
 from nckemu.errors import NckConfigError
 from nckemu.thermal.recording import Recording
@@ -27,6 +35,10 @@ SPINDLE_SPEED_SENSOR = "spindle_rpm"
 # The recording's spindle_rpm also drives the NCK's actual speed (actSpeed) of this spindle of
 # channel 1, so a program can read it with FB2 GET instead.
 NCK_SPINDLE = 1
+# Below this the spindle stands (a recording's noise around 0 is not a program).
+SPINDLE_TURNING_RPM = 1.0
+# A spindle standing this long (recording time) has ended its program: the channel counts a part.
+PROGRAM_END_IDLE_S = 600.0
 
 
 def sensor_column(recording: Recording, name: str) -> np.ndarray | None:
@@ -105,6 +117,7 @@ class RecordingDrive:
         self._positions = list(positions.items())
         self._spindle = recording.spindle_rpm if recording.spindle_rpm is not None and nck_spindle_speed(machine) \
             else None
+        self._idle_since_s: float | None = None  # recording time the spindle stopped, a program running
         # The first pass is interpolated once for all its cycles (the offline run's hot loop).
         t_cycles = self.t0_s + self.cycle_s * np.arange(self.cycles)
         self._first = self._series(t_cycles)
@@ -154,4 +167,25 @@ class RecordingDrive:
             nck.set_axis_position(number, value)
         if inputs.spindle_rpm is not None:
             nck.set_spindle_speed(NCK_SPINDLE, inputs.spindle_rpm)
+            self._run_program(nck, inputs)
         return inputs
+
+    def _run_program(self, nck: NckModel, inputs: CycleInputs) -> None:
+        """Channel 1 as the spindle says: turning, a program runs; standing long, it has ended."""
+        channel = nck.channels.get(1)
+        if channel is None or inputs.spindle_rpm is None:
+            return
+        active = channel.state.status == CHAN_ACTIVE
+        if abs(inputs.spindle_rpm) >= SPINDLE_TURNING_RPM:
+            self._idle_since_s = None
+            if not active:
+                channel.start()
+            return
+        if not active:
+            return
+        t_rec = inputs.t_rec_s
+        if self._idle_since_s is None or t_rec < self._idle_since_s:  # stopped now, or a new pass began
+            self._idle_since_s = t_rec
+        elif t_rec - self._idle_since_s >= PROGRAM_END_IDLE_S:
+            channel.end_program()
+            self._idle_since_s = None

@@ -19,6 +19,8 @@ import html
 import io
 import math
 import tempfile
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -116,9 +118,62 @@ def _run_generated(program: GeneratedProgram, machine: Machine, recording: Recor
         return run_on_recording(path, machine, recording, letter, cycle_s, progress).sim_um
 
 
+# PLC cycles per second of a run over a recording before one has been timed (bench_plc_replay.py: 86,520
+# cycles in 20.2 s on the development machine); the first run's own rate replaces it.
+NOMINAL_CYCLES_PER_S = 4300.0
+NOMINAL_RUN_START_S = 1.5   # an emulator, awlsim and the program loaded, per run
+WARMUP_S = 120.0  # as run_on_recording
+
+
+def duration_text(seconds: float) -> str:
+    """``45 s``, ``3.2 min``, ``1.5 h``: how long, as a person says it."""
+    if seconds < 90:
+        return f"{max(seconds, 1):.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.1f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def run_cycles(recording: Recording, cycle_s: float) -> int:
+    """PLC cycles of one run over ``recording`` (its warm-up included), as ``RecordingDrive`` counts them."""
+    first, last = float(recording.t_s[0]), float(recording.t_s[-1])
+    t0 = first - math.ceil(WARMUP_S / cycle_s - 1e-9) * cycle_s
+    return int(math.floor((last - t0) / cycle_s + 1e-9)) + 1
+
+
+class _Phases:
+    """One line per phase of the loop (``say``), with how long the rest will take: at first from the
+    nominal rate, then from the runs timed so far."""
+
+    def __init__(self, say: Callable[[str], None] | None, runs: int, cycles: int) -> None:
+        self.say = say
+        self.runs_left = runs
+        self.cycles = cycles
+        self.timed, self.timed_s = 0, 0.0   # runs timed so far and their wall seconds
+        self.started = time.monotonic()
+
+    def line(self, text: str) -> None:
+        if self.say is not None:
+            self.say(f"nckemu loop: {text}")
+
+    def per_run_s(self) -> float:
+        return self.timed_s / self.timed if self.timed else NOMINAL_RUN_START_S + self.cycles / NOMINAL_CYCLES_PER_S
+
+    def ran(self, seconds: float) -> None:
+        """One run took ``seconds``."""
+        self.runs_left -= 1
+        self.timed += 1
+        self.timed_s += seconds
+
+    def to_go(self) -> str:
+        return duration_text(self.runs_left * self.per_run_s())
+
+
 def run_loop(program: str | Path, machine: str | Path | Machine, recording: Recording, letter: str,
              cycle_s: float = 1.0, folds: int = 5, progress: bool | None = None,
-             write_period_s: float = 10.0) -> LoopResult:
+             write_period_s: float = 10.0, on_phase: Callable[[str], None] | None = None) -> LoopResult:
+    """``on_phase(line)`` gets one line as each phase begins and ends, with how long the rest will take
+    (``nckemu loop`` prints them on stderr: seven PLC runs over a 36 h recording at 1 s take minutes)."""
     program = Path(program)
     check_program(program)
     machine = machine if isinstance(machine, Machine) else load_machine(machine)
@@ -129,15 +184,32 @@ def run_loop(program: str | Path, machine: str | Path | Machine, recording: Reco
 
         raise NckConfigError(f"the recording has no err_{letter}_um column to judge axis {axis.name} by",
                              path=recording.source, line=1, field=f"err_{letter}_um")
+    cycles = run_cycles(recording, cycle_s)
+    phases = _Phases(on_phase, 2 + folds, cycles)
+    hours = (float(recording.t_s[-1]) - float(recording.t_s[0])) / 3600.0
+    phases.line(f"1/4 your program {program.name} over the recording: {cycles:,} PLC cycles of {cycle_s:g} s "
+                f"({hours:.1f} h); {2 + folds} such runs in all (yours, the generated program, {folds} held-out "
+                f"blocks): about {phases.to_go()} at {NOMINAL_CYCLES_PER_S:,.0f} cycles/s")
+    started = time.monotonic()
     old = run_on_recording(program, machine, recording, letter, cycle_s, progress)
+    phases.ran(time.monotonic() - started)
+    phases.line(f"1/4 done in {duration_text(phases.per_run_s())} ({cycles / max(phases.per_run_s(), 1e-9):,.0f} "
+                f"cycles/s); {phases.runs_left} runs to go, about {phases.to_go()}")
     with_old = with_simulation(recording, letter, old.sim_um)
+    phases.line("2/4 discovering what your program leaves out")
     found_discovery = discover(with_old, axis=letter)
     found = terms_of(found_discovery.missing_physics)
     plc_sensors, spindle_input = plc_inputs(machine, recording)
     origin = f"nckemu loop on {Path(recording.source).name} (program {program.name})"
     model = plc_model(with_old, letter, found, plc_sensors, spindle_input=spindle_input)
     generated = generate_program(model.model, machine, axis, cycle_s, write_period_s, model.not_compensable, origin)
+    phases.line(f"3/4 the generated program over the recording (about {duration_text(phases.per_run_s())}; "
+                f"all the rest about {phases.to_go()})")
+    started = time.monotonic()
     sim_new = _run_generated(generated, machine, recording, letter, cycle_s, progress)
+    phases.ran(time.monotonic() - started)
+    phases.line(f"4/4 held-out judgement: {folds} programs, each fitted without one block of the recording and "
+                f"run over all of it (about {phases.to_go()})")
     heldout = np.full(len(recording.t_s), math.nan)
     error = recording.errors_um[letter]
     fold_rms = []
@@ -147,7 +219,12 @@ def run_loop(program: str | Path, machine: str | Path | Machine, recording: Reco
         fold_model = plc_model(with_old, letter, found, plc_sensors, train=train, spindle_input=spindle_input)
         fold_program = generate_program(fold_model.model, machine, axis, cycle_s, write_period_s,
                                         fold_model.not_compensable, origin)
+        started = time.monotonic()
         sim = _run_generated(fold_program, machine, recording, letter, cycle_s, progress)
+        phases.ran(time.monotonic() - started)
+        done = folds - phases.runs_left
+        phases.line(f"4/4 block {done} of {folds} judged" + (f", about {phases.to_go()} to go" if phases.runs_left else
+                                                            f"; done in {duration_text(time.monotonic() - phases.started)}"))
         heldout[block] = sim[block]
         rows = block[np.isfinite(error[block])]
         if len(rows):

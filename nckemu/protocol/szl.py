@@ -147,11 +147,21 @@ def build_clock(moment: datetime) -> bytes:
     return struct.pack(">BBH", 0xFF, 0x09, len(clock)) + clock
 
 
+def clock_year(century_byte: int, year_byte: int) -> int:
+    """The year of an S7 clock: the BCD year byte alone, 90..99 as 1990.., 00..89 as 2000..2089 (the
+    DATE_AND_TIME range). The byte before it is not a century: S7-300 CPUs send 0x19 there in 2014
+    and 2016 (``iti/s7comm_reading_setting_plc_time.pcap``, ``iti/snap7_s300_everything.pcapng``), and
+    Wireshark's s7comm dissector ignores it too ("first byte of BCD coded year, should be ignored")."""
+    del century_byte
+    year = _from_bcd(year_byte)
+    return year + (1900 if year >= 90 else 2000)
+
+
 def parse_clock(data: bytes) -> datetime:
     if len(data) < 14 or data[0] != 0xFF or data[3] != 10:
         raise NckProtocolError("read clock answer is not FF 09 00 0A + 10 bytes")
     c = data[4:14]
-    year = _from_bcd(c[1]) * 100 + _from_bcd(c[2])
+    year = clock_year(c[1], c[2])
     milliseconds = _from_bcd(c[8]) * 10 + (c[9] >> 4)
     return datetime(year, _from_bcd(c[3]), _from_bcd(c[4]), _from_bcd(c[5]), _from_bcd(c[6]),
                     _from_bcd(c[7]), milliseconds * 1000)

@@ -17,11 +17,13 @@ from .replay import replay, seed_values
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     raw = argparse.RawDescriptionHelpFormatter
-    trace = subparsers.add_parser("trace", help="decode and replay field captures (pcap, pcapng)")
+    trace = subparsers.add_parser(
+        "trace", help="decode and replay field captures (pcap, pcapng)", formatter_class=raw,
+        epilog="examples:\n  nckemu trace show capture.pcapng\n  nckemu trace replay capture.pcapng\n")
     commands = trace.add_subparsers(dest="trace_command", metavar="COMMAND")
     show = commands.add_parser("show", help="one line per job/answer, items by variable name", formatter_class=raw,
                                epilog="example: nckemu trace show capture.pcapng --var SD43900 --json")
-    show.add_argument("capture")
+    show.add_argument("capture", help="pcap or pcapng file (Wireshark, tshark, tcpdump, nckemu serve --record)")
     show.add_argument("--port", type=int, default=102, help="server port in the capture (102)")
     show.add_argument("--var", help="only exchanges with an item whose name contains this")
     show.add_argument("--connection", type=int, help="only this connection (1, 2, ... as listed)")
@@ -31,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "replay", help="send the recorded jobs to an emulator and diff the answers", formatter_class=raw,
         epilog="example: nckemu trace replay capture.pcapng --spawn --seed-state\n"
                "         nckemu trace replay capture.pcapng --emulator 127.0.0.1:1102")
-    again.add_argument("capture")
+    again.add_argument("capture", help="pcap or pcapng file whose client jobs are sent again")
     again.add_argument("--port", type=int, default=102, help="server port in the capture (102)")
     target = again.add_mutually_exclusive_group()
     target.add_argument("--emulator", metavar="HOST:PORT", help="a running emulator")
@@ -139,6 +141,8 @@ def run_replay(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(report.to_json()))
     else:
+        for note in report.notes:
+            print(f"note: {note}")
         print(f"{_count(report.jobs, 'job')} replayed: {_count(report.matching_items, 'item')} "
               f"{'matches' if report.matching_items == 1 else 'match'}, "
               f"{_count(report.differing_values, 'value')} {_differ(report.differing_values)}, "

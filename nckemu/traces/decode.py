@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -30,6 +31,58 @@ PUSH = "push"
 S7COMM_PLUS = "S7comm-plus"
 _S7COMM_PLUS_ID = 0x72
 S7_AREA_NAMES = {0x84: "DB", 0x81: "I", 0x82: "Q", 0x83: "M", 0x80: "P", 0x1C: "C", 0x1D: "T"}
+# S7ANY transport sizes (the item's type) as Wireshark's s7comm dissector defines them: name, bytes per
+# element, and the S7 letter of that width (M102.3, MB100, MW100, MD300; DB5.DBX0.1, DB5.DBB0 ...).
+S7_TRANSPORT_SIZES: dict[int, tuple[str, int, str]] = {
+    0x01: ("BIT", 1, "X"), 0x02: ("BYTE", 1, "B"), 0x03: ("CHAR", 1, "B"), 0x04: ("WORD", 2, "W"),
+    0x05: ("INT", 2, "W"), 0x06: ("DWORD", 4, "D"), 0x07: ("DINT", 4, "D"), 0x08: ("REAL", 4, "D"),
+    0x09: ("DATE", 2, "W"), 0x0A: ("TOD", 4, "D"), 0x0B: ("TIME", 4, "D"), 0x0C: ("S5TIME", 2, "W"),
+    0x0F: ("DATE_AND_TIME", 8, "B"), 0x1C: ("COUNTER", 2, ""), 0x1D: ("TIMER", 2, ""),
+    0x1E: ("IEC COUNTER", 1, "B"), 0x1F: ("IEC TIMER", 1, "B"), 0x20: ("HS COUNTER", 1, "B"),
+}
+# Values of one element, big-endian as S7 sends them (struct codes); BIT is one byte 0 or 1.
+_S7_VALUE_CODES = {0x01: "B", 0x02: "B", 0x04: "H", 0x05: "h", 0x06: "I", 0x07: "i", 0x08: "f"}
+_S7_DB_AREAS = {0x84: "DB", 0x85: "DI"}
+
+
+def s7any_name(address: S7AnyAddress) -> str:
+    """An S7ANY item as S7 tools write it: ``M102.3`` (a bit), ``MB100``, ``MW100``, ``MD300 REAL``,
+    ``DB5.DBX0.1``, ``DB3.DBD4 REAL``, ``PIW420``, ``C5``, ``T3``; the type where the width does not say
+    it (BYTE, WORD, DWORD and BIT go without), `` xN`` for N elements. The same fields as tshark's
+    ``(M 102.3 BIT 1)``: area, DB, byte, bit, transport size and count."""
+    kind, _size, width = S7_TRANSPORT_SIZES.get(address.transport_size, (f"ts 0x{address.transport_size:02X}", 1, "B"))
+    count = f" x{address.count}" if address.count != 1 else ""
+    if address.area in (0x1C, 0x1D):  # counters and timers: a number, not a byte address
+        typed = "" if kind == ("COUNTER" if address.area == 0x1C else "TIMER") else f" {kind}"
+        return f"{S7_AREA_NAMES[address.area]}{address.byte_address << 3 | address.bit_address}{typed}{count}"
+    db_area = _S7_DB_AREAS.get(address.area)
+    if db_area is not None:
+        prefix, area = f"{db_area}{address.db_number}.", db_area
+    else:
+        prefix, area = "", S7_AREA_NAMES.get(address.area, f"area 0x{address.area:02X} ")
+        if area == "P":
+            area = "PI"  # direct peripheral access: PIW420 as read (a write names PQ)
+    if width == "X":
+        where = f"{prefix}{area if not db_area else area + 'X'}{address.byte_address}.{address.bit_address}"
+    else:
+        where = f"{prefix}{area}{width}{address.byte_address}"
+        if address.bit_address:
+            where += f".{address.bit_address}"  # not on a byte boundary: say so, as tshark does
+    typed = "" if kind in ("BIT", "BYTE", "WORD", "DWORD") else f" {kind}"
+    return f"{where}{typed}{count}"
+
+
+def s7any_value(address: S7AnyAddress, data: bytes) -> Any:
+    """The value of an S7ANY item by its transport size (a list for several elements), None for the
+    types shown as bytes."""
+    code = _S7_VALUE_CODES.get(address.transport_size)
+    if code is None or not data:
+        return None
+    size = struct.calcsize(code)
+    if len(data) != size * address.count:
+        return None
+    values = list(struct.unpack(f">{address.count}{code}", data))
+    return values[0] if address.count == 1 else values
 
 
 @dataclass(slots=True)
@@ -39,6 +92,7 @@ class Item:
     return_code: int | None = None
     value: Any = None
     raw: str = ""
+    data_transport_size: int | None = None  # the answer's (or write job's) data item transport size
 
     @property
     def address(self) -> dict[str, Any]:
@@ -47,7 +101,7 @@ class Item:
     def to_json(self) -> dict[str, Any]:
         return {**self.address, "name": self.name, "return_code": self.return_code,
                 "return_text": RETURN_CODE_TEXTS.get(self.return_code, "") if self.return_code is not None else None,
-                "value": self.value, "raw": self.raw}
+                "value": self.value, "raw": self.raw, "data_transport_size": self.data_transport_size}
 
 
 @dataclass(slots=True)
@@ -114,14 +168,14 @@ def _name_of(address: object) -> tuple[str, NckType | None, int | None, str]:
                     None, None, "")
         return display_name(spec, address), spec.nck_type, spec.string_length, spec.unit
     if isinstance(address, S7AnyAddress):
-        area = S7_AREA_NAMES.get(address.area, f"area 0x{address.area:02X}")
-        prefix = f"DB{address.db_number}." if address.area == 0x84 else ""
-        return f"{prefix}{area}B{address.byte_address} x{address.count} (ts {address.transport_size})", None, None, ""
+        return s7any_name(address), None, None, ""
     assert isinstance(address, UnsupportedAddress)
     return f"syntax 0x{address.syntax_id:02X} item", None, None, ""
 
 
 def _value(address: object, data: bytes, nck_type: NckType | None, length: int | None) -> Any:
+    if isinstance(address, S7AnyAddress):
+        return s7any_value(address, data)
     if isinstance(address, NckAddress) and nck_type is not None:
         try:
             values = decode_nck_values(nck_type, data, area=address.area, line_count=address.line_count,
@@ -202,6 +256,10 @@ def _read_job(parameter: bytes) -> _ReadJob:
                 except NckError:
                     reader = None
                 value_format = nck_value_format(nck_type, area=address.area, line_count=address.line_count)
+            elif isinstance(address, S7AnyAddress) and address.transport_size in _S7_VALUE_CODES:
+                reader = functools.partial(s7any_value, address)
+                if address.count == 1:
+                    value_format = (_S7_VALUE_CODES[address.transport_size], True)
             addresses.append(address)
             names.append(name)
             readers.append(reader)
@@ -227,10 +285,11 @@ def _fast_read_job(pdu: TracePdu, data: bytes) -> Exchange | None:
 
 
 def _fill_items(items: list[Item], readers: tuple[_ValueReader | None, ...],
-                results: list[tuple[int, bytes]]) -> None:
-    for item, reader, (return_code, raw) in zip(items, readers, results, strict=True):
+                results: list[tuple[int, bytes, int]]) -> None:
+    for item, reader, (return_code, raw, transport_size) in zip(items, readers, results, strict=True):
         item.return_code = return_code
         item.raw = raw.hex()
+        item.data_transport_size = transport_size
         if return_code == _SUCCESS and reader is not None:
             try:
                 item.value = reader(raw)
@@ -249,8 +308,10 @@ def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
                     item.return_code = _SUCCESS
                     item.value = value
                     item.raw = data[start:end].hex()
+                    item.data_transport_size = data[start - 3]
                 return True
-            _fill_items(exchange.items, job.readers, [(_SUCCESS, raw) for raw in parts[1::2]])
+            _fill_items(exchange.items, job.readers, [(_SUCCESS, raw, data[start - 3]) for raw, (start, _end)
+                                                      in zip(parts[1::2], job.value_spans, strict=True)])
             return True
     item_count = len(exchange.items)
     if s7.peek_read_var_answer(data) != item_count:
@@ -271,13 +332,13 @@ def _fast_read_answer(exchange: Exchange, job: _ReadJob, data: bytes) -> bool:
         value_end = offset + 4 + length
         if value_end > end:
             return False
-        results.append((return_code, data[offset + 4:value_end]))
+        results.append((return_code, data[offset + 4:value_end], transport_size))
         spans.append((offset + 4, value_end))
         offset = value_end + (length & 1 if index + 1 < item_count else 0)
     if offset != end:
         return False
     _fill_items(exchange.items, job.readers, results)
-    if job.answer_layout is None and all(code == _SUCCESS for code, _raw in results):
+    if job.answer_layout is None and all(code == _SUCCESS for code, _raw, _size in results):
         job.learn_answer(data, spans)
     return True
 
@@ -402,7 +463,9 @@ def _apply_contents(exchange: Exchange, contents: Contents | None, *, answer: bo
             exchange.detail = f"{exchange.detail}; {contents.detail}" if exchange.detail else contents.detail
     if contents.items:
         exchange.items = [Item(address, _item_name(address)) if value is None else
-                          Item(address, _item_name(address), value.return_code, None, value.data.hex())
+                          Item(address, _item_name(address), value.return_code, _value(address, value.data, None, None),
+                               value.data.hex(),
+                               value.transport_size)
                           for address, value in contents.items]
 
 
@@ -418,8 +481,10 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
             request = s7.parse_write_var_request(parsed.parameter, parsed.data)
             for address, data_item in zip(request.items, request.values, strict=True):
                 name, nck_type, length, _unit = name_of(address)
-                exchange.items.append(Item(address, name, None,
-                                           _value(address, data_item.data, nck_type, length), data_item.data.hex()))
+                if isinstance(address, S7AnyAddress) and address.area == 0x80:
+                    name = "PQ" + name[2:]  # direct peripheral access written: an output
+                exchange.items.append(Item(address, name, None, _value(address, data_item.data, nck_type, length),
+                                           data_item.data.hex(), data_item.transport_size))
         elif function == s7.Function.PI_SERVICE:
             exchange.detail = _describe_pi(pi.parse_pi_request(parsed.parameter))
         elif function in blocks.FUNCTIONS:
@@ -443,6 +508,7 @@ def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture,
             for item, data_item in zip(exchange.items, response.items, strict=False):
                 item.return_code = data_item.return_code
                 item.raw = data_item.data.hex()
+                item.data_transport_size = data_item.transport_size
                 if data_item.return_code == _SUCCESS:
                     _name, nck_type, length, _unit = name_of(item.target)
                     item.value = _value(item.target, data_item.data, nck_type, length)

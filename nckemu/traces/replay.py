@@ -30,6 +30,8 @@ class ReplayReport:
     # transfers (downloads and uploads: a programming device's traffic, with jobs from the PLC) and
     # S7comm-plus frames.
     skipped: dict[str, int] = field(default_factory=lambda: {"pushes": 0, "block transfers": 0, "S7comm-plus frames": 0})
+    # What the replay did that the capture does not show (a connection set up by the replay itself).
+    notes: list[str] = field(default_factory=list)
 
     @property
     def all_match(self) -> bool:
@@ -40,8 +42,16 @@ class ReplayReport:
         return {"jobs": self.jobs, "matching_items": self.matching_items, "differing_values": self.differing_values,
                 "differing_return_codes": self.differing_return_codes, "differing_errors": self.differing_errors,
                 "missing_answers": self.missing_answers, "all_match": self.all_match,
-                "skipped": self.skipped, "differences": self.differences}
+                "skipped": self.skipped, "notes": self.notes, "differences": self.differences}
 
+
+# A capture that begins after a connection was set up (TCP, COTP connect and S7 setup communication
+# before the first frame) is replayed on a connection the replay sets up itself: a connection request
+# as python-snap7 sends it (rack 0, slot 4: the NCK; any TSAP is accepted) and this setup
+# communication (the PDU size the captured jobs' answers may need).
+REPLAY_CALLED_TSAP = b"\x01\x04"
+REPLAY_SETUP = s7.SetupCommunication(max_amq_calling=1, max_amq_called=1, pdu_length=960)
+_SETUP_REF = 0xFFFF  # the PDU reference of the replay's own setup job
 
 # Seconds to wait for the connection confirm: a peer that accepts TCP but does not answer the
 # connection request is not an S7 server, and waiting a job timeout for each job would only delay that.
@@ -150,9 +160,11 @@ def _compare(report: ReplayReport, exchange: Exchange, recorded: s7.S7Pdu, emula
                 report.differing_values += 1
                 address = item.target
                 _name, nck_type, length, _unit = name_of(address)
+                recorded_value = _value(address, expected.data, nck_type, length)
+                emulated_value = _value(address, actual.data, nck_type, length)
                 _difference(report, exchange, "value", item.name,
-                            _value(address, expected.data, nck_type, length) if nck_type else expected.data.hex(),
-                            _value(address, actual.data, nck_type, length) if nck_type else actual.data.hex())
+                            expected.data.hex() if recorded_value is None else recorded_value,
+                            actual.data.hex() if emulated_value is None else emulated_value)
             else:
                 report.matching_items += 1
     elif exchange.function == "write":
@@ -188,6 +200,32 @@ def seed_values(exchanges: list[Exchange]) -> dict[NckAddress, bytes]:
     return values
 
 
+def _is_setup_job(data: bytes) -> bool:
+    """An S7 job whose function is setup communication (0xF0)."""
+    return len(data) > 10 and data[0] == 0x32 and data[1] == s7.Rosctr.JOB and data[10] == s7.Function.SETUP_COMMUNICATION
+
+
+def _set_up(link: _Link, report: ReplayReport, pdu: Any, connected_here: bool) -> None:
+    """Send the replay's own setup communication on ``link`` before the first recorded job of a
+    connection that the capture shows only after its setup, and say so in the report."""
+    what = ("TCP, COTP connect (rack 0, slot 4) and setup communication" if connected_here
+            else "setup communication")
+    link.send_frame(cotp.build_data_frame(s7.build_pdu(s7.S7Pdu(
+        s7.Rosctr.JOB, _SETUP_REF, s7.build_setup_communication(REPLAY_SETUP)))))
+    answer = link.receive_pdu()
+    granted = ""
+    if answer is not None:
+        try:
+            parsed = s7.parse_pdu(answer)
+            granted = f", PDU {s7.parse_setup_communication(parsed.parameter).pdu_length} granted"
+        except NckError:
+            granted = ", its answer not understood"
+    else:
+        granted = ", no answer"
+    report.notes.append(f"connection c{pdu.connection} starts in the capture after its setup (first frame #{pdu.frame} "
+                        f"is a job): the replay did the {what} itself (PDU {REPLAY_SETUP.pdu_length} asked{granted})")
+
+
 def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, timeout_s: float = 5.0,
            progress: Callable[[int, int], None] | None = None,
            connect_timeout_s: float = CONNECT_TIMEOUT_S) -> ReplayReport:
@@ -206,6 +244,7 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
         if exchange.answer is not None and exchange.answer.from_client:
             not_sent.add(id(exchange.answer))
     links: dict[int, _Link] = {}
+    set_up: set[int] = set()  # connections whose setup communication was sent (recorded or the replay's)
     client_pdus = [p for p in capture.pdus if p.from_client]
     started_wall = time.monotonic()
     first_time = client_pdus[0].time_s if client_pdus else 0.0
@@ -220,6 +259,7 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
                 if link is not None:
                     link.close()
                 link = links[pdu.connection] = _Link.connect(host, port, pdu.data, timeout_s, connect_timeout_s)
+                set_up.discard(pdu.connection)
                 continue
             if pdu.kind != "s7":
                 continue
@@ -228,11 +268,18 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
                 continue
             if id(pdu) in not_sent:
                 continue
+            connected_here = link is None
             if link is None:  # the capture began after the connect: make one like python-snap7 does
                 link = links[pdu.connection] = _Link.connect(
                     host, port, cotp.build_frame(cotp.ConnectRequest(src_ref=1, calling_tsap=b"\x01\x00",
-                                                                     called_tsap=b"\x01\x04", tpdu_size=1024)),
+                                                                     called_tsap=REPLAY_CALLED_TSAP, tpdu_size=1024)),
                     timeout_s, connect_timeout_s)
+            if pdu.connection not in set_up:
+                if _is_setup_job(pdu.data):
+                    set_up.add(pdu.connection)
+                else:  # a job before any setup communication: a server refuses it (0x8401), so set it up
+                    _set_up(link, report, pdu, connected_here)
+                    set_up.add(pdu.connection)
             exchange = by_job.get(id(pdu))
             link.send_frame(cotp.build_data_frame(pdu.data))
             if exchange is None:
@@ -244,6 +291,7 @@ def replay(capture: Capture, host: str, port: int, *, realtime: bool = False, ti
                 _difference(report, exchange, "missing answer", exchange.detail or exchange.service_name, "answer", None)
                 link.close()
                 links.pop(pdu.connection)
+                set_up.discard(pdu.connection)
             elif exchange.answer is not None:  # a job whose answer was not captured is not compared
                 try:
                     _compare(report, exchange, s7.parse_pdu(exchange.answer.data), s7.parse_pdu(answer))

@@ -15,7 +15,7 @@ import pytest
 from nckemu.traces.decode import PUSH, decode
 from nckemu.traces.reader import read_capture
 from tests.conftest import SHARED
-from tests.interop.tshark_tools import requires_tshark, tshark_fields
+from tests.interop.tshark_tools import assert_fields_as_tshark, requires_tshark, tshark_fields
 
 PCAPS = SHARED / "field" / "pcaps"
 CAPTURES = sorted(p for p in PCAPS.glob("*/*") if p.suffix in (".pcap", ".pcapng")) if PCAPS.is_dir() else []
@@ -125,3 +125,12 @@ def test_contents_as_tshark_reads_them(path: Path) -> None:
             assert not first_parts - Counter(v for values in theirs.values() for v in values), "a part without its end"
             continue
         assert {f: sorted(v) for f, v in ours[kind].items()} == {f: sorted(v) for f, v in theirs.items()}, kind
+
+
+@requires_tshark
+@pytest.mark.parametrize("path", CAPTURES, ids=_ids)
+def test_every_item_field_as_tshark_decodes_it(path: Path) -> None:
+    """Frame by frame: each item's address (its printed name read back), each data item's return
+    code, transport size, length and bytes, and every S7 timestamp's date and time, as tshark decodes
+    them (issue 37: the clock's year, bit addresses and transport sizes were shown otherwise)."""
+    assert_fields_as_tshark(path)

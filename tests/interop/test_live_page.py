@@ -113,6 +113,22 @@ def test_page_in_headless_chromium(tmp_path: Path) -> None:
                 clients: document.getElementById('clients').innerText,
                 tcPoints: Number(document.getElementById('tc-plot').dataset.points),
                 tempPoints: Number(document.getElementById('temp-plot').dataset.points),
+                axesHead: [...document.querySelectorAll('#axes th')].map(th => th.innerText.replace(/\\s+/g, ' ')),
+                channel: document.getElementById('channel').innerText,
+                xticks: document.getElementById('tc-plot').dataset.xticks,
+                steps: [niceTimeStep(20000, 6), niceTimeStep(36 * 3600, 6), niceTimeStep(700, 6), niceTimeStep(90, 6)],
+                colors: (() => {  // the TC plot's pixels: the pale band (TC applied) and the full colour (SD43900)
+                    const canvas = document.getElementById('tc-plot');
+                    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+                    let full = 0, pale = 0;  // the canvas is transparent: the band is the colour at low alpha
+                    for (let i = 0; i < data.length; i += 4) {
+                        const [r, g, b, a] = [data[i], data[i + 1], data[i + 2], data[i + 3]];
+                        if (Math.abs(r - 31) > 12 || Math.abs(g - 119) > 12 || Math.abs(b - 180) > 12) continue;
+                        if (a >= 120) full++;  // a 1.5 px line covers a pixel row by half or more
+                        else if (a > 50 && a < 110) pale++;
+                    }
+                    return {full, pale};
+                })(),
             };""")
             shot = browser.screenshot()
     assert state["machine"] == "loop mill"
@@ -123,6 +139,20 @@ def test_page_in_headless_chromium(tmp_path: Path) -> None:
     assert state["clients"].count("127.0.0.1:") == 2   # the PLC's own connection and the poller
     assert state["clients"].count("(the PLC program)") == 1
     assert state["tcPoints"] > 20 and state["tempPoints"] > 20
+    # issue 37: one unit per quantity, labelled: positions in mm, the compensation (SD43900 as written and
+    # as applied) in µm side by side, the slope in µm/m
+    head = state["axesHead"]
+    assert head[:3] == ["axis", "position mm", "actual mm"] and "SD43900 µm" in head and "TC applied µm" in head
+    assert head.index("TC applied µm") == head.index("SD43900 µm") + 1 and "SD43910 µm/m" in head
+    assert not any(h.endswith(" um") or h == "SD43900 mm" for h in head)
+    # ticks on round clock times (05:33:20 before): 5 min .. 6 h steps
+    ticks = state["xticks"].split()
+    assert ticks and all(t.endswith(":00") and int(t.split(":")[1]) % 5 == 0 for t in ticks), ticks
+    assert state["steps"] == [3600, 21600, 120, 15]
+    # the SD43900 line shows over the applied value that follows it (it hid under it)
+    assert state["colors"]["full"] > 10 and state["colors"]["pale"] > 10, state["colors"]  # before: no pale pixel
+    # the machine's recording turns the spindle: AUTOMATIC, a program runs or has run, parts count
+    assert "AUTOMATIC" in state["channel"] and "part time (net)" in state["channel"]
     assert shot[:8] == b"\x89PNG\r\n\x1a\n"
     width, height = struct.unpack(">II", shot[16:24])
     assert (width, height) == (1300, 1000) or width > 800

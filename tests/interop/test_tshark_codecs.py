@@ -9,7 +9,7 @@ from nckemu.capture import write_capture
 from nckemu.protocol import cotp, pi, s7, szl
 from nckemu.protocol.addresses import NckAddress, S7AnyAddress
 
-from .tshark_tools import requires_tshark, tshark_fields
+from .tshark_tools import assert_fields_as_tshark, requires_tshark, tshark_fields
 
 ITEMS = (
     NckAddress(3, 4, 43900, 1, 0x16),                    # SD43900[AX4]
@@ -41,9 +41,15 @@ def test_tshark_sees_what_we_encode(tmp_path: Path) -> None:
     szl_job = frame(7, 5, *szl.build_szl_request(szl.SzlReadRequest(0x001C, 0)))
     connect = cotp.build_frame(cotp.ConnectRequest(src_ref=1, calling_tsap=b"\x01\x00", called_tsap=b"\x01\x04",
                                                    tpdu_size=1024))
+    # the clock as an S7-300 sends it in 2014: century byte 0x19, year byte 0x14 (read as 1914 before)
+    clock_job = frame(7, 6, bytes.fromhex("0001120411470100"), bytes.fromhex("0A000000"))
+    clock_answer = frame(7, 6, bytes.fromhex("000112081287010100000000"),
+                         bytes.fromhex("FF09000A") + bytes.fromhex("00191408201159439124"))
     path = tmp_path / "crafted.pcapng"
     write_capture(path, [(True, connect), (True, setup), (True, read_job), (False, read_answer), (True, write_job),
-                         (False, write_answer), (True, pi_job), (False, pi_answer), (True, szl_job)])
+                         (False, write_answer), (True, pi_job), (False, pi_answer), (True, szl_job),
+                         (True, clock_job), (False, clock_answer)])
+    assert_fields_as_tshark(path)  # every item and data item field, the clock's date and time
     fields = ["s7comm.header.rosctr", "s7comm.param.func", "s7comm.param.item.syntaxid",
               "s7comm.param.item.nck.area", "s7comm.param.item.nck.unit", "s7comm.param.item.nck.column",
               "s7comm.param.item.nck.line", "s7comm.param.item.nck.module", "s7comm.param.item.nck.linecount",

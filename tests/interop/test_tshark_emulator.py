@@ -10,11 +10,13 @@ import time
 from pathlib import Path
 
 import pytest
+import snap7
+from snap7.type import Area
 
 from nckemu.clients import NckClient
 from nckemu.emulator.runner import EmulatorThread
 
-from .tshark_tools import TSHARK, requires_tshark, tshark_fields
+from .tshark_tools import TSHARK, assert_fields_as_tshark, requires_tshark, tshark_fields
 
 NCK_FIELDS = ["frame.number", "s7comm.header.rosctr", "s7comm.param.func", "s7comm.param.item.syntaxid",
               "s7comm.param.item.nck.area", "s7comm.param.item.nck.unit", "s7comm.param.item.nck.column",
@@ -28,6 +30,16 @@ def _session(port: int) -> None:
         client.get("SD43900[AX4]", "R5", "actToolBasePos[C1,l2,x3]")
         client.get_items("SD43900[AX9]")
         client.pi_service("_N_SELECT", "201", "/_N_MPF_DIR/_N_TEST_MPF")
+    plc = snap7.Client()  # PLC items: bits, bytes, words and a REAL, and the PLC's clock
+    plc.connect("127.0.0.1", 0, 2, port)
+    try:
+        plc.write_area(Area.MK, 0, 5, b"\x21")
+        plc.read_area(Area.MK, 0, 5, 4)
+        plc.read_area(Area.DB, 130, 0, 8)
+        plc.read_area(Area.PE, 0, 420, 2)
+        plc.get_plc_datetime()
+    finally:
+        plc.disconnect()
 
 
 def _nck_rows(rows: list[dict[str, str]]) -> list[tuple[str, ...]]:
@@ -46,6 +58,7 @@ def test_record_file_decodes_in_tshark(tmp_path: Path) -> None:
     capture = tmp_path / "record.pcapng"
     with EmulatorThread(record_path=capture) as emu:
         _session(emu.port)
+    assert_fields_as_tshark(capture)  # every item and data item field as tshark decodes it
     rows = tshark_fields(capture, NCK_FIELDS)
     jobs = [r for r in rows if r["s7comm.header.rosctr"] == "1" and r["s7comm.param.func"] == "0x05"]
     assert jobs[0]["s7comm.param.item.nck.column"] == "43900,43910,43920"

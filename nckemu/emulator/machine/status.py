@@ -18,6 +18,7 @@ from nckemu.protocol.addresses import S7Area
 
 _CHANNEL_STATUS = {0: "reset", 1: "active", 2: "interrupted"}
 _PROGRAM_STATUS = {1: "interrupted", 2: "stopped", 3: "running", 4: "waiting", 5: "aborted"}
+_OP_MODES = {0: "JOG", 1: "MDA", 2: "AUTOMATIC"}  # opMode of the mode group (catalogue/variables.toml)
 
 
 def _value(read: Any, *args: Any) -> float | None:
@@ -67,7 +68,12 @@ def machine_status(emulator: Emulator, server: ClientList | None = None) -> dict
     spindles = []
     if channel is not None:
         state = channel.state
-        channel_state = {"status": _CHANNEL_STATUS.get(state.status, str(state.status)),
+        try:
+            mode_value = store.stored_value("opMode", 1)
+        except (KeyError, IndexError):
+            mode_value = None
+        channel_state = {"mode": _OP_MODES.get(mode_value, str(mode_value)) if mode_value is not None else None,
+                         "status": _CHANNEL_STATUS.get(state.status, str(state.status)),
                          "program": _PROGRAM_STATUS.get(state.program_status, str(state.program_status)),
                          "actual_parts": state.actual_parts, "total_parts": state.total_parts,
                          "net_time_s": channel.net_time_s}

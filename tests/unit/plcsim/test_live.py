@@ -244,3 +244,38 @@ async def test_the_programs_connection_is_never_idle(tmp_path: Path) -> None:
         await live.stop()
         await server.stop()
     assert live.plc_peer in peers and len(peers) == 1, peers
+
+
+def test_a_turning_spindle_runs_a_program_and_a_long_stop_ends_it(tmp_path: Path) -> None:
+    """Channel 1 said reset, program aborted, net time 00:00:00 while the recording turned the spindle at
+    6000 rpm (issue 37): the recording's spindle drives the channel as an HMI would see it."""
+    from nckemu.emulator.machine.clock import SimulatedClock
+    from nckemu.emulator.machine.status import machine_status
+    from nckemu.plcsim.drive import PROGRAM_END_IDLE_S
+
+    recording = load_recording(write_recording(tmp_path / "rec.csv", hours=2.0, step_s=10.0))
+    clock = SimulatedClock(0.0)
+    emulator = Emulator(load_machine(MACHINE), clock=clock)
+    drive = RecordingDrive(emulator.machine, recording, 1.0, warmup_s=120.0)
+    seen = {}
+    for k in range(drive.cycles):
+        clock.set(float(k))
+        inputs = drive.apply(emulator.nck, k)
+        t_rec = inputs.t_rec_s
+        if t_rec in (600.0, 1500.0, 2390.0, 2400.0 + PROGRAM_END_IDLE_S - 60, 2400.0 + PROGRAM_END_IDLE_S + 60,
+                     3700.0):
+            seen[t_rec] = machine_status(emulator)["channel"] | {"rpm": inputs.spindle_rpm,
+                                                                 "turn": emulator.nck.channels[1].spindle(1).direction}
+    # the live_tools recording: 20 minutes at rest, 20 at 6000 rpm, ...
+    assert seen[600.0]["status"] == "reset" and seen[600.0]["rpm"] == 0.0 and seen[600.0]["actual_parts"] == 0
+    running = seen[1500.0]
+    assert running["rpm"] == 6000.0 and running["turn"] == 1
+    assert (running["mode"], running["status"], running["program"]) == ("AUTOMATIC", "active", "running")
+    # turning since 1200 s (from 1191 s: the rows 10 s apart are interpolated)
+    assert running["net_time_s"] == pytest.approx(300.0, abs=10.0)
+    assert seen[2390.0]["net_time_s"] == pytest.approx(1190.0, abs=10.0)
+    short_stop = seen[2400.0 + PROGRAM_END_IDLE_S - 60]       # a stop shorter than PROGRAM_END_IDLE_S
+    assert short_stop["status"] == "active" and short_stop["turn"] == 0 and short_stop["actual_parts"] == 0
+    ended = seen[2400.0 + PROGRAM_END_IDLE_S + 60]            # stood long: M30, a part
+    assert (ended["status"], ended["program"], ended["actual_parts"]) == ("reset", "aborted", 1.0)
+    assert seen[3700.0]["status"] == "active" and seen[3700.0]["net_time_s"] == pytest.approx(100.0, abs=10.0)

@@ -124,7 +124,49 @@ def test_loop_cli_writes_report_json_and_stl(tmp_path: Path, capsys: pytest.Capt
     assert main(["loop", str(BED_ONLY), "--machine", str(LOOP_MILL), "--inputs", str(tmp_path / "rec.csv"),
                  "--axis", "Z", "--cycle", "60s", "--folds", "3", "--report", str(report), "--json-out", str(out_json),
                  "--write-stl", str(stl)]) == 0
-    assert "What physics it leaves out" in capsys.readouterr().out
+    shown = capsys.readouterr()
+    assert "What physics it leaves out" in shown.out
+    # issue 37: one line per phase on stderr, piped too, with how long the rest will take
+    phases = [line for line in shown.err.splitlines() if line.startswith("nckemu loop: ")]
+    assert [line.split()[2] for line in phases[:5]] == ["1/4", "1/4", "2/4", "3/4", "4/4"]
+    assert "PLC cycles of 60 s" in phases[0] and "7 such runs" not in phases[0] and "5 such runs" in phases[0]
+    assert "about" in phases[0] and "runs to go, about" in phases[1] and "done in" in phases[-1]
+    assert len([line for line in phases if "judged" in line]) == 3
     document = json.loads(out_json.read_text())
     assert len(document["heldout"]["blocks"]) == 3 and "program" in document and "not_compensable" in document["generated"]
     assert "ORGANIZATION_BLOCK OB 1" in stl.read_text() and report.read_text().startswith("<!doctype html>")
+
+
+def test_loop_estimates_its_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A 36 h recording at the default 1 s cycle ran over a minute in silence when piped (issue 37): the
+    first line says how many cycles, how many runs and about how long, before any of them."""
+    from nckemu.cli import main
+    from nckemu.emulator.machine.machine_file import load_machine
+    from nckemu.plcsim.drive import RecordingDrive
+    from nckemu.plcsim.loop import NOMINAL_CYCLES_PER_S, duration_text, run_cycles
+
+    recording = make_loop_scenario(seed=1, duration_h=36.0).recording
+    machine = load_machine(LOOP_MILL)
+    for cycle_s in (1.0, 15.0, 60.0):
+        assert run_cycles(recording, cycle_s) == RecordingDrive(machine, recording, cycle_s).cycles
+    assert [duration_text(s) for s in (0.2, 45, 200, 7200)] == ["1 s", "45 s", "3.3 min", "2.0 h"]
+
+    class Enough(Exception):
+        pass
+
+    said: list[str] = []
+
+    def first_line_only(line: str) -> None:
+        said.append(line)
+        raise Enough  # the estimate is all this test needs: the runs themselves take minutes
+
+    with pytest.raises(Enough):
+        run_loop(BED_ONLY, LOOP_MILL, recording, "Z", cycle_s=1.0, progress=False, on_phase=first_line_only)
+    cycles = run_cycles(recording, 1.0)
+    assert cycles > 36 * 3600 and f"{cycles:,} PLC cycles of 1 s (36.0 h); 7 such runs" in said[0]
+    minutes = float(said[0].rsplit("about ", 1)[1].split(" min")[0])
+    assert minutes == pytest.approx(7 * cycles / NOMINAL_CYCLES_PER_S / 60, abs=0.5)
+    write_recording(tmp_path / "rec.csv", make_loop_scenario(seed=1, duration_h=6.0).recording)
+    assert main(["loop", str(BED_ONLY), "--machine", str(LOOP_MILL), "--inputs", str(tmp_path / "rec.csv"),
+                 "--axis", "Z", "--cycle", "60s", "--folds", "2", "--quiet"]) == 0
+    assert "nckemu loop: " not in capsys.readouterr().err

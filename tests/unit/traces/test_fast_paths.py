@@ -146,6 +146,9 @@ _ITEMS = (
     NckAddress(NckArea.V, 1, 43900, 1, 0x16),                    # a drive area: big-endian
     NckAddress(0, 1, 999, 1, 0x55),                               # nothing known there
     S7AnyAddress(0x02, 4, 10, 0x84, 0),                           # DB10.DBB0, 4 bytes
+    S7AnyAddress(0x08, 1, 0, 0x83, 300),                          # MD300 REAL: a big-endian value
+    S7AnyAddress(0x01, 1, 0, 0x83, 102, 3),                       # M102.3: a bit
+    S7AnyAddress(0x07, 2, 3, 0x84, 4),                            # DB3.DBD4 DINT x2: an array
 )
 _SIZES = {0x16: 8, 0x1A: 1, 0x7F: 2, 0x7A: 32, 0x15: 24, 0x55: 4}
 
@@ -154,7 +157,10 @@ def _answer_item(address: object, good: bool, size_error: bool, seed: bytes) -> 
     if not good:
         return s7.DataItem(0x0A, 0x00, b"")
     if isinstance(address, S7AnyAddress):
-        return s7.DataItem(0xFF, 0x04, (seed * 4)[:4])
+        if address.transport_size == 0x01:
+            return s7.DataItem(0xFF, 0x03, bytes([seed[0] & 1]))
+        size = 8 if address.transport_size == 0x07 else 4
+        return s7.DataItem(0xFF, 0x07 if address.transport_size in (0x07, 0x08) else 0x04, (seed * size)[:size])
     assert isinstance(address, NckAddress)
     size = 4 if address.module == 0x1A and address.column == 38000 else _SIZES[address.module]
     size += 1 if size_error else 0

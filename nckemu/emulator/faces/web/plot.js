@@ -1,6 +1,7 @@
 // nckemu's own line plot on a canvas (no library: the machines have no internet).
-// drawPlot(canvas, series, options): series = [{label, color, points: [[x, y], ...]}];
-// options: {xLabel, yLabel, xFormat(x) -> text}. Returns the number of points drawn.
+// drawPlot(canvas, series, options): series = [{label, color, points: [[x, y], ...], dash, width, alpha}],
+// drawn in order (the last on top); options: {xLabel, yLabel, xFormat(x) -> text, xTime: x in seconds,
+// ticks on whole minutes and hours}. Returns the number of points drawn.
 "use strict";
 
 function niceStep(span, count) {
@@ -10,6 +11,17 @@ function niceStep(span, count) {
     if (raw <= factor * power) return factor * power;
   }
   return 10 * power;
+}
+
+// Steps of a time axis in seconds: ticks fall on round clock times (01:00:00, not 05:33:20).
+const TIME_STEPS = [1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 10800, 21600, 43200, 86400];
+
+function niceTimeStep(span, count) {
+  const raw = span / Math.max(1, count);
+  for (const step of TIME_STEPS) {
+    if (raw <= step) return step;
+  }
+  return Math.ceil(raw / 86400) * 86400;
 }
 
 function drawPlot(canvas, series, options) {
@@ -54,20 +66,24 @@ function drawPlot(canvas, series, options) {
     const text = Math.abs(yStep) < 1 ? y.toFixed(Math.min(3, Math.ceil(-Math.log10(yStep)))) : y.toFixed(0);
     ctx.fillText(text, left - 6 - ctx.measureText(text).width, py(y) + 4);
   }
-  const xStep = niceStep(xMax - xMin, 6);
+  const xStep = options.xTime ? niceTimeStep(xMax - xMin, 6) : niceStep(xMax - xMin, 6);
   const xFormat = options.xFormat || (x => x.toFixed(0));
+  const xTicks = [];
   for (let x = Math.ceil(xMin / xStep) * xStep; x <= xMax; x += xStep) {
     ctx.beginPath(); ctx.moveTo(px(x), top); ctx.lineTo(px(x), top + plotH); ctx.stroke();
     const text = xFormat(x), textW = ctx.measureText(text).width;
+    xTicks.push(text);
     const at = Math.min(px(x) - textW / 2, width - right - textW);  // the last label stays inside
     ctx.fillText(text, at, top + plotH + 14);
   }
+  canvas.dataset.xticks = xTicks.join(" ");  // what the axis shows, for a person and for the tests
   if (options.xLabel) ctx.fillText(options.xLabel, left + plotW - ctx.measureText(options.xLabel).width, height - 4);
   if (options.yLabel) ctx.fillText(options.yLabel, 4, 12);
   // lines
   for (const s of series) {
     ctx.strokeStyle = s.color;
-    ctx.lineWidth = 1.6;
+    ctx.lineWidth = s.width || 1.6;
+    ctx.globalAlpha = s.alpha || 1;
     ctx.setLineDash(s.dash || []);
     ctx.beginPath();
     let pen = false;
@@ -79,14 +95,17 @@ function drawPlot(canvas, series, options) {
     }
     ctx.stroke();
   }
+  ctx.globalAlpha = 1;
   ctx.setLineDash([]);
   // legend
   let lx = left + 8;
   for (const s of series) {
     ctx.strokeStyle = s.color;
-    ctx.lineWidth = 3;
+    ctx.lineWidth = s.width || 3;
+    ctx.globalAlpha = s.alpha || 1;
     ctx.setLineDash(s.dash || []);
     ctx.beginPath(); ctx.moveTo(lx, 8); ctx.lineTo(lx + 14, 8); ctx.stroke();
+    ctx.globalAlpha = 1;
     ctx.setLineDash([]);
     ctx.fillStyle = "#222";
     ctx.fillText(s.label, lx + 18, 12);

@@ -131,8 +131,12 @@ class Channel:
         return spindle
 
     def set_measured_speed(self, line: int, rpm: float | None) -> None:
-        """Drive spindle ``line``'s actual speed from a measurement (None: back to the commanded speed)."""
-        self.spindle(line).measured_rpm = None if rpm is None else float(rpm)
+        """Drive spindle ``line``'s actual speed from a measurement (None: back to the commanded speed);
+        its turn state follows the measured sign (M3 turning, M4 the other way, M5 standing)."""
+        spindle = self.spindle(line)
+        spindle.measured_rpm = None if rpm is None else float(rpm)
+        if rpm is not None:
+            spindle.direction = TURN_CW if rpm >= 1.0 else TURN_CCW if rpm <= -1.0 else TURN_STOPPED
 
     def spindle_speed_rpm(self, line: int) -> float:
         spindle = self.spindle(line)
