@@ -11,16 +11,23 @@ from collections.abc import Iterable
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckArea, NckType
 
-from .node_ids import NcNodeName, node_paths, parse_node_id
+from .grammar import NcNodeName, PlcNodeName, index_ranges, node_paths, parse_name
 from .table import READ_ONLY, VariableSpec, load_table, machine_table
 
 EXAMPLE = """\
-A pattern with * ? [ is a glob over names, numbers and BTSS paths (case-insensitive); anything else
-matches a part of them. --machine adds or overrides variables with a machine file's [[var]] rows.
+A pattern is matched against names and numbers (case-insensitive): with * ? [ as a glob, else as a part
+of them. A pattern starting with / is matched against the BTSS paths and OPC UA node ids instead, and
+a whole name in any form (R4, SD43900[AX4], /Channel/Parameter/R[u1,5]) lists its row. --machine adds
+or overrides variables with a machine file's [[var]] rows.
+
+Each row shows its valid names in NC syntax (indices count from 0: R0..R99, MD10000[0..30]) and in BTSS
+(lines count from 1: /Channel/Parameter/R[u1,1..100]); R4 is /Channel/Parameter/R[u1,5]. AXn names an
+axis, SPn a spindle (docs/addresses.md).
 
 examples:
   nckemu vars
   nckemu vars 'act*'
+  nckemu vars NCKEMU
   nckemu vars /Channel/State --json
   nckemu vars '/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'
   nckemu vars --machine fixtures/machines/extra_vars.toml
@@ -34,7 +41,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         description="List the NCK variables the emulator serves and clients name: name, number, address "
                     "(area, module, column, lines), type, unit, limits, access levels and value source.")
     parser.add_argument("pattern", nargs="?", default="",
-                        help="glob or part of a name, number or BTSS path (default: all)")
+                        help="glob or part of a name or number, a path starting with /, or a whole name "
+                             "in any form (default: all)")
     parser.add_argument("--machine", help="machine TOML whose [[var]] rows add or override variables")
     parser.add_argument("--json", action="store_true", help="print a JSON list")
     parser.set_defaults(func=run_vars)
@@ -55,17 +63,26 @@ def machine_file_table(path: str) -> tuple[VariableSpec, ...]:
     return machine_table(data.get("var", []), path, text)
 
 
+def pattern_row(pattern: str, specs: tuple[VariableSpec, ...]) -> VariableSpec | None:
+    """The row a whole name names (``R4``, ``SD43900[AX4]``, ``/Channel/Parameter/R[u1,10]``), or None
+    for a pattern that is no such name; PLC memory is refused (it has no catalogue row)."""
+    if any(char in pattern for char in "*?") or not pattern.strip():
+        return None
+    try:
+        name = parse_name(pattern, specs)
+    except NckError:
+        return None
+    if isinstance(name, PlcNodeName):
+        raise NckConfigError(f"{pattern!r} is PLC memory ({name}): it has no catalogue row; nckemu get/put "
+                             "read and write it")
+    return name.spec if isinstance(name, NcNodeName) else None
+
+
 def matches(spec: VariableSpec, pattern: str) -> bool:
+    """Names and numbers only; a pattern starting with / is matched against the paths and node ids."""
     if not pattern:
         return True
-    if pattern.startswith("/") and not any(char in pattern for char in "*?"):
-        try:  # an OPC UA node id names its row exactly (/Channel/Parameter/R[u1,10] is R)
-            name = parse_node_id(pattern)
-        except NckError:
-            name = None
-        if isinstance(name, NcNodeName):
-            return name.spec.name == spec.name
-    texts = (spec.name, spec.number, *node_paths(spec))
+    texts = node_paths(spec) + [spec.path] if pattern.startswith("/") else [spec.name, spec.number]
     lowered = pattern.lower()
     if any(char in pattern for char in "*?["):
         return any(fnmatch.fnmatchcase(text.lower(), lowered) for text in texts if text)
@@ -73,7 +90,9 @@ def matches(spec: VariableSpec, pattern: str) -> bool:
 
 
 def describe(spec: VariableSpec) -> dict[str, object]:
-    """One catalogue row as plain data (the ``--json`` form)."""
+    """One catalogue row as plain data (the ``--json`` form); ``names``: its valid names as ranges, NC
+    syntax (indices from 0), BTSS and OPC UA (lines from 1; an /NC/ id takes the NC index)."""
+    ranges = index_ranges(spec)
     return {
         "name": spec.name, "number": spec.number, "path": spec.path, "opcua": node_paths(spec)[0],
         "areas": [NckArea(area).name for area in sorted(spec.areas)],
@@ -84,6 +103,8 @@ def describe(spec: VariableSpec) -> dict[str, object]:
         "read_level": spec.read_level, "write_level": None if spec.read_only else spec.write_level,
         "source": spec.source or "stored", "retained": spec.retained, "effective": spec.effective,
         "description": spec.description,
+        "names": {"nc": ranges.nc, "nc_index": ranges.nc_index or ranges.nc, "btss": ranges.btss,
+                  "opcua": ranges.node_id},
     }
 
 
@@ -94,16 +115,18 @@ def _limits(row: dict[str, object]) -> str:
 
 
 def format_table(specs: Iterable[VariableSpec]) -> str:
-    header = ("name", "number", "address", "type", "unit", "limits", "r/w", "source")
+    header = ("name", "number", "NC (index from 0)", "BTSS (line from 1)", "address", "type", "unit", "limits",
+              "r/w", "source")
     rows = [header]
     for spec in specs:
         row = describe(spec)
-        lines = f" l1..{spec.lines}" if spec.lines > 1 else ""
+        ranges = index_ranges(spec)
         columns = f"..{spec.column + spec.columns - 1}" if spec.columns > 1 else ""
-        address = f"{'/'.join(row['areas'])} 0x{spec.module:02X} col {spec.column}{columns}{lines}"  # type: ignore[arg-type]
+        address = f"{'/'.join(row['areas'])} 0x{spec.module:02X} col {spec.column}{columns}"  # type: ignore[arg-type]
         kind = f"{row['type']}({row['bytes']})" if spec.nck_type == NckType.STRING else str(row["type"])
         write = "-" if spec.write_level == READ_ONLY else str(spec.write_level)
-        rows.append((spec.name, spec.number, address, kind, spec.unit, _limits(row),
+        nc = f"{ranges.nc} = [{ranges.nc_index.split('[', 1)[1]}" if ranges.nc_index else ranges.nc
+        rows.append((spec.name, spec.number, nc, ranges.btss, address, kind, spec.unit, _limits(row),
                      f"{spec.read_level}/{write}", str(row["source"])))
     widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
     return "\n".join("  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip()
@@ -112,13 +135,15 @@ def format_table(specs: Iterable[VariableSpec]) -> str:
 
 def run_vars(args: argparse.Namespace) -> int:
     specs = machine_file_table(args.machine) if args.machine else load_table()
-    chosen = [spec for spec in specs if matches(spec, args.pattern)]
+    named = pattern_row(args.pattern, specs)
+    chosen = [named] if named is not None else [spec for spec in specs if matches(spec, args.pattern)]
     if args.json:
         print(json.dumps([describe(spec) for spec in chosen], indent=1))
         return 0
     if not chosen:
-        raise NckConfigError(f"no NCK variable name, number or BTSS path matches {args.pattern!r}")
+        where = "path or node id" if args.pattern.startswith("/") else "name or number"
+        raise NckConfigError(f"no NCK variable {where} matches {args.pattern!r}")
     print(format_table(chosen))
-    print(f"{len(chosen)} of {len(specs)} variables; r/w = access level to read / write (0 highest, 7 lowest, "
-          f"- read only)")
+    print(f"{len(chosen)} of {len(specs)} variables; NC syntax counts indices from 0 (R4 = BTSS line 5), "
+          f"AXn is an axis, SPn a spindle; r/w = access level to read / write (0 highest, 7 lowest, - read only)")
     return 0

@@ -1,29 +1,26 @@
-"""Readable NCK variable names to typed addresses, through the catalogue.
+"""Names as users type them to typed addresses, through the one grammar (``grammar``, docs/addresses.md).
 
-Accepted forms (case-insensitive):
-  SD43900[AX4]   MD32750[AX4]   TEMP_COMP_ABS_VALUE[u4]   $SA_TEMP_COMP_ABS_VALUE[AX4]
-  MD32700[1,AX4]   (array index first, 0-based, as in part programs: line = index + 1)
-  R5  R[5]  R[5,C1]   (R parameter 5 of channel 1; line = 5 + r_parameter_line_offset)
-  NAME[u4,l2]  NAME[u4,l2,x3]   (explicit unit, line and line count)
-  cuttEdgeParam[2,T1,col5]   (column for a variable over several columns: here T5, line 3, TO unit 1)
-  /Channel/State/progStatus[u1]   /NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]   /Channel/Parameter/R[u1,1,5]
-                             (SINUMERIK OPC UA node ids, parsed by ``node_ids``: the OPC UA face's parser)
-A ``Variable`` carries the address and how to decode the value (the NCVar selector's typ/laenge).
+NCK variables in NC syntax (indices from 0), BTSS (lines from 1) or as SINUMERIK OPC UA node ids:
+  SD43900[AX4]  $SA_TEMP_COMP_ABS_VALUE[AX4]  MD32700[1,AX4]  R4  MD10000[1]  actToolBasePos[AX4]
+  /Channel/Parameter/R[u1,5]  R[u1,1,#5]  TEMP_COMP_ABS_VALUE[u4]  ns=2;s=/Channel/State/progStatus[u1]
+become a ``Variable`` (the address and how to decode the value: the NCVar selector's typ/laenge);
+PLC memory as S7 tools write it (``DB130.DBW0``, ``M5.0``, ``PIW420``, ``DB2.DBD0:REAL``) or as an OPC UA
+``/Plc/`` id becomes a ``PlcVariable``, which the clients read and write with S7ANY items.
 """
 
 from __future__ import annotations
 
-import re
+import struct
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from nckemu.errors import NckConfigError
-from nckemu.protocol.addresses import NckAddress, NckArea, NckType
+from nckemu.errors import NckConfigError, NckNodeIdError
+from nckemu.protocol.addresses import NckAddress, NckType, S7AnyAddress, S7TransportSize
 
-from .node_ids import NcNodeName, parse_node_id
-from .table import R_PARAMETER_LINE_OFFSET, display_name, find_by_name, spec_at
+from .grammar import NcNodeName, PlcNodeName, parse_name
+from .table import display_name, spec_at
 
-_NAME = re.compile(r"^\$?(?:(?:S|M)[ACN]_)?(?P<name>[A-Z_][A-Z0-9_]*?)(?:\[(?P<index>[^\]]*)\])?$", re.IGNORECASE)
-_R_SHORT = re.compile(r"^R(?P<number>\d+)$", re.IGNORECASE)
+PlcVariable = PlcNodeName
 
 
 @dataclass(frozen=True)
@@ -48,60 +45,32 @@ def variable_for_address(address: NckAddress) -> Variable:
     return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)
 
 
-def variable_for_node_id(text: str) -> Variable:
-    """A SINUMERIK OPC UA node id of an NC variable to a ``Variable`` (PLC ids are refused)."""
-    name = parse_node_id(text)
-    if not isinstance(name, NcNodeName):
-        raise NckConfigError(f"{text!r} is PLC memory: read it over OPC UA, or as a DB/M/I/Q address over S7")
+def _variable(name: NcNodeName) -> Variable:
     spec, address = name.spec, name.address
     return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)
 
 
-def parse_variable(text: str) -> Variable:
-    """A readable name or an OPC UA node id (see the module docstring) to a ``Variable``."""
-    source = text.strip()
-    if source.startswith("/"):
-        return variable_for_node_id(source)
-    short = _R_SHORT.match(source)
-    if short:
-        source = f"R[{short['number']}]"
-    match = _NAME.match(source)
-    if match is None:
-        raise NckConfigError(f"{text!r} is not a variable name like SD43900[AX4]")
-    spec = find_by_name(match["name"]) or find_by_name(f"{match['name']}")
-    if spec is None:
-        raise NckConfigError(f"unknown NCK variable {match['name']!r} in {text!r}")
-    area = min(spec.areas)
-    unit, line, count, column = 1, 1, 1, spec.column
-    for part in [p.strip() for p in (match["index"] or "").split(",") if p.strip()]:
-        lower = part.lower()
-        if lower.startswith("col") and lower[3:].isdigit():
-            column = int(lower[3:])
-            if not spec.column <= column < spec.column + spec.columns:
-                raise NckConfigError(f"{text!r}: {spec.name} has columns {spec.column}.."
-                                     f"{spec.column + spec.columns - 1}")
-        elif lower.startswith("ax") and lower[2:].isdigit():
-            unit, area = int(lower[2:]), NckArea.A
-        elif lower.startswith("u") and lower[1:].isdigit():
-            unit = int(lower[1:])
-        elif lower.startswith("l") and lower[1:].isdigit():
-            line = int(lower[1:])
-        elif lower.startswith("x") and lower[1:].isdigit():
-            count = int(lower[1:])
-        elif lower[0] in "cnbt" and lower[1:].isdigit():
-            unit = int(lower[1:])
-        elif part.lstrip("-").isdigit():
-            index = int(part)
-            line = index + (R_PARAMETER_LINE_OFFSET if spec.name == "R" else 1)
-        else:
-            raise NckConfigError(f"{text!r}: cannot read index part {part!r}")
-    if area not in spec.areas:
-        raise NckConfigError(f"{spec.number} {spec.name} is not an axis variable: {text!r}")
+def parse_item(text: str) -> Variable | PlcVariable:
+    """Any name a user may type (see the module docstring): an NCK ``Variable`` or a ``PlcVariable``."""
     try:
-        address = NckAddress(area, unit, column, line, spec.module, count)
-    except ValueError as exc:
-        raise NckConfigError(f"{text!r}: {exc}") from None
-    return Variable(address, spec.nck_type, spec.string_length, display_name(spec, address), spec.unit)
+        name = parse_name(text)
+    except NckNodeIdError as exc:
+        raise NckConfigError(str(exc)) from None
+    return _variable(name) if isinstance(name, NcNodeName) else name
+
+
+def parse_variable(text: str) -> Variable:
+    """An NCK variable's name in any form (see the module docstring); PLC memory is refused."""
+    item = parse_item(text)
+    if not isinstance(item, Variable):
+        raise NckConfigError(f"{text!r} is PLC memory, not an NCK variable: nckemu get/put and the clients' "
+                             "get/put read and write it (S7ANY), as does the OPC UA face (/Plc/...)")
+    return item
+
+
+def variable_for_node_id(text: str) -> Variable:
+    """A SINUMERIK OPC UA node id of an NC variable to a ``Variable`` (PLC ids are refused)."""
+    return parse_variable(text)
 
 
 def as_variable(item: object) -> Variable:
@@ -121,6 +90,15 @@ def as_variable(item: object) -> Variable:
     raise TypeError(f"not an NCK variable: {item!r}")
 
 
+def as_item(item: object) -> Variable | PlcVariable:
+    """``as_variable``, and PLC memory: a ``PlcVariable`` or its S7 / ``/Plc/`` name."""
+    if isinstance(item, PlcNodeName):
+        return item
+    if isinstance(item, str):
+        return parse_item(item)
+    return as_variable(item)
+
+
 def with_overrides(variable: Variable, unit: int | None = None, column: int | None = None,
                    line: int | None = None) -> Variable:
     """Unit/Column/Line given to GET/PUT override the address DB's entry, as on the real blocks."""
@@ -132,3 +110,50 @@ def with_overrides(variable: Variable, unit: int | None = None, column: int | No
                           address.line if line is None else line, address.module, address.line_count,
                           address.syntax_id)
     return Variable(replaced, variable.nck_type, variable.length, variable.name, variable.unit_of_measure)
+
+
+# ---------------------------------------------------------------------------------------------- PLC values
+_PLC_FORMATS = {"BYTE": "B", "WORD": "H", "INT": "h", "DWORD": "I", "DINT": "i", "REAL": "f"}
+PLC_RANGES = {"BYTE": (0, 0xFF), "WORD": (0, 0xFFFF), "INT": (-0x8000, 0x7FFF), "DWORD": (0, 0xFFFFFFFF),
+              "DINT": (-0x80000000, 0x7FFFFFFF)}
+STRING_HEADER = 2  # an S7 string: maximum length, length, then the characters
+
+
+def plc_address(variable: PlcVariable, string_bytes: int = 0) -> S7AnyAddress:
+    """The S7ANY item of PLC memory: one bit, or the bytes (a STRING: ``string_bytes`` from its start)."""
+    if variable.kind == "BOOL":
+        return S7AnyAddress(S7TransportSize.BIT, 1, variable.db, variable.s7_area, variable.byte, variable.bit or 0)
+    size = max(1, string_bytes) if variable.kind == "STRING" else variable.size_bytes
+    return S7AnyAddress(S7TransportSize.BYTE, size, variable.db, variable.s7_area, variable.byte)
+
+
+def plc_decode(variable: PlcVariable, data: bytes) -> object:
+    """The value of what an S7ANY read of ``plc_address(variable)`` answered (a list for an array)."""
+    if variable.kind == "BOOL":
+        return bool(data[:1] and data[0] & 1)
+    if variable.kind == "STRING":
+        if len(data) < STRING_HEADER:
+            return ""
+        length = min(data[0], data[1], len(data) - STRING_HEADER)
+        return data[STRING_HEADER:STRING_HEADER + length].decode("latin-1")
+    values = list(struct.unpack(f">{variable.count}{_PLC_FORMATS[variable.kind]}", data[:variable.size_bytes]))
+    return values if variable.array else values[0]
+
+
+def plc_encode(variable: PlcVariable, values: Sequence[object]) -> bytes:
+    """Bytes to write (BOOL: 1 or 0; numbers big-endian); a value outside its type is refused, naming
+    the type's range. A STRING is encoded by the client, which first reads its maximum length."""
+    if variable.kind == "BOOL":
+        return b"\x01" if values[0] else b"\x00"
+    if len(values) != variable.count:
+        raise NckConfigError(f"{variable}: {len(values)} values for {variable.count} elements")
+    checked: list[object] = []
+    for value in values:
+        if variable.kind == "REAL":
+            checked.append(float(value))  # type: ignore[arg-type]
+            continue
+        low, high = PLC_RANGES[variable.kind]
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            raise NckConfigError(f"{variable}: {value!r} is not a {variable.kind} ({low}..{high})")
+        checked.append(value)
+    return struct.pack(f">{variable.count}{_PLC_FORMATS[variable.kind]}", *checked)

@@ -236,20 +236,57 @@ def find_by_name(name: str) -> VariableSpec | None:
 KNOWN_MODULES = frozenset(spec.module for spec in load_table())
 
 
+# R parameter n is BTSS line n + 1, as every array's NC index i is line i + 1 (docs/assumptions.md: the
+# sources disagree on R parameters; the machine file's settings.r_parameter_line_offset records it).
 R_PARAMETER_LINE_OFFSET = 1
+
+# Rows whose lines are not array entries but machine axes or spindles, by the BTSS module that says so:
+# SMA/SEMA (state data of machine axes) and SSP (spindles). NC syntax names such a line by its axis or
+# spindle, ``actToolBasePos[AX4]`` and ``actSpeed[SP1]``, besides the index (``actToolBasePos[3]``).
+LINE_KINDS: dict[int, str] = {0x74: "machine axis", 0x71: "machine axis", 0x72: "spindle"}
+LINE_PREFIXES: dict[str, str] = {"machine axis": "AX", "spindle": "SP"}
+
+
+def line_kind(spec: VariableSpec) -> str | None:
+    """"machine axis", "spindle", or None where a line is an array entry (an axis variable's axis is
+    its unit, not its line)."""
+    if spec.lines <= 1 or NckArea.A in spec.areas:
+        return None
+    return LINE_KINDS.get(spec.module)
+
+
+def short_name(spec: VariableSpec) -> str:
+    """What NC syntax calls a row: its SD/MD number (``SD43900``), else its name (``actSpeed``)."""
+    number = spec.number.upper()
+    if number[:2] in ("SD", "MD") and number[2:].isdigit():
+        return spec.number
+    return spec.name
 
 
 def display_name(spec: VariableSpec, address: NckAddress) -> str:
-    """``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[1,AX4]`` (an array's
-    index first and 0-based, as written in part programs and accepted by the name parser)."""
-    count = f",x{address.line_count}" if address.line_count > 1 else ""
-    if spec.columns > 1:  # the column is an index (module TO: the T number)
-        count = f",col{address.column}{count}"
-    if spec.name == "R":
-        return f"R{address.line - R_PARAMETER_LINE_OFFSET}[C{address.unit}{count}]"
+    """The canonical NC-syntax name of an address, which the parser reads back to the same address:
+    ``SD43900 TEMP_COMP_ABS_VALUE[AX4]``, ``R5[C1]``, ``MD32700 ENC_COMP_ENABLE[1,AX4]`` (an array's
+    index first, counted from 0 as in part programs), ``SMA2 actToolBasePos[AX4,C1]`` and
+    ``SSP2 actSpeed[SP1,C1]`` (a line that is a machine axis or a spindle), ``TO1 cuttEdgeParam[2,T1,col7]``
+    (the column is an index: the T number), ``x5`` for five lines. A line outside the row (a trace's) is
+    written as the wire line, ``l0``."""
+    count = address.line_count
+    in_range = address.line >= 1 and address.line + count - 1 <= spec.lines
     where = f"AX{address.unit}" if address.area == NckArea.A else f"{NckArea(address.area).name}{address.unit}"
-    number = "" if spec.number.startswith("NCKEMU_") or not spec.number[:2].isalpha() else f"{spec.number} "
-    if spec.lines > 1 and address.line >= 1:
-        return f"{number}{spec.name}[{address.line - 1},{where}{count}]"
-    line = f",l{address.line}" if address.line != 1 else ""
-    return f"{number}{spec.name}[{where}{line}{count}]"
+    tail = [f"col{address.column}"] if spec.columns > 1 else []
+    if count > 1:
+        tail.append(f"x{count}")
+    if spec.name == "R" and in_range:
+        return f"R{address.line - R_PARAMETER_LINE_OFFSET}[{','.join([where, *tail])}]"
+    kind = line_kind(spec)
+    if not in_range or (spec.lines == 1 and address.line != 1):
+        index = [f"l{address.line}"]
+    elif kind is not None:
+        index = [f"{LINE_PREFIXES[kind]}{address.line}"]
+    elif spec.lines > 1:
+        index = [str(address.line - 1)]
+    else:
+        index = []
+    number = "" if spec.number.startswith("NCKEMU_") or not spec.number[:2].isalpha() \
+        or spec.number == spec.name else f"{spec.number} "
+    return f"{number}{spec.name}[{','.join([*index, where, *tail])}]"

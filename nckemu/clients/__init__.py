@@ -1,6 +1,6 @@
 """Clients that reproduce GET/PUT (FB2/FB3) and PI_SERV (FB4) byte for byte, on python-snap7's connection."""
 
-from nckemu.catalogue.names import Variable, parse_variable
+from nckemu.catalogue.names import PlcVariable, Variable, parse_item, parse_variable
 
 from .async_client import AsyncNckClient, ItemResult
 from .channel840c import Channel840C, Channel840CError
@@ -8,4 +8,4 @@ from .fb import FbGet, FbOutputs, FbPiServ, FbPut
 from .sync import NckClient
 
 __all__ = ["AsyncNckClient", "Channel840C", "Channel840CError", "FbGet", "FbOutputs", "FbPiServ", "FbPut",
-           "ItemResult", "NckClient", "Variable", "parse_variable"]
+           "ItemResult", "NckClient", "PlcVariable", "Variable", "parse_item", "parse_variable"]

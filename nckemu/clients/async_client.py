@@ -1,7 +1,9 @@
 """AsyncNckClient: GET/PUT (FB2/FB3) and PI_SERV (FB4) as one S7 job each, on python-snap7's connection.
 
 The bytes are the same a PLC's FB3 or an HMI sends: one read or write job with up to 8 NCK items
-(syntax 0x82), REAL8 little-endian, transport size 0x09. The connection (COTP, setup
+(syntax 0x82), REAL8 little-endian, transport size 0x09. PLC memory named among them (``DB130.DBW0``,
+``M5.0``, ``PIW420``: ``catalogue.names.PlcVariable``) goes in the same job as S7ANY items (syntax 0x10),
+big-endian, as any S7 tool reads it; an S7 STRING's maximum length is read first. The connection (COTP, setup
 communication) is python-snap7's ``AsyncClient``; our PDUs go through its ``iso_exchange_buffer``,
 so the same code talks to the emulator or to a real NCU (rack 0, slot 4 for an 840D sl NCK).
 """
@@ -21,7 +23,15 @@ from snap7.async_client import AsyncClient
 from snap7.error import S7ProtocolError
 from snap7.type import Area
 
-from nckemu.catalogue.names import Variable, as_variable
+from nckemu.catalogue.names import (
+    STRING_HEADER,
+    PlcVariable,
+    Variable,
+    as_item,
+    plc_address,
+    plc_decode,
+    plc_encode,
+)
 from nckemu.errors import (
     NckConfigError,
     NckConnectionError,
@@ -34,7 +44,7 @@ from nckemu.errors import (
     service_error_for,
 )
 from nckemu.protocol import pi, s7
-from nckemu.protocol.addresses import NckType
+from nckemu.protocol.addresses import NckType, S7AnyAddress, S7TransportSize
 from nckemu.protocol.codes import HEADER_ERROR_TEXTS, describe_return_code
 from nckemu.protocol.errors import NckProtocolError
 from nckemu.protocol.values import NCK_TRANSPORT_SIZE, decode_nck_values, encode_nck_values
@@ -43,6 +53,8 @@ log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 MAX_VARIABLES = 8  # NumVar of FB2/FB3
+DATA_TS_BIT = 0x03    # data transport sizes of S7ANY write data: one bit, bytes (length in bits)
+DATA_TS_BYTES = 0x04
 RC_SUCCESS = ReturnCode.SUCCESS
 PASSWORD_REFUSED = (0xD602, 0x0119)  # "incorrect password entered" (PI, block services)
 # python-snap7's text for a refused item, e.g. "Write operation failed: Object does not exist (0x0a)"
@@ -53,7 +65,7 @@ _SNAP7_ITEM_ERROR = re.compile(r"operation failed: .*\(0x(?P<code>[0-9a-fA-F]{2}
 class ItemResult:
     """One variable of a GET or PUT: its value (GET) or None, and the item return code."""
 
-    variable: Variable
+    variable: Variable | PlcVariable
     return_code: int
     value: Any = None
 
@@ -177,17 +189,37 @@ class AsyncNckClient:
 
     # ------------------------------------------------------------------ GET / PUT
     @staticmethod
-    def _variables(items: Iterable[object]) -> list[Variable]:
-        variables = [as_variable(item) for item in items]
+    def _variables(items: Iterable[object]) -> list[Variable | PlcVariable]:
+        variables = [as_item(item) for item in items]
         if not 1 <= len(variables) <= MAX_VARIABLES:
             raise NckConfigError(f"NumVar = {len(variables)}: GET/PUT take 1..{MAX_VARIABLES} variables")
         return variables
 
+    async def _string_maxima(self, variables: list[Variable | PlcVariable]) -> dict[int, int]:
+        """The maximum length of each S7 STRING among ``variables`` (by position), read in one job; a
+        refused header leaves its string out (its own read or write then answers the refusal)."""
+        strings = [(index, v) for index, v in enumerate(variables)
+                   if isinstance(v, PlcVariable) and v.kind == "STRING"]
+        if not strings:
+            return {}
+        request = s7.ReadVarRequest(tuple(plc_address(v, STRING_HEADER) for _, v in strings))
+        answer = await self.exchange(s7.build_read_var_request(request))
+        response = s7.parse_read_var_response(answer.parameter, answer.data)
+        return {index: item.data[0] for (index, _), item in zip(strings, response.items, strict=False)
+                if item.return_code == RC_SUCCESS and item.data}
+
     async def get_items(self, *items: object) -> list[ItemResult]:
         """FB2 GET: one read job; each variable's value or its own return code."""
         variables = self._variables(items)
-        request = s7.ReadVarRequest(tuple(v.address for v in variables))
-        answer = await self.exchange(s7.build_read_var_request(request))
+        for variable in variables:
+            if isinstance(variable, PlcVariable) and variable.area == "PQ":
+                raise NckConfigError(f"{variable}: the peripheral outputs are written, not read; read the "
+                                     f"outputs' process image ({str(variable)[1:]})")
+        maxima = await self._string_maxima(variables)
+        addresses = tuple(v.address if isinstance(v, Variable) else
+                          plc_address(v, STRING_HEADER + maxima.get(index, 0))
+                          for index, v in enumerate(variables))
+        answer = await self.exchange(s7.build_read_var_request(s7.ReadVarRequest(addresses)))
         response = s7.parse_read_var_response(answer.parameter, answer.data)
         if len(response.items) != len(variables):
             raise NckProtocolError(f"{len(variables)} variables read, {len(response.items)} answered")
@@ -195,6 +227,9 @@ class AsyncNckClient:
         for variable, item in zip(variables, response.items, strict=True):
             if item.return_code != RC_SUCCESS:
                 results.append(ItemResult(variable, item.return_code))
+                continue
+            if isinstance(variable, PlcVariable):
+                results.append(ItemResult(variable, RC_SUCCESS, plc_decode(variable, item.data)))
                 continue
             values = decode_nck_values(variable.nck_type, item.data, area=variable.address.area,
                                        line_count=variable.address.line_count, string_length=variable.length)
@@ -216,13 +251,42 @@ class AsyncNckClient:
         return encode_nck_values(variable.nck_type, values, area=variable.address.area,
                                  string_length=variable.length)
 
+    @staticmethod
+    def _plc_item(variable: PlcVariable, value: Any, maximum: int | None) -> tuple[S7AnyAddress, s7.DataItem]:
+        """The S7ANY item and its data: a bit (transport size BIT), bytes (BYTE/WORD/DWORD, length in
+        bits), or a STRING's length and characters after its maximum length byte."""
+        if variable.kind == "BOOL":
+            return plc_address(variable), s7.DataItem(0x00, DATA_TS_BIT, plc_encode(variable, [value]))
+        if variable.kind == "STRING":
+            if maximum is None:
+                raise NckConfigError(f"{variable}: its maximum length could not be read (does it exist?)")
+            text = str(value).encode("latin-1", "replace")
+            if len(text) > maximum:
+                raise NckConfigError(f"{variable}: {len(text)} characters in an S7 string of at most {maximum} "
+                                     f"(its first byte, the maximum length, says so"
+                                     f"{'; set it first, e.g. ' + str(variable).split(':')[0] + '=254' if not maximum else ''})")
+            data = bytes([len(text)]) + text
+            return (S7AnyAddress(S7TransportSize.BYTE, len(data), variable.db, variable.s7_area, variable.byte + 1),
+                    s7.DataItem(0x00, DATA_TS_BYTES, data))
+        values = list(value) if isinstance(value, list | tuple) else [value]
+        return plc_address(variable), s7.DataItem(0x00, DATA_TS_BYTES, plc_encode(variable, values))
+
     async def put_items(self, values: Mapping[object, Any] | Iterable[tuple[object, Any]]) -> list[ItemResult]:
         """FB3 PUT: one write job; each variable's return code (valid items land, bad ones say why)."""
         pairs = list(values.items()) if isinstance(values, Mapping) else list(values)
         variables = self._variables(item for item, _ in pairs)
-        data = tuple(s7.DataItem(0x00, NCK_TRANSPORT_SIZE, self._encode(variable, value))
-                     for variable, (_, value) in zip(variables, pairs, strict=True))
-        request = s7.WriteVarRequest(tuple(v.address for v in variables), data)
+        maxima = await self._string_maxima(variables)
+        addresses: list[object] = []
+        data: list[s7.DataItem] = []
+        for index, (variable, (_, value)) in enumerate(zip(variables, pairs, strict=True)):
+            if isinstance(variable, PlcVariable):
+                address, item = self._plc_item(variable, value, maxima.get(index))
+                addresses.append(address)
+                data.append(item)
+            else:
+                addresses.append(variable.address)
+                data.append(s7.DataItem(0x00, NCK_TRANSPORT_SIZE, self._encode(variable, value)))
+        request = s7.WriteVarRequest(tuple(addresses), tuple(data))  # type: ignore[arg-type]
         answer = await self.exchange(*s7.build_write_var_request(request))
         response = s7.parse_write_var_response(answer.parameter, answer.data)
         if len(response.return_codes) != len(variables):

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from nckemu.catalogue.names import Variable, parse_variable
+from nckemu.catalogue.names import PlcVariable, Variable, parse_item
 from nckemu.cliutil import default_host, default_port, port_number
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckArea, NckType
@@ -33,20 +33,35 @@ def _connection_options(parser: argparse.ArgumentParser) -> None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     raw = argparse.RawDescriptionHelpFormatter
-    get = subparsers.add_parser("get", help="read NCK variables (FB2 GET)", formatter_class=raw,
-                                epilog="examples:\n  nckemu get --port 1102 SD43900[AX4] SD43910[AX4] R5\n"
-                                       "  nckemu get --port 1102 '/Channel/State/progStatus[u1]' "
-                                       "'/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'\n")
+    names = ("Names (docs/addresses.md; nckemu vars shows each variable's range in both counts):\n"
+             "  NC syntax counts indices from 0: R4, MD10000[1] (the second entry), SD43900[AX4],\n"
+             "    actToolBasePos[AX4] = actToolBasePos[3], actSpeed[SP1] = actSpeed[0]\n"
+             "  BTSS and OPC UA ids count lines from 1: /Channel/Parameter/R[u1,5] = R[u1,5] = R4,\n"
+             "    R[u1,1,#5] = R0..R4 as an array\n"
+             "  S7 names PLC memory: DB130.DBW0, M5.0, MB10, PIW420, DB130.DBD0:REAL")
+    get = subparsers.add_parser(
+        "get", help="read NCK variables (FB2 GET) and PLC memory (S7ANY)", formatter_class=raw,
+        description=f"Read 1..8 NCK variables or PLC addresses in one job.\n\n{names}",
+        epilog="examples:\n  nckemu get --port 1102 SD43900[AX4] SD43910[AX4] R5\n"
+               "  nckemu get --port 1102 '/Channel/State/progStatus[u1]' "
+               "'/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'\n"
+               "  nckemu get --port 1102 'R[u1,1,#5]' 'actToolBasePos[AX4]' 'MD10000[1]'\n"
+               "  nckemu get --port 1102 DB130.DBW0 M5.0 PIW420\n")
     get.add_argument("variables", nargs="+", metavar="VAR",
-                     help="e.g. SD43900[AX4], MD32750[AX4], R5 (axis variables need their axis), or an OPC "
-                          "UA node id: '/Channel/State/progStatus[u1]'")
+                     help="e.g. SD43900[AX4], MD32750[AX4], R5 (axis variables need their axis), an OPC "
+                          "UA node id ('/Channel/State/progStatus[u1]') or an S7 address (DB130.DBW0)")
     _connection_options(get)
     get.set_defaults(func=run_get)
 
-    put = subparsers.add_parser("put", help="write NCK variables in one job (FB3 PUT)", formatter_class=raw,
-                                epilog="example: nckemu put --port 1102 SD43900[AX4]=0.3 SD43920[AX4]=0\n")
+    put = subparsers.add_parser(
+        "put", help="write NCK variables and PLC memory in one job (FB3 PUT, S7ANY)", formatter_class=raw,
+        description=f"Write 1..8 NCK variables or PLC addresses in one job; an array takes comma-separated "
+                    f"values.\n\n{names}",
+        epilog="examples:\n  nckemu put --port 1102 SD43900[AX4]=0.3 SD43920[AX4]=0\n"
+               "  nckemu put --port 1102 'R[u1,1,#3]=1,2,3' DB130.DBW0=7 M5.0=1\n")
     put.add_argument("assignments", nargs="+", metavar="VAR=VALUE",
-                     help="e.g. SD43900[AX4]=0.3 (a value in the variable's unit: mm, degC, ...); all in one job")
+                     help="e.g. SD43900[AX4]=0.3 (a value in the variable's unit: mm, degC, ...) or DB130.DBW0=7; "
+                          "all in one job")
     put.add_argument("--password", help="log in first (_N_LOGIN_), e.g. EVENING for machine data")
     put.add_argument("--real32", action="store_true", help="round REAL8 values through a 32-bit REAL, as a PLC")
     _connection_options(put)
@@ -103,11 +118,12 @@ def _client(args: argparse.Namespace) -> AsyncNckClient:
                           plc_real32=getattr(args, "real32", False))
 
 
-def _spec(variable: Variable) -> Any:
-    """The catalogue's row for a variable (limits, unit, access levels), None for an unknown address."""
+def _spec(variable: Variable | PlcVariable) -> Any:
+    """The catalogue's row for a variable (limits, unit, access levels), None for an unknown address or
+    PLC memory."""
     from nckemu.catalogue.table import spec_at
 
-    return spec_at(variable.address)
+    return spec_at(variable.address) if isinstance(variable, Variable) else None
 
 
 def _limits_text(spec: Any) -> str:
@@ -117,37 +133,112 @@ def _limits_text(spec: Any) -> str:
     return f"{low}..{high}{unit}"
 
 
-def _why_refused(result: ItemResult, value: Any) -> str:
+def _plc_refusal(variable: PlcVariable, code: str, return_code: int) -> str:
+    where = f"DB{variable.db}" if variable.area == "DB" else f"the {variable.area} area"
+    if return_code == 0x0A:
+        return (f"{where} does not exist on the controller (an emulator's DBs: nckemu machine show; on an "
+                f"840D sl the PLC is --slot 2): {code}")
+    if return_code == 0x05:
+        return f"bytes {variable.byte}..{variable.byte + max(1, variable.size_bytes) - 1} lie beyond the end of {where}: {code}"
+    return code
+
+
+def _why_refused(result: ItemResult, value: Any, context: str = "") -> str:
     """What a refused item means in words, then the controller's code."""
     code = describe_return_code(result.return_code)
+    if isinstance(result.variable, PlcVariable):
+        return _plc_refusal(result.variable, code, result.return_code)
     spec = _spec(result.variable)
-    if value is None or spec is None:
+    if spec is None:
         return code
-    numbers = value if isinstance(value, list | tuple) else [value]
-    unit = f" {spec.unit}" if spec.unit not in ("", "1") else ""
     notes = []
-    if any(isinstance(v, float) and not math.isfinite(v) for v in numbers):
-        notes.append(f"{value!r} is not a finite number (limits {_limits_text(spec)})")
-    elif any(isinstance(v, int | float) and ((spec.minimum is not None and v < spec.minimum)
-                                             or (spec.maximum is not None and v > spec.maximum)) for v in numbers):
-        shown = ", ".join(f"{v:g}" for v in numbers)
-        notes.append(f"{shown}{unit} is outside its limits {_limits_text(spec)}")
+    if value is not None and _outside_limits(spec, value):
+        numbers = value if isinstance(value, list | tuple) else [value]
+        unit = f" {spec.unit}" if spec.unit not in ("", "1") else ""
+        if any(isinstance(v, float) and not math.isfinite(v) for v in numbers):
+            notes.append(f"{value!r} is not a finite number (limits {_limits_text(spec)})")
+        else:
+            shown = ", ".join(f"{v:g}" for v in numbers)
+            notes.append(f"{shown}{unit} is outside its limits {_limits_text(spec)}")
+    elif result.return_code == 0x05 or (result.return_code == 0x0A and context):
+        notes.append(_range_note(result.variable, spec, context))
     if result.return_code == 0x03:
         notes.append(f"writing it needs access level {spec.write_level} or higher (give --password)"
                      if spec.write_level >= 0 else "it is read-only")
     return f"{'; '.join(notes)}; the controller answered {code}" if notes else code
 
 
+def _outside_limits(spec: Any, value: Any) -> bool:
+    """A written value the variable's limits refuse (not finite, or outside min..max)."""
+    numbers = value if isinstance(value, list | tuple) else [value]
+    return any(isinstance(v, float) and not math.isfinite(v) for v in numbers) or any(
+        isinstance(v, int | float) and ((spec.minimum is not None and v < spec.minimum)
+                                        or (spec.maximum is not None and v > spec.maximum)) for v in numbers)
+
+
+def _range_note(variable: Variable, spec: Any, context: str) -> str:
+    """A refused address (0x05, 0x0A) in words: which line or unit the machine lacks, and the valid range."""
+    from nckemu.catalogue.grammar import display_btss, index_ranges
+
+    machine = f": {context}" if context else " (it may have fewer than the catalogue)"
+    return (f"not on this machine (BTSS {display_btss(spec, variable.address)}){machine}; {spec.name} takes "
+            f"{index_ranges(spec)}")
+
+
+async def _machine_context(client: AsyncNckClient, variable: Variable) -> str:
+    """What a machine has where a refused address points: its axes (with their names, from MD10000)
+    for an axis variable or a line that is a machine axis, its spindles for a spindle line. Read from
+    the controller; "" where it does not answer."""
+    from nckemu.catalogue.table import line_kind, spec_at
+
+    spec = spec_at(variable.address)
+    if spec is None:
+        return ""
+    kind = "machine axis" if variable.address.area == NckArea.A else line_kind(spec)
+    try:
+        if kind == "machine axis":
+            (highest,) = await client.get("maxnumGlobMachAxes")
+            highest = max(0, min(int(highest), 31))
+            names: list[str] = []
+            for first in range(1, highest + 1, 16):  # 16 names of 32 bytes fit any PDU
+                count = min(16, highest - first + 1)
+                (chunk,) = await client.get(f"MD10000[u1,{first},#{count}]")
+                names += chunk if isinstance(chunk, list) else [chunk]
+            axes = [f"AX{number} {name}" for number, name in enumerate(names, start=1) if name]
+            return f"its machine axes are {', '.join(axes)}" if axes else "it has no machine axes"
+        if kind == "spindle":
+            (count,) = await client.get(f"numSpindles[C{variable.address.unit}]")
+            count = int(count)
+            if count < 1:
+                return f"channel {variable.address.unit} has no spindle"
+            return (f"channel {variable.address.unit} has {count} spindle{'s' if count > 1 else ''}: "
+                    f"SP1{f'..SP{count}' if count > 1 else ''}")
+    except (NckError, ValueError, TypeError):
+        return ""
+    return ""
+
+
 def _record(result: ItemResult) -> dict[str, Any]:
-    address = result.variable.address
-    return {"name": str(result.variable), "area": address.area, "unit": address.unit,
+    variable = result.variable
+    if isinstance(variable, PlcVariable):
+        return {"name": str(variable), "plc": {"area": variable.area, "db": variable.db, "byte": variable.byte,
+                                               "bit": variable.bit, "type": variable.kind, "count": variable.count},
+                "return_code": result.return_code, "ok": result.ok, "value": result.value}
+    from nckemu.catalogue.grammar import display_btss, display_node_id
+
+    address = variable.address
+    spec = _spec(variable)
+    forms = {"btss": display_btss(spec, address), "opcua": display_node_id(spec, address)} if spec else {}
+    return {"name": str(variable), **forms, "area": address.area, "unit": address.unit,
             "column": address.column, "line": address.line, "module": address.module,
             "line_count": address.line_count, "return_code": result.return_code,
-            "ok": result.ok, "value": result.value, "unit_of_measure": result.variable.unit_of_measure}
+            "ok": result.ok, "value": result.value, "unit_of_measure": variable.unit_of_measure}
 
 
-def _print_results(results: list[ItemResult], as_json: bool, written: list[Any] | None = None) -> int:
-    failed = [(r, written[i] if written else None) for i, r in enumerate(results) if not r.ok]
+def _print_results(results: list[ItemResult], as_json: bool, written: list[Any] | None = None,
+                   contexts: dict[int, str] | None = None) -> int:
+    failed = [(r, written[i] if written else None, (contexts or {}).get(i, ""))
+              for i, r in enumerate(results) if not r.ok]
     if as_json:
         print(json.dumps([_record(r) for r in results]))
     else:
@@ -155,17 +246,18 @@ def _print_results(results: list[ItemResult], as_json: bool, written: list[Any] 
             if result.ok:
                 value = result.value
                 shown = f"{value:.6f}" if isinstance(value, float) else value
-                suffix = f" {result.variable.unit_of_measure}" if result.variable.unit_of_measure not in ("", "1") else ""
+                measure = getattr(result.variable, "unit_of_measure", "")
+                suffix = f" {measure}" if measure not in ("", "1") else ""
                 print(f"{result.variable} = {shown}{suffix}" if result.value is not None
                       else f"{result.variable}: ok")
-    for result, value in failed:
-        print(f"nckemu: {result.variable}: {_why_refused(result, value)}", file=sys.stderr)
+    for result, value, context in failed:
+        print(f"nckemu: {result.variable}: {_why_refused(result, value, context)}", file=sys.stderr)
     return 1 if failed else 0
 
 
-def _parse(text: str) -> Variable:
+def _parse(text: str) -> Variable | PlcVariable:
     """A variable name; an axis variable without its axis is refused (it would silently be AX1)."""
-    variable = parse_variable(text)
+    variable = parse_item(text)
     spec = _spec(variable)
     if spec is not None and spec.areas == {NckArea.A} and "[" not in text and not text.strip().startswith("/"):
         raise NckConfigError(f"{text!r}: {spec.number or spec.name} is an axis variable: say which axis, "
@@ -173,25 +265,81 @@ def _parse(text: str) -> Variable:
     return variable
 
 
+async def _contexts(client: AsyncNckClient, results: list[ItemResult],
+                    written: list[Any] | None = None) -> dict[int, str]:
+    """For each item refused as an invalid address (0x05) or a missing object (0x0A), what the machine
+    has there (not for a written value outside its limits: that is why it was refused)."""
+    contexts = {}
+    for index, result in enumerate(results):
+        if result.return_code not in (0x05, 0x0A) or not isinstance(result.variable, Variable):
+            continue
+        spec = _spec(result.variable)
+        if written is not None and spec is not None and _outside_limits(spec, written[index]):
+            continue
+        contexts[index] = await _machine_context(client, result.variable)
+    return contexts
+
+
 def run_get(args: argparse.Namespace) -> int:
     variables = [_parse(v) for v in args.variables]
 
-    async def go() -> list[ItemResult]:
+    async def go() -> tuple[list[ItemResult], dict[int, str]]:
         async with _client(args) as client:
-            return await client.get_items(*variables)
+            results = await client.get_items(*variables)
+            return results, await _contexts(client, results)
 
-    return _print_results(asyncio.run(go()), args.json)
+    results, contexts = asyncio.run(go())
+    return _print_results(results, args.json, contexts=contexts)
 
 
-def _parse_value(variable: Variable, text: str) -> Any:
-    try:
-        if variable.nck_type in (NckType.REAL4, NckType.REAL8):
-            return float(text)
-        if variable.nck_type == NckType.STRING:
+_INTEGER_RANGES = {NckType.BOOL: (0, 1), NckType.BYTE: (0, 0xFF), NckType.WORD: (0, 0xFFFF),
+                   NckType.INT: (-0x8000, 0x7FFF), NckType.DWORD: (0, 0xFFFFFFFF),
+                   NckType.DINT: (-0x80000000, 0x7FFFFFFF), NckType.INT64: (-(1 << 63), (1 << 63) - 1)}
+_TRUE, _FALSE = ("1", "true", "on"), ("0", "false", "off")
+
+
+def _parse_one(variable: Variable | PlcVariable, text: str) -> Any:
+    if isinstance(variable, PlcVariable):
+        if variable.kind == "STRING":
             return text
-        return int(text, 0)
+        if variable.kind == "BOOL":
+            if text.strip().lower() not in _TRUE + _FALSE:
+                raise NckConfigError(f"{variable}: {text!r} is not a bit (0/1, true/false, on/off)")
+            return text.strip().lower() in _TRUE
+        kind = variable.kind
+        number: Any = float(text) if kind == "REAL" else int(text, 0)
+        if kind != "REAL":
+            from nckemu.catalogue.names import PLC_RANGES
+
+            low, high = PLC_RANGES[kind]
+            if not low <= number <= high:
+                raise NckConfigError(f"{variable}: {number} is not a {kind} ({low}..{high})")
+        return number
+    if variable.nck_type in (NckType.REAL4, NckType.REAL8):
+        return float(text)
+    if variable.nck_type == NckType.STRING:
+        return text
+    value = int(text, 0)
+    low, high = _INTEGER_RANGES.get(variable.nck_type, (value, value))
+    if not low <= value <= high:
+        raise NckConfigError(f"{variable}: {value} is not a {variable.nck_type.name} ({low}..{high})")
+    return value
+
+
+def _parse_value(variable: Variable | PlcVariable, text: str) -> Any:
+    """One value, or comma-separated values for an array (``R[u1,1,#3]=1,2,3``, ``DB2.DBD0:REAL[2]=1,2``)."""
+    count = variable.address.line_count if isinstance(variable, Variable) else \
+        (variable.count if variable.array else 1)
+    kind = variable.kind if isinstance(variable, PlcVariable) else variable.nck_type.name
+    try:
+        if count == 1:
+            return _parse_one(variable, text)
+        parts = text.split(",")
+        if len(parts) != count:
+            raise NckConfigError(f"{variable}: {len(parts)} values for {count} elements (comma-separated)")
+        return [_parse_one(variable, part) for part in parts]
     except ValueError:
-        raise NckConfigError(f"{variable}: {text!r} is not a {variable.nck_type.name} value") from None
+        raise NckConfigError(f"{variable}: {text!r} is not a {kind} value") from None
 
 
 def run_put(args: argparse.Namespace) -> int:
@@ -203,16 +351,17 @@ def run_put(args: argparse.Namespace) -> int:
         variable = _parse(name)
         pairs.append((variable, _parse_value(variable, text)))
 
-    async def go() -> list[ItemResult]:
+    async def go() -> tuple[list[ItemResult], dict[int, str]]:
         async with _client(args) as client:
             if args.password:
                 await client.login(args.password)
-            return await client.put_items(pairs)
+            results = await client.put_items(pairs)
+            return results, await _contexts(client, results, [v for _, v in pairs])
 
-    results = asyncio.run(go())
+    results, contexts = asyncio.run(go())
     return _print_results([ItemResult(r.variable, r.return_code, v if r.ok else None)
                            for r, (_, v) in zip(results, pairs, strict=True)], args.json,
-                          written=[v for _, v in pairs])
+                          written=[v for _, v in pairs], contexts=contexts)
 
 
 def run_pi(args: argparse.Namespace) -> int:

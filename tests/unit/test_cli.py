@@ -201,7 +201,7 @@ BAD_INPUT = [
     (["comp840c", "--port", "{port}", "--axis", "4", "--flags", "Q"], "only U and A"),
     (["serve", "--state", "/nonexistent/s.json", "--port", "0"], "/nonexistent does not exist"),
     (["discover", "{tmp}/missing.csv"], "missing.csv: cannot read"),
-    (["vars", "NO_SUCH_THING"], "no NCK variable name, number or BTSS path matches"),
+    (["vars", "NO_SUCH_THING"], "no NCK variable name or number matches"),
     (["plc", "run", "{tmp}/empty.awl"], "the program is empty"),
     (["plc", "run", "{tmp}/no_ob1.awl"], "no ORGANIZATION_BLOCK OB 1"),
 ]

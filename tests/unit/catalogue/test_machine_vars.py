@@ -73,11 +73,12 @@ def test_unknown_value_source_in_a_machine_file_is_refused() -> None:
 def test_vars_lists_name_number_address_type_limits_access_source(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["vars", "feedRateIpoOvr"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].split() == ["name", "number", "address", "type", "unit", "limits", "r/w", "source"]
-    assert out[1].split() == ["feedRateIpoOvr", "S3", "C", "0x7F", "col", "3", "REAL8", "%", "0.0..200.0", "7/7",
-                              "channel.feed_override"]
+    assert out[0].split() == ["name", "number", "NC", "(index", "from", "0)", "BTSS", "(line", "from", "1)",
+                              "address", "type", "unit", "limits", "r/w", "source"]
+    assert out[1].split() == ["feedRateIpoOvr", "S3", "feedRateIpoOvr", "/Channel/State/feedRateIpoOvr[u1]", "C",
+                              "0x7F", "col", "3", "REAL8", "%", "0.0..200.0", "7/7", "channel.feed_override"]
     assert main(["vars", "MD18040"]) == 0
-    assert "N 0x1A col 18040 l1..6  STRING(20)" in capsys.readouterr().out
+    assert "MD18040[0..5]      MD18040[u1,1..6]    N 0x1A col 18040  STRING(20)" in capsys.readouterr().out
 
 
 def test_vars_json_pattern_and_machine(capsys: pytest.CaptureFixture[str]) -> None:
@@ -89,7 +90,7 @@ def test_vars_json_pattern_and_machine(capsys: pytest.CaptureFixture[str]) -> No
     (row,) = json.loads(capsys.readouterr().out)
     assert (row["name"], row["source"], row["write_level"]) == ("shiftTarget", "stored", 7)
     assert main(["vars", "no-such-variable"]) == 1
-    assert "no NCK variable name, number or BTSS path matches" in capsys.readouterr().err
+    assert "no NCK variable name or number matches" in capsys.readouterr().err
 
 
 def test_vars_help_example_runs(capsys: pytest.CaptureFixture[str]) -> None:
