@@ -135,8 +135,11 @@ def format_table(specs: Iterable[VariableSpec]) -> str:
 
 def run_vars(args: argparse.Namespace) -> int:
     specs = machine_file_table(args.machine) if args.machine else load_table()
-    named = pattern_row(args.pattern, specs)
-    chosen = [named] if named is not None else [spec for spec in specs if matches(spec, args.pattern)]
+    # A catalogue number given whole (r0032: a drive parameter on every drive object that has it) lists
+    # its rows before the grammar reads it as a name (R0032 would be R parameter 32).
+    numbered = [spec for spec in specs if spec.number.lower() == args.pattern.strip().lower()]
+    named = None if numbered else pattern_row(args.pattern, specs)
+    chosen = numbered or ([named] if named is not None else [spec for spec in specs if matches(spec, args.pattern)])
     if args.json:
         print(json.dumps([describe(spec) for spec in chosen], indent=1))
         return 0

@@ -161,8 +161,8 @@ def test_get_and_put_take_s7_addresses(faces: tuple[EmulatorThread, OpcUaFace],
         nck.put({"DB130.DBB20": 20, "SD43900[AX4]": 0.25})
         nck.put({"DB130.DBB20:STRING": "hello"})
         assert nck.get("DB130.DBB20:STRING", "SD43900[AX4]", "MW10") == ["hello", 0.25, 0x0700]
-    code, _, err = _get(capsys, emulator.port, "DB2.DBD0:REAL")
-    assert code == 1 and "DB2 does not exist on the controller" in err and "(0x0A)" in err
+    code, _, err = _get(capsys, emulator.port, "DB999.DBD0:REAL")
+    assert code == 1 and "DB999 does not exist on the controller" in err and "(0x0A)" in err
     code, _, err = _get(capsys, emulator.port, "DB130.DBW300")
     assert code == 1 and "bytes 300..301 lie beyond the end of DB130" in err
     code, _, err = _cli(capsys, "put", "--port", str(emulator.port), "DB130.DBW0=70000")

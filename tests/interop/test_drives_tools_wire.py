@@ -11,9 +11,15 @@ from pathlib import Path
 import pytest
 import snap7
 
+from nckemu.catalogue.names import Variable
 from nckemu.clients.sync import NckClient
 from nckemu.emulator.runner import EmulatorThread
+from nckemu.protocol.addresses import NckAddress, NckType
 
+# r0037 index 20 as a collector sends it (area V, unit 1, column 37, line 21, motor module): past the
+# last index, so the grammar refuses the name; sent raw, the controller answers 0x05.
+PAST_R0037 = Variable(NckAddress(area=5, unit=1, column=37, line=21, module=0x82, line_count=1), NckType.REAL4,
+                      None, "r0037 line 21")
 LATHE = Path(__file__).resolve().parents[2] / "fixtures" / "machines" / "lathe_828d.toml"
 
 
@@ -77,11 +83,12 @@ def test_our_client_names_recorded_items_and_trace_show_names_them(tmp_path: Pat
         emu.call(lambda: emu.nck.set_sensor_temperature("spindle_motor", 55.25))
         assert nck.get("/DriveVsa/Drive/r0035[u1]") == [55.25]
         assert nck.get("/DriveVsa/DC/R0026[u1]") == [540.0]
-        assert nck.get("DRV_r0037[4,u2]") == [pytest.approx(24.0 + 30.0 * 0.4 * 0.02)]
+        # r0037 index 4 (interior): BTSS line 5 (docs/addresses.md: NC indices from 0, BTSS lines from 1)
+        assert nck.get("DRV_r0037[u2,5]") == [pytest.approx(24.0 + 30.0 * 0.4 * 0.02)]
         assert nck.get("actHNumberFanuc32") == [1]
         assert nck.get("actOriToolLength1", "actOriToolLength3") == [pytest.approx(32.51), pytest.approx(47.98)]
         # bad input: no drive 9, r0037 index 20, a write to r0035 (each its return code), and on we read
-        results = nck.get_items("/DriveVsa/Drive/r0035[u9]", "DRV_r0037[20,u1]")
+        results = nck.get_items("/DriveVsa/Drive/r0035[u9]", PAST_R0037)
         assert [r.return_code for r in results] == [0x0A, 0x05]
         (written,) = nck.put_items({"/DriveVsa/Drive/r0035[u1]": 1.0})
         assert written.return_code == 0x03
