@@ -128,7 +128,8 @@ def test_loop_cli_writes_report_json_and_stl(tmp_path: Path, capsys: pytest.Capt
     assert "What physics it leaves out" in shown.out
     # issue 37: one line per phase on stderr, piped too, with how long the rest will take
     phases = [line for line in shown.err.splitlines() if line.startswith("nckemu loop: ")]
-    assert [line.split()[2] for line in phases[:5]] == ["1/4", "1/4", "2/4", "3/4", "4/4"]
+    assert [line.split()[2] for line in phases[:5]] == ["1/4", "1/4", "2/4", "3/4", "3/4"]
+    assert "4/4 held-out judgement: 3 programs" in phases[4]
     assert "PLC cycles of 60 s" in phases[0] and "7 such runs" not in phases[0] and "5 such runs" in phases[0]
     assert "about" in phases[0] and "runs to go, about" in phases[1] and "done in" in phases[-1]
     assert len([line for line in phases if "judged" in line]) == 3
