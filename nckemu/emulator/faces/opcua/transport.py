@@ -17,6 +17,8 @@ steps):
   it created;
 - Publish requests: asyncua queues any number; here more than ``max_publish_requests`` queued on a
   channel get ``BadTooManyPublishRequests``.
+- a session that times out: asyncua's watchdog closes it by waiting on itself (a traceback), and the
+  connection's close raises that again (a second one); here the watchdog is stopped, not awaited.
 - a request body that cannot be decoded: asyncua answers BadInternalError with a traceback in the
   log; here BadDecodingError and one line at debug level (a client cannot fill the disk with logs).
 
@@ -167,6 +169,12 @@ class _Processor(UaProcessor):
             await session.close_session(True)
 
     async def close(self) -> None:
+        # asyncua's close waits for the session watchdog; when the watchdog itself closes a timed-out
+        # session, that is a task waiting on itself (RuntimeError), and the connection's close later
+        # raises it again. Stop the watchdog here, never wait on it.
+        watchdog, self._session_watchdog_task = self._session_watchdog_task, None
+        if watchdog is not None and watchdog is not asyncio.current_task():
+            watchdog.cancel()
         try:
             await super().close()
         finally:
