@@ -97,9 +97,10 @@ def figures(pid: int) -> tuple[int, int]:
 
 
 # ------------------------------------------------------------------ S7 clients
-def s7_client(port: int, number: int, jobs: int, deadline: float, acked: Any, out: Any) -> None:
+def s7_client(port: int, number: int, jobs: int, deadline: float, acked: Any, progress: Any, out: Any) -> None:
     """Reads, writes (R[number], DB100 word, SD for client 0), PI and live values, reconnecting when
-    the server goes away. Counts jobs, errors, torn values; keeps its last acknowledged R value."""
+    the server goes away. Counts jobs, errors, torn values; keeps its last acknowledged R value and
+    shows its job count in ``progress[number]`` (the kills are timed by it)."""
     import logging
     import struct
 
@@ -141,6 +142,7 @@ def s7_client(port: int, number: int, jobs: int, deadline: float, acked: Any, ou
                 client.get("actToolBasePos[3,C1]", SD)
             latencies.append(time.perf_counter() - started)
             done += 1
+            progress[number] = done
         except (NckError, OSError, TimeoutError):
             errors += 1
             if client is not None:
@@ -344,13 +346,14 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
     acked = ctx.Array("d", UA_FIRST_R + 10 + 1)
     users, programs = ctx.Array("i", ua_sessions), ctx.Array("i", ua_sessions)
     out, stop = ctx.Queue(), ctx.Event()
+    progress = ctx.Array("q", s7_clients, lock=False)
     items = max(1, min(1000 // max(1, ua_sessions), 25 * s7_jobs // 1000))
     with tempfile.TemporaryDirectory() as scratch:
         state, log = Path(scratch) / "state.json", Path(scratch) / "server.log"
         server = serve(port, opcua, state, log, s7_clients + 1)
         started = time.time()
         deadline = started + seconds
-        workers = [ctx.Process(target=s7_client, args=(port, w, s7_jobs, deadline, acked, out))
+        workers = [ctx.Process(target=s7_client, args=(port, w, s7_jobs, deadline, acked, progress, out))
                    for w in range(s7_clients)]
         workers += [ctx.Process(target=ua_client, args=(url, k, ua_operations, items, deadline, acked, users,
                                                         programs, kills == 0, out)) for k in range(ua_sessions)]
@@ -360,23 +363,33 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
         samples: list[tuple[float, int, int]] = []
         restarts: list[dict[str, int]] = []
         died = 0
+        # Kill moments are fractions of the S7 jobs (or of the time, whichever comes first): on a fast
+        # machine the jobs end long before the time does, and a kill planned by the clock alone never came.
         kill_at = sorted(rng.uniform(0.1, 0.9) for _ in range(kills))
+        planned_jobs = max(1, s7_clients * s7_jobs)
+
+        def kill_and_restart() -> None:
+            nonlocal server
+            kill_at.pop(0)
+            time.sleep(rng.uniform(0, 0.5))
+            os.kill(server.pid, signal.SIGKILL)
+            server.wait(timeout=10)
+            snapshot = list(acked), list(users), list(programs)
+            server = serve(port, opcua, state, log, s7_clients + 1)
+            restarts.append(check_durable(port, url, *snapshot))
+
         try:
             while any(worker.is_alive() for worker in workers) and time.time() < deadline + 60:
-                time.sleep(0.5)
+                time.sleep(0.25)
                 if server.poll() is not None:
                     died += 1
                     server = serve(port, opcua, state, log, s7_clients + 1)
                 samples.append((time.time() - started, *figures(server.pid)))
-                progress = (time.time() - started) / seconds
-                if kill_at and (progress >= kill_at[0] or len(samples) > 40 and rng.random() < 0.02 * kills):
-                    kill_at.pop(0)
-                    time.sleep(rng.uniform(0, 0.5))
-                    os.kill(server.pid, signal.SIGKILL)
-                    server.wait(timeout=10)
-                    snapshot = list(acked), list(users), list(programs)
-                    server = serve(port, opcua, state, log, s7_clients + 1)
-                    restarts.append(check_durable(port, url, *snapshot))
+                done = max((time.time() - started) / seconds, sum(progress) / planned_jobs)
+                if kill_at and done >= kill_at[0]:
+                    kill_and_restart()
+            while kill_at:  # the clients finished first: the kills still test what they acknowledged
+                kill_and_restart()
             results = [out.get(timeout=120) for _ in range(len(workers))]
             stop.set()
             results.append(out.get(timeout=60))
