@@ -19,12 +19,13 @@ import copy
 import logging
 import threading
 import zlib
+from collections.abc import Awaitable, Callable
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
 
-from nckemu.emulator.machine.nck.alarms import Alarm, AlarmEvent
+from nckemu.emulator.machine.nck.alarms import Alarm, AlarmEvent, Alarms
 
 if TYPE_CHECKING:
     from nckemu.emulator.faces.opcua.face import OpcUaFace
@@ -72,6 +73,59 @@ def event_fields(event: AlarmEvent, namespace: int) -> dict[str, Any]:
     }
 
 
+class AlarmEventQueue:
+    """The alarms raised and cleared on an NCK's alarm list (told on any thread), handed in order to
+    ``send`` by one task on the face's loop. ``start`` on that loop: it also queues the alarms already
+    pending, so that a client's ConditionRefresh finds them."""
+
+    def __init__(self, alarm_list: Alarms, send: Callable[[AlarmEvent], Awaitable[None]], what: str) -> None:
+        self.alarm_list = alarm_list
+        self._send = send
+        self._what = what  # named in the log line of an event that could not be sent
+        self._pending: list[AlarmEvent] = []
+        self._sender: asyncio.Task[None] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._loop_thread = 0
+
+    def start(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._loop_thread = threading.get_ident()
+        self.alarm_list.listeners.append(self.told)
+        for alarm in self.alarm_list.pending:  # raised before the face started
+            self.told(AlarmEvent(alarm, True, alarm.time_s))
+
+    def stop(self) -> None:
+        if self.told in self.alarm_list.listeners:
+            self.alarm_list.listeners.remove(self.told)
+        if self._sender is not None:
+            self._sender.cancel()
+
+    def told(self, event: AlarmEvent) -> None:
+        self._pending.append(event)
+        loop = self._loop
+        if self._sender is not None or loop is None:
+            return
+        if threading.get_ident() == self._loop_thread:
+            self._start_sender()
+        else:
+            loop.call_soon_threadsafe(self._start_sender)
+
+    def _start_sender(self) -> None:
+        if self._sender is None and self._loop is not None:
+            self._sender = self._loop.create_task(self._send_pending())
+
+    async def _send_pending(self) -> None:
+        try:
+            while self._pending:
+                await self._send(self._pending.pop(0))
+        except Exception:  # an event that cannot be sent must not stop the ones after it
+            log.exception(self._what)
+        finally:
+            self._sender = None
+            if self._pending:
+                self._start_sender()
+
+
 class AlarmEvents:
     """Sends the alarm events of one face's emulator; ``start`` after the server is initialised."""
 
@@ -81,10 +135,7 @@ class AlarmEvents:
         self._template: Any = None
         self._source: ua.NodeId | None = None
         self.namespace_index = 0   # the namespace of CncAlarmType's own fields (AlarmIdentifier ...)
-        self._pending: list[AlarmEvent] = []
-        self._sender: asyncio.Task[None] | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._loop_thread = 0
+        self._queue = AlarmEventQueue(face.emulator.nck.alarm_list, self._send, "OPC UA alarm event")
         self.sent = 0
 
     async def start(self, server: Server) -> None:
@@ -101,43 +152,10 @@ class AlarmEvents:
         self._generator = await server.get_event_generator(event_type, ua.ObjectIds.Server)
         self._template = self._generator.event
         self._source = self.face.models.cnc_interface()  # the alarms' source: the CncInterface object
-        self._loop = asyncio.get_running_loop()
-        self._loop_thread = threading.get_ident()
-        alarms = self.face.emulator.nck.alarm_list
-        alarms.listeners.append(self._told)
-        for alarm in alarms.pending:  # raised before the face started: kept for ConditionRefresh
-            self._told(AlarmEvent(alarm, True, alarm.time_s))
+        self._queue.start()
 
     async def stop(self) -> None:
-        listeners = self.face.emulator.nck.alarm_list.listeners
-        if self._told in listeners:
-            listeners.remove(self._told)
-        if self._sender is not None:
-            self._sender.cancel()
-
-    def _told(self, event: AlarmEvent) -> None:
-        self._pending.append(event)
-        if self._sender is None and self._loop is not None:
-            if threading.get_ident() == self._loop_thread:
-                self._start_sender()
-            else:
-                self._loop.call_soon_threadsafe(self._start_sender)
-
-    def _start_sender(self) -> None:
-        if self._sender is None and self._loop is not None:
-            self._sender = self._loop.create_task(self._send_pending())
-
-    async def _send_pending(self) -> None:
-        try:
-            while self._pending:
-                event = self._pending.pop(0)
-                await self._send(event)
-        except Exception:  # an event that cannot be sent must not stop the ones after it
-            log.exception("OPC UA alarm event")
-        finally:
-            self._sender = None
-            if self._pending:
-                self._start_sender()
+        self._queue.stop()
 
     async def _send(self, event: AlarmEvent) -> None:
         fields = copy.copy(self._template)  # one object per event: asyncua keeps the retained ones

@@ -23,11 +23,9 @@ are ours (docs/assumptions.md).
 
 from __future__ import annotations
 
-import asyncio
 import copy
 import logging
 import re
-import threading
 import zlib
 from collections.abc import Callable
 from datetime import UTC, datetime
@@ -36,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 from asyncua import Server, ua
 
 from nckemu.emulator.faces.opcua import nodesets
-from nckemu.emulator.faces.opcua.alarms import severity_of
+from nckemu.emulator.faces.opcua.alarms import AlarmEventQueue, severity_of
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
 from nckemu.emulator.faces.opcua.settings import SIGNAL_COLORS
@@ -94,10 +92,7 @@ class MachineToolInstance:
         self.alerts: Any = None
         self.messages: ua.NodeId | None = None
         self._template: Any = None
-        self._pending: list[AlarmEvent] = []
-        self._sender: asyncio.Task[None] | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._loop_thread = 0
+        self._alerts = AlarmEventQueue(self.emulator.nck.alarm_list, self._send, "OPC UA alert event")
         self.alerts_sent = 0
 
     # ------------------------------------------------------------------ helpers
@@ -330,45 +325,10 @@ class MachineToolInstance:
             ua.EventNotifier.SubscribeToEvents, ua.VariantType.Byte)))
         self.alerts = await server.get_event_generator(alert_type, messages)
         self._template = self.alerts.event
-        self._loop = asyncio.get_running_loop()
-        self._loop_thread = threading.get_ident()
-        alarm_list = self.emulator.nck.alarm_list
-        alarm_list.listeners.append(self._told)
-        for alarm in alarm_list.pending:
-            self._told(AlarmEvent(alarm, True, alarm.time_s))
+        self._alerts.start()
 
     async def stop(self) -> None:
-        listeners = self.emulator.nck.alarm_list.listeners
-        if self._told in listeners:
-            listeners.remove(self._told)
-        if self._sender is not None:
-            self._sender.cancel()
-
-    def _told(self, event: AlarmEvent) -> None:
-        """An alarm raised or cleared (on any thread): sent in order by one sender task on the face's loop."""
-        self._pending.append(event)
-        loop = self._loop
-        if self._sender is not None or loop is None:
-            return
-        if threading.get_ident() == self._loop_thread:
-            self._start_sender()
-        else:
-            loop.call_soon_threadsafe(self._start_sender)
-
-    def _start_sender(self) -> None:
-        if self._sender is None and self._loop is not None:
-            self._sender = self._loop.create_task(self._send_pending())
-
-    async def _send_pending(self) -> None:
-        try:
-            while self._pending:
-                await self._send(self._pending.pop(0))
-        except Exception:  # an event that cannot be sent must not stop the ones after it
-            log.exception("OPC UA alert event")
-        finally:
-            self._sender = None
-            if self._pending:
-                self._start_sender()
+        self._alerts.stop()
 
     async def _send(self, event: AlarmEvent) -> None:
         """An ``AlertType`` event from Notification/Messages: the alarm's number as ErrorCode and condition
