@@ -30,16 +30,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.bench_server import NCK_READ_PDU, free_port, process_cpu_s, wait_port
+from bench.bench_server import NCK_READ_PDU, free_port, process_cpu_s, process_figures, wait_port
 
 REPO = Path(__file__).resolve().parent.parent
 
 
 def rss_mb(pid: int) -> float:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    raise RuntimeError("no VmRSS (Linux /proc needed)")
+    return process_figures(pid)[0] / 1024
 
 
 def free_range(count: int) -> int:

@@ -289,6 +289,15 @@ def process_cpu_s(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def process_figures(pid: int) -> tuple[int, int]:
+    """Resident set in KiB and open descriptors of a process (Linux /proc)."""
+    rss = 0
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            rss = int(line.split()[1])
+    return rss, len(os.listdir(f"/proc/{pid}/fd"))
+
+
 def measure(port: int, load: str, clients: int, seconds: float, db: int, driver: str = "snap7",
             server_pid: int | None = None) -> dict[str, float]:
     ctx = mp.get_context("spawn")

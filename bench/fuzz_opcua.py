@@ -10,7 +10,9 @@ A case is one mutated message (plus a valid read behind it, to see the connectio
 step of a named attack. Each ends answered (an OPC UA response or error), closed by the server, or
 waiting (the server waits for the rest of a message it was promised): a waiting connection is left
 open, and the server must close it by itself within its partial-message timeout (``stuck`` counts
-those it did not). Crashes: the server process died. Internal errors: tracebacks in its log.
+those it did not, with what was sent on them; ``late_answers`` those answered after all, later than
+the probe waited, with nothing left pending). Crashes: the server process died. Internal errors:
+tracebacks in its log.
 
 Usage: .venv/bin/python bench/fuzz_opcua.py [--size small|full] [--cases N] [--seed 1] [--json]
 Loopback only; bounded by --cases and --seconds.
@@ -22,7 +24,6 @@ import argparse
 import asyncio
 import json
 import multiprocessing as mp
-import os
 import random
 import re
 import struct
@@ -31,11 +32,13 @@ import sys
 import tempfile
 import time
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench.bench_server import process_figures  # noqa: E402
 from bench.opcua_wire import Answer, Wire  # noqa: E402
 
 SIZES = {"small": 1_500, "medium": 20_000, "full": 100_000}
@@ -122,16 +125,6 @@ def percentile(values: list[float], fraction: float) -> float:
     return ordered[min(len(ordered) - 1, int(fraction * len(ordered)))]
 
 
-def proc_figures(pid: int) -> tuple[int, int]:
-    """RSS in KiB and open descriptors of a process."""
-    rss = 0
-    with open(f"/proc/{pid}/status") as status:
-        for line in status:
-            if line.startswith("VmRSS:"):
-                rss = int(line.split()[1])
-    return rss, len(os.listdir(f"/proc/{pid}/fd"))
-
-
 # ------------------------------------------------------------------ mutations
 def mutate(rng: random.Random, data: bytes) -> tuple[bytes, str]:
     """A mutated copy of one message and what was done (framing kept or broken)."""
@@ -187,6 +180,18 @@ def mutate(rng: random.Random, data: bytes) -> tuple[bytes, str]:
 
 
 # ------------------------------------------------------------------ the fuzzing clients
+@dataclass
+class Parked:
+    """A connection that got no answer in ANSWER_S, and what was sent on it."""
+
+    since: float
+    wire: Wire
+    kind: str
+    how: str
+    data: bytes
+    received: int = 0  # bytes that came after all (an answer later than ANSWER_S)
+
+
 class Fuzzer:
     def __init__(self, url: str, port: int, seed: int, cases: int, seconds: float) -> None:
         self.url, self.port, self.cases, self.deadline = url, port, cases, time.monotonic() + seconds
@@ -194,8 +199,10 @@ class Fuzzer:
         self.done = 0
         self.outcomes: Counter[str] = Counter()
         self.by_kind: Counter[str] = Counter()
-        self.waiting: list[tuple[float, Wire]] = []
+        self.waiting: list[Parked] = []
         self.stuck = 0
+        self.stuck_cases: list[dict[str, Any]] = []  # what was sent, to replay it as a regression test
+        self.late = 0  # answered after ANSWER_S, then idle: no message is pending, nothing to close
         self.closed_in: list[float] = []
         self.handshake_failures = 0
 
@@ -214,36 +221,43 @@ class Fuzzer:
             await wire.subscribe()
         return wire
 
-    def _park(self, wire: Wire) -> None:
+    def _park(self, wire: Wire, kind: str, how: str, data: bytes) -> Parked:
         """A connection the server waits on: it must close it by itself."""
-        self.waiting.append((time.monotonic(), wire))
+        parked = Parked(time.monotonic(), wire, kind, how, data)
+        self.waiting.append(parked)
+        return parked
 
     def _parked(self, wire: Wire) -> bool:
-        return any(parked is wire for _, parked in self.waiting)
+        return any(parked.wire is wire for parked in self.waiting)
 
     async def janitor(self) -> None:
         """Watch parked connections: closed by the server within the partial timeout, or stuck."""
         while self._more() or self.waiting:
             now = time.monotonic()
             keep = []
-            for since, wire in self.waiting:
+            for parked in self.waiting:
+                wire = parked.wire
                 assert wire.reader is not None
                 if wire.reader.at_eof() or wire.writer is None or wire.writer.transport.is_closing():
-                    self.closed_in.append(now - since)
+                    self.closed_in.append(now - parked.since)
                     wire.close()
-                elif now - since > PARTIAL_TIMEOUT_S + 5:
-                    self.stuck += 1
+                elif now - parked.since > PARTIAL_TIMEOUT_S + 5:
+                    if parked.received:
+                        self.late += 1
+                    else:
+                        self.stuck += 1
+                        self.stuck_cases.append({"kind": parked.kind, "how": parked.how, "hex": parked.data[:512].hex()})
                     wire.close()
                 else:
-                    keep.append((since, wire))
+                    keep.append(parked)
             self.waiting = keep
             await asyncio.sleep(0.25)
 
-    async def _watch_eof(self, wire: Wire) -> None:
-        assert wire.reader is not None
+    async def _watch_eof(self, parked: Parked) -> None:
+        assert parked.wire.reader is not None
         try:
-            while await wire.reader.read(65536):
-                pass
+            while data := await parked.wire.reader.read(65536):
+                parked.received += len(data)
         except (ConnectionError, OSError):
             pass
 
@@ -255,15 +269,14 @@ class Fuzzer:
         self.outcomes[outcome] += 1
         self.outcomes[f"{how}:{outcome}"] += 1
 
-    async def _settle(self, wire: Wire, kind: str, how: str, probe: bool) -> bool:
+    async def _settle(self, wire: Wire, kind: str, how: str, data: bytes, probe: bool) -> bool:
         """After a mutated message: its outcome; True if the connection is still good to use."""
         if probe:
             wire.send(wire.read())
         got = await wire.until(wire.request_id, ANSWER_S) if probe else await wire.answer(ANSWER_S)
         self._count(kind, how, got)
         if got.kind == "silent":
-            asyncio.get_running_loop().create_task(self._watch_eof(wire))
-            self._park(wire)
+            asyncio.get_running_loop().create_task(self._watch_eof(self._park(wire, kind, how, data)))
             return False
         if got.kind in ("closed", "ERR", "garbled", "aborted"):
             wire.close()
@@ -293,7 +306,7 @@ class Fuzzer:
                                                                       ("nckemu", "x"), ("x", "y")]))}[kind]
         data, how = mutate(self.rng, build())
         wire.send(data)
-        if await self._settle(wire, kind, how, probe=False) or not self._parked(wire):
+        if await self._settle(wire, kind, how, data, probe=False) or not self._parked(wire):
             wire.close()
 
     def _build(self, wire: Wire, kind: str) -> bytes:
@@ -321,7 +334,7 @@ class Fuzzer:
             kind = self.rng.choice(SESSION_KINDS)
             data, how = mutate(self.rng, self._build(wire, kind))
             wire.send(data)
-            if not await self._settle(wire, kind, how, probe=True):
+            if not await self._settle(wire, kind, how, data, probe=True):
                 if not self._parked(wire):
                     wire.close()
                 wire = None
@@ -508,7 +521,7 @@ def run(cases: int, seconds: float, seed: int, workers: int = 6, attack_scale: f
             for watcher in watchers:
                 watcher.start()
             time.sleep(2.0)
-            rss_before, fds_before = proc_figures(server.pid)
+            rss_before, fds_before = process_figures(server.pid)
             started = time.monotonic()
             fuzz_started = time.time()
             fuzzer = Fuzzer(url, port, seed, cases, seconds)
@@ -518,7 +531,7 @@ def run(cases: int, seconds: float, seed: int, workers: int = 6, attack_scale: f
             elapsed_s = time.monotonic() - started
             time.sleep(1.0)
             alive = server.poll() is None
-            rss_after, fds_after = proc_figures(server.pid) if alive else (0, 0)
+            rss_after, fds_after = process_figures(server.pid) if alive else (0, 0)
             stop.set()
             seen = {}
             for _ in watchers:
@@ -546,11 +559,15 @@ def run(cases: int, seconds: float, seed: int, workers: int = 6, attack_scale: f
         text = log.read_text(errors="replace")
     tracebacks = text.count("Traceback (most recent call last)") + text.count("internal error serving a request")
     first = re.findall(r"^.*(?:ERROR|CRITICAL).*$", text, re.MULTILINE)[:5]
+    at = text.find("Traceback (most recent call last)")
+    first_traceback = text[max(0, text.rfind("\n", 0, max(0, at - 1)) + 1):][:4000] if at >= 0 else ""
     return {"cases": fuzzer.done, "seconds": round(elapsed_s, 1), "cases_per_s": round(fuzzer.done / fuzz_s, 1),
             "outcomes": dict(fuzzer.outcomes.most_common()), "by_message": dict(fuzzer.by_kind),
-            "stuck": fuzzer.stuck, "waiting_closed_by_server_max_s": round(max(fuzzer.closed_in, default=0), 1),
+            "stuck": fuzzer.stuck, "stuck_cases": fuzzer.stuck_cases[:5], "late_answers": fuzzer.late,
+            "waiting_closed_by_server_max_s": round(max(fuzzer.closed_in, default=0), 1),
             "handshake_failures": fuzzer.handshake_failures, "attacks": named, "fuzz_started": fuzz_started,
             "crashed": not alive, "internal_errors": tracebacks, "first_errors": first,
+            "first_traceback": first_traceback,
             "watchers": seen, "rss_kib": [rss_before, rss_after], "fds": [fds_before, fds_after]}
 
 

@@ -87,15 +87,6 @@ def serve(port: int, opcua: int, state: Path, log: Path, clients: int) -> subpro
     return process
 
 
-def figures(pid: int) -> tuple[int, int]:
-    rss = 0
-    with open(f"/proc/{pid}/status") as status:
-        for line in status:
-            if line.startswith("VmRSS:"):
-                rss = int(line.split()[1])
-    return rss, len(os.listdir(f"/proc/{pid}/fd"))
-
-
 # ------------------------------------------------------------------ S7 clients
 def s7_client(port: int, number: int, jobs: int, deadline: float, acked: Any, progress: Any, out: Any) -> None:
     """Reads, writes (R[number], DB100 word, SD for client 0), PI and live values, reconnecting when
@@ -337,7 +328,7 @@ def percentiles(values: list[float]) -> dict[str, float]:
 # ------------------------------------------------------------------ one run
 def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kills: int, seconds: float,
         seed: int = 1) -> dict[str, Any]:
-    from bench.bench_server import free_port
+    from bench.bench_server import free_port, process_figures
 
     ctx = mp.get_context("spawn")
     rng = random.Random(seed)
@@ -384,7 +375,7 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
                 if server.poll() is not None:
                     died += 1
                     server = serve(port, opcua, state, log, s7_clients + 1)
-                samples.append((time.time() - started, *figures(server.pid)))
+                samples.append((time.time() - started, *process_figures(server.pid)))
                 done = max((time.time() - started) / seconds, sum(progress) / planned_jobs)
                 if kill_at and done >= kill_at[0]:
                     kill_and_restart()

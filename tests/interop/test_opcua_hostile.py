@@ -213,6 +213,34 @@ def test_a_user_name_token_without_a_name_is_no_anonymous_login(faces: tuple[Emu
     assert on_loop(faces, go()) == ["BadUserAccessDenied"] * 3
 
 
+def test_a_method_called_with_too_few_or_too_many_arguments_is_refused_without_a_traceback(
+        faces: tuple[EmulatorThread, OpcUaFace], caplog: pytest.LogCaptureFixture) -> None:
+    """A CallMethodRequest with no arguments to CopyFileToServer (found by the fuzz run: asyncua called the
+    handler anyway and logged the TypeError with a traceback)."""
+    from bench.opcua_wire import COPY_TO, GET_RIGHTS, METHODS
+
+    def call(wire: Wire, method: ua.NodeId, arguments: list[ua.Variant]) -> bytes:
+        request = ua.CallRequest()
+        request.Parameters = ua.CallParameters(MethodsToCall=[ua.CallMethodRequest(
+            ObjectId=METHODS, MethodId=method, InputArguments=arguments)])
+        return wire.secure(request)
+
+    async def go() -> list[str]:
+        wire = await session(faces[1], "nckemu", "SUNRISE")
+        names = []
+        for method, arguments in ((COPY_TO, []), (COPY_TO, [ua.Variant("x")]), (GET_RIGHTS, [ua.Variant(1)]),
+                                  (GET_RIGHTS, [])):
+            got = await wire.ask(call(wire, method, arguments))
+            names.append(got.decode(ua.CallResponse).Results[0].StatusCode.name)
+        wire.close()
+        return names
+
+    with caplog.at_level(logging.WARNING):
+        names = on_loop(faces, go())
+    assert names == ["BadArgumentsMissing", "BadArgumentsMissing", "BadTooManyArguments", "Good"]
+    assert "Traceback" not in caplog.text and not [r for r in caplog.records if r.levelno >= logging.ERROR]
+
+
 def test_a_session_that_times_out_is_closed_without_a_traceback(
         faces: tuple[EmulatorThread, OpcUaFace], caplog: pytest.LogCaptureFixture) -> None:
     """asyncua's watchdog closed a timed-out session by waiting on itself; the connection's close then

@@ -7,6 +7,7 @@ Part programs live in the emulator's program store, the ``_N_MPF_DIR`` the PI se
 from __future__ import annotations
 
 import re
+from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
@@ -90,12 +91,13 @@ async def add_methods(face: OpcUaFace, server: Server) -> Any:
                            Description=ua.LocalizedText(name))
 
     text, blob, flag = ua.VariantType.String, ua.VariantType.ByteString, ua.VariantType.Boolean
-    await methods.add_method(ua.NodeId("/Methods/GetMyAccessRights", ns), ua.QualifiedName("GetMyAccessRights", ns),
-                             get_my_access_rights, [], [argument("rights", text)])
-    await methods.add_method(ua.NodeId("/Methods/CopyFileToServer", ns), ua.QualifiedName("CopyFileToServer", ns),
-                             copy_to_server, [argument("path", text), argument("data", blob),
-                                              argument("overwrite", flag)], [])
-    await methods.add_method(ua.NodeId("/Methods/CopyFileFromServer", ns),
-                             ua.QualifiedName("CopyFileFromServer", ns), copy_from_server,
-                             [argument("path", text)], [argument("data", blob)])
+    table: list[tuple[str, Callable[..., Awaitable[Any]], list[ua.Argument], list[ua.Argument]]] = [
+        ("GetMyAccessRights", get_my_access_rights, [], [argument("rights", text)]),
+        ("CopyFileToServer", copy_to_server,
+         [argument("path", text), argument("data", blob), argument("overwrite", flag)], []),
+        ("CopyFileFromServer", copy_from_server, [argument("path", text)], [argument("data", blob)]),
+    ]
+    for name, method, inputs, outputs in table:
+        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                 request.with_arguments(method, len(inputs)), inputs, outputs)
     return methods

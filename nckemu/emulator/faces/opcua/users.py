@@ -177,8 +177,8 @@ async def add_methods(face: OpcUaFace, server: Server, methods: Any, registry: U
                 answer = action(caller, *values)
             except UserError as refusal:
                 return ua.StatusCode(getattr(ua.StatusCodes, refusal.status))
-            except TypeError:  # a wrong number of arguments
-                return ua.StatusCode(ua.StatusCodes.BadArgumentsMissing)
+            except TypeError:  # an argument of another type (the count is checked before)
+                return ua.StatusCode(ua.StatusCodes.BadInvalidArgument)
             if result is None:
                 return []
             return [ua.Variant(answer, result)]
@@ -203,5 +203,5 @@ async def add_methods(face: OpcUaFace, server: Server, methods: Any, registry: U
          []),
     ]
     for name, method, inputs, outputs in table:
-        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns), method,
-                                 inputs, outputs)
+        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                 request.with_arguments(method, len(inputs)), inputs, outputs)
