@@ -306,6 +306,11 @@ class Fuzzer:
                                                                       ("nckemu", "x"), ("x", "y")]))}[kind]
         data, how = mutate(self.rng, build())
         wire.send(data)
+        if data[:4] == b"MSGA":
+            # An abort chunk: the server discards that message and answers nothing (Part 6, 6.7.3);
+            # a valid one behind it shows the connection is still served.
+            how = "abort"
+            wire.send(build())
         if await self._settle(wire, kind, how, data, probe=False) or not self._parked(wire):
             wire.close()
 

@@ -89,6 +89,25 @@ def test_a_wrong_sequence_number_is_an_error_message_and_closes(faces: tuple[Emu
     assert on_loop(faces, still_served(faces[1]))
 
 
+@pytest.mark.parametrize("chunk", [b"A", b"C", b"X"])
+def test_an_open_secure_channel_that_is_not_a_final_chunk_is_an_error_and_closes(
+        faces: tuple[EmulatorThread, OpcUaFace], chunk: bytes) -> None:
+    """OPN with chunk type A (found by the fuzz run: asyncua said nothing and kept the connection)."""
+    async def go() -> tuple[Answer, Answer]:
+        wire = Wire(faces[1].url)
+        await wire.connect(HOST, faces[1].port)
+        wire.send(wire.hello())
+        await wire.answer(5)
+        data = bytearray(wire.open())
+        data[3:4] = chunk
+        wire.send(bytes(data))
+        return await wire.answer(5), await wire.answer(5)
+
+    error, after = on_loop(faces, go())
+    assert error.kind == "ERR" and status(error) == "BadTcpMessageTypeInvalid"
+    assert after.kind == "closed"
+
+
 def test_a_size_past_the_receive_buffer_is_refused_from_the_header(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
     async def go() -> tuple[Answer, Answer]:
         wire = await session(faces[1])

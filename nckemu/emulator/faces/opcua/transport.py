@@ -9,6 +9,8 @@ steps):
 - a size field that promises more than the receive buffer: asyncua buffers until it has it all (a
   header of 4 GiB and a stream of zeros grow the server without bound); here ``BadTcpMessageTooLarge``
   as soon as the header is read, and close;
+- a chunk type other than final on Hello, OpenSecureChannel or CloseSecureChannel (or anything but
+  F, C, A on a message): asyncua waits in silence; here ``BadTcpMessageTypeInvalid`` and close;
 - a message begun and never finished, a connection that never says Hello: asyncua waits forever
   (each holds a descriptor and, after CreateSession, one of the ten sessions); here closed after
   ``partial_timeout_s``, and a connection whose first message is no Hello is closed at once;
@@ -45,6 +47,9 @@ from asyncua.ua.uaerrors import UaError, UaStatusCodeError
 log = logging.getLogger("nckemu.emulator.opcua.transport")
 
 _KNOWN_TYPES = (b"HEL", b"OPN", b"MSG", b"CLO")
+# Only a secure message may come in chunks or be aborted (Part 6, 6.7.2 and 7.1.2); asyncua waited in
+# silence on an OpenSecureChannel marked as an abort chunk.
+_CHUNK_TYPES = {b"HEL": (b"F",), b"OPN": (b"F",), b"CLO": (b"F",), b"MSG": (b"F", b"C", b"A")}
 _CREATE_SESSION = ua.NodeId(ua.ObjectIds.CreateSessionRequest_Encoding_DefaultBinary)
 _PUBLISH = ua.NodeId(ua.ObjectIds.PublishRequest_Encoding_DefaultBinary)
 # What asyncua's decoders raise on bytes that are no valid encoding (a truncated field, an unknown
@@ -255,9 +260,9 @@ class _Protocol(OPCUAProtocol):
         offset = 0
         # Check every complete header in what has arrived before asyncua parses it.
         while len(buffered) - offset >= 8:
-            kind = buffered[offset:offset + 3]
+            kind, chunk = buffered[offset:offset + 3], buffered[offset + 3:offset + 4]
             size = struct.unpack_from("<I", buffered, offset + 4)[0]
-            if kind not in _KNOWN_TYPES or (kind == b"HEL") == self._hello_seen:
+            if kind not in _KNOWN_TYPES or (kind == b"HEL") == self._hello_seen or chunk not in _CHUNK_TYPES[kind]:
                 return self.fail(ua.StatusCodes.BadTcpMessageTypeInvalid)
             if size < (12 if kind != b"HEL" else 8) + 8 or size > self.limits.max_recv_buffer:
                 return self.fail(ua.StatusCodes.BadTcpMessageTooLarge if size > 8 else
