@@ -376,11 +376,17 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
                     died += 1
                     server = serve(port, opcua, state, log, s7_clients + 1)
                 samples.append((time.time() - started, *process_figures(server.pid)))
+                if sys.stderr.isatty() or len(samples) % 240 == 0:  # every minute in a log, live on a terminal
+                    print(f"\rsoak: {sum(progress):,} of {planned_jobs:,} S7 jobs, {len(restarts)} kills, "
+                          f"{time.time() - started:.0f} s", end="" if sys.stderr.isatty() else "\n",
+                          file=sys.stderr, flush=True)
                 done = max((time.time() - started) / seconds, sum(progress) / planned_jobs)
                 if kill_at and done >= kill_at[0]:
                     kill_and_restart()
             while kill_at:  # the clients finished first: the kills still test what they acknowledged
                 kill_and_restart()
+            if sys.stderr.isatty():
+                print(file=sys.stderr)
             results = [out.get(timeout=120) for _ in range(len(workers))]
             stop.set()
             results.append(out.get(timeout=60))
