@@ -8,7 +8,8 @@ NCVar-selector address DB, at the rate of a self-restarting timer.
 - offset, temperature, quadratic_temperature, thermal_gradient: arithmetic on the scaled inputs;
 - thermal_lag: ``S += alpha * (u - S)`` once per cycle with ``alpha = 1 - exp(-cycle / tau)``, exact
   for an input held over the cycle; heating_cooling_hysteresis: the same with alpha of heating or
-  cooling; the states live in a DB and start settled on the first cycle;
+  cooling; transient_gradient: the same lag, and ``u - S`` is the term; the states live in a DB and
+  start settled on the first cycle;
 - position_dependent_expansion: tan beta and P0 (needs MD32750 bit 1);
 - centrifugal_growth: from the spindle speed, when the machine wires it to the PLC as a
   ``[[sensor]]`` named ``spindle_rpm`` (its "degrees" are rpm); otherwise, when the machine has a
@@ -167,7 +168,7 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
     run = e.label()
     e.op(f"L {ready}", f"L {_real(0.0)}", "<>R", f"JC {run}")
     for index, term in enumerate(usable):
-        if term.effect in ("thermal_lag", "heating_cooling_hysteresis"):
+        if term.effect in ("thermal_lag", "heating_cooling_hysteresis", "transient_gradient"):
             e.deviation(term.parameters["sensor"], float(term.parameters.get("t_ref_C", 20.0)))
             e.op(f"T {e.field(f'S{index}')}")
     e.op(f"L {_real(1.0)}", f"T {ready}")
@@ -251,6 +252,17 @@ def _lag(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: 
         e.op(f"T {scratch}")
         e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(alpha)}", "*R", f"L {state}", "+R", f"T {state}")
         detail = f"S += {alpha:.6g} * (T - t_ref - S) per cycle"
+    elif term.effect == "transient_gradient":
+        # The skin against the core: the sensor minus its own lag, zero once the structure is even.
+        alpha = lag_coefficient(cycle_s, float(p["tau_s"]))
+        e.op(f"// transient_gradient {p['sensor']}: tau {float(p['tau_s']):.0f} s, {term.coefficient:.6g} um/K, "
+             f"alpha {alpha:.6g} per {cycle_s:g} s cycle")
+        e.deviation(p["sensor"], float(p.get("t_ref_C", 20.0)))
+        e.op(f"T {scratch}")
+        e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(alpha)}", "*R", f"L {state}", "+R", f"T {state}")
+        e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(term.coefficient)}", "*R")
+        e.accumulate(total)
+        return f"S += {alpha:.6g} * (T - t_ref - S) per cycle; c * (T - t_ref - S)"
     else:
         heat = lag_coefficient(cycle_s, float(p["tau_heat_s"]))
         cool = lag_coefficient(cycle_s, float(p["tau_cool_s"]))
@@ -291,6 +303,7 @@ def _centrifugal(e: _Emitter, term: Term, index: int, cycle_s: float, total: str
 _GENERATORS = {"offset": _offset, "centrifugal_growth": _centrifugal, "temperature": _temperature,
                "quadratic_temperature": _quadratic,
                "thermal_gradient": _gradient, "thermal_lag": _lag, "heating_cooling_hysteresis": _lag,
+               "transient_gradient": _lag,
                "position_dependent_expansion": _position}
 
 

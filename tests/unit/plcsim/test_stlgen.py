@@ -74,6 +74,7 @@ EVERY_EFFECT = ThermalModel("Z", [
     Term("position_dependent_expansion", {"sensor": "bed", "t_ref_C": 20.0, "p0_mm": 0.0,
                                           "slope_um_per_m_per_K": 11.5}),
     Term("centrifugal_growth", {"coeff_um_per_krpm2": -0.05}),
+    Term("transient_gradient", {"sensor": "spindle", "tau_s": 5400.0, "coeff_um_per_K": 4.0}),
     Term("gain_error", {"gain": 1.1}),
 ])
 
