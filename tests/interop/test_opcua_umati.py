@@ -388,6 +388,7 @@ def test_models_off_in_the_machine_file(tmp_path: Path) -> None:
                 return len(await machines.get_children()), names
         count, names = run(go())
     assert count == 0 and "CncInterface" in names
+    assert "test" not in names, "the CNC file's example instance under Objects is left out"
 
 
 def test_the_face_starts_fast_from_the_cache(faces: tuple[EmulatorThread, OpcUaFace]) -> None:

@@ -14,9 +14,10 @@ digest; every face then starts from that shelf as from the standard one, reading
 touches. With the cache off (``NCKEMU_CACHE=off``) the shelf is built once per process in a temporary
 directory.
 
-Two things the importer cannot take are left out as the files are read, and nothing else: nodes marked
-``DesignToolOnly`` and instance nodes without a parent in the address space (the CNC file's example axis
-``CncInterface.CncAxisList.X``); and default values of a file's own structured types (the CNC file's
+Three things are left out as the files are read, and nothing else: nodes marked ``DesignToolOnly`` and
+instance nodes without a parent in the address space (the CNC file's example axis
+``CncInterface.CncAxisList.X``), which the importer cannot take; example instances of a file's own type
+right under Objects (the CNC file's ``test``), which would stand beside the face's own instance; and default values of a file's own structured types (the CNC file's
 ``CncPositionDataType`` defaults), which asyncua could only decode with Python classes generated per
 process. The instances' values of those types are written by ``cnc.py`` as encoded structures.
 """
@@ -105,9 +106,13 @@ def find(configured: str | None = None) -> Path | None:
     return None
 
 
+# Bumped when ``readable_xml`` leaves out something else: a shelf built by an older reader is not used.
+READER_VERSION = 2
+
+
 def digest(directory: Path) -> str:
-    """What the files hold (the shelf's name changes with them)."""
-    hasher = hashlib.sha256()
+    """What the files hold and how they are read (the shelf's name changes with either)."""
+    hasher = hashlib.sha256(f"reader {READER_VERSION}".encode())
     for _uri, name in FILES:
         hasher.update(name.encode())
         hasher.update((directory / name).read_bytes())
@@ -120,6 +125,7 @@ def readable_xml(path: Path) -> tuple[str, int]:
     root = ET.parse(path).getroot()
     elements = [el for el in root if el.tag.startswith(_UA_NODESET + "UA")]
     left_out = {el.get("NodeId") for el in elements if el.get("DesignToolOnly") == "true"}
+    left_out |= {el.get("NodeId") for el in elements if _example_under_objects(el)}
     # Instances that nothing kept refers to (no parent, no inverse reference, no reference to them from a
     # node that stays), and so on down: the example instances some files carry without their root.
     ids = {el.get("NodeId") for el in elements}
@@ -166,6 +172,22 @@ def readable_xml(path: Path) -> tuple[str, int]:
                 el.remove(value)  # a default of the file's own structure (module docstring)
                 break
     return ET.tostring(root, encoding="unicode"), len(left_out)
+
+
+def _example_under_objects(element: ET.Element) -> bool:
+    """An object right under Objects whose type is the file's own: an example instance (the CNC file's
+    ``test`` of CncInterfaceType, beside which a client would find the face's real ``CncInterface``).
+    The entry points the specifications define there (DeviceSet, Machines, ...) are typed by Part 5."""
+    if element.tag != _UA_NODESET + "UAObject":
+        return False
+    under_objects = own_type = False
+    for ref in element.iter(_UA_NODESET + "Reference"):
+        target = (ref.text or "").strip()
+        if target == "i=85" and ref.get("IsForward") == "false":
+            under_objects = True
+        if ref.get("ReferenceType") == "HasTypeDefinition" and target.startswith("ns=1;"):
+            own_type = True
+    return under_objects and own_type
 
 
 async def import_models(server: Server, directory: Path) -> int:

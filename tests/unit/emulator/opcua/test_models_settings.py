@@ -61,17 +61,25 @@ _FILE = f"""<?xml version="1.0" encoding="utf-8"?>
   <UAObject NodeId="ns=1;i=20" BrowseName="1:HeldByOrphan">
     <References><Reference ReferenceType="HasTypeDefinition">i=58</Reference></References>
   </UAObject>
+  <UAObject NodeId="ns=1;i=30" BrowseName="1:test">
+    <References><Reference ReferenceType="Organizes" IsForward="false">i=85</Reference>
+      <Reference ReferenceType="HasTypeDefinition">ns=1;i=1</Reference>
+      <Reference ReferenceType="HasComponent">ns=1;i=31</Reference></References>
+  </UAObject>
+  <UAObject NodeId="ns=1;i=31" BrowseName="1:ListOfTheExample" ParentNodeId="ns=1;i=30">
+    <References><Reference ReferenceType="HasComponent" IsForward="false">ns=1;i=30</Reference></References>
+  </UAObject>
 </UANodeSet>
 """
 
 
-def test_reading_leaves_out_design_tool_nodes_and_orphans_and_nothing_else(tmp_path: Path) -> None:
+def test_reading_leaves_out_design_tool_nodes_orphans_and_examples_and_nothing_else(tmp_path: Path) -> None:
     path = tmp_path / "t.xml"
     path.write_text(_FILE, encoding="utf-8")
     text, left_out = nodesets.readable_xml(path)
     root = ET.fromstring(text)
     kept = [el.get("NodeId") for el in root if el.tag.startswith("{" + _NS + "}UA")]
-    assert kept == ["ns=1;i=1", "ns=1;i=5"] and left_out == 4
+    assert kept == ["ns=1;i=1", "ns=1;i=5"] and left_out == 6
     refs = [(r.get("ReferenceType"), r.text) for r in root[1].iter("{" + _NS + "}Reference")]
     assert refs == [("HasSubtype", "i=58")]  # the reference to the orphan gone, the supertype last
 
