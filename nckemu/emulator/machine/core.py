@@ -13,6 +13,7 @@ from nckemu.emulator.machine.nck.access import HIGHEST_LEVEL, AccessContext
 from nckemu.emulator.machine.nck.alarms import ALARM_RETAINED_STATE
 from nckemu.emulator.machine.nck.model import NckModel
 from nckemu.emulator.machine.plc import PlcModel
+from nckemu.emulator.machine.saves import GroupSaves
 from nckemu.emulator.machine.state import RetainedStore
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckAddress
@@ -38,6 +39,9 @@ class Emulator:
         self.status_sections: dict[str, Callable[[], dict[str, Any]]] = {}
         # An alarm text while retained state cannot be written (disk full, read-only directory).
         self.persist_alarm: str | None = None
+        self._snapshots = 0
+        # Saves off the event loop for the S7 face (its acknowledgements wait for them); saves.py.
+        self.saves = GroupSaves(self)
         # Retained data of faces (the OPC UA face's users): name -> a function giving it, JSON-able; and
         # what the state file held for each, for the face to take up when it starts. A face not started
         # this time keeps what it had: its section is written back as it was read.
@@ -60,13 +64,28 @@ class Emulator:
         if self.store is None:
             return
         try:
-            snapshot = self.nck.retained_snapshot()
-            faces = dict(self.restored_face_state)
-            faces.update({name: state() for name, state in self.face_state.items()})
-            if faces:
-                snapshot["faces"] = faces
-            self.store.save(snapshot)
+            data, sequence = self.encode_retained()
+            self.store.write(data, sequence)
         except (OSError, NckConfigError) as exc:
+            self.saved(exc)
+        else:
+            self.saved(None)
+
+    def encode_retained(self) -> tuple[bytes, int]:
+        """The state file's bytes now, and their place in the order of snapshots (called on the thread
+        that changes the machine, so that the snapshot is consistent)."""
+        snapshot = self.nck.retained_snapshot()
+        faces = dict(self.restored_face_state)
+        faces.update({name: state() for name, state in self.face_state.items()})
+        if faces:
+            snapshot["faces"] = faces
+        self._snapshots += 1
+        return RetainedStore.encode(snapshot), self._snapshots
+
+    def saved(self, exc: Exception | None) -> None:
+        """After a save: an alarm while retained data cannot be written, cleared when it can again."""
+        assert self.store is not None
+        if exc is not None:
             if self.persist_alarm is None:
                 log.error("retained state cannot be written to %s: %s (serving on, alarm raised)",
                           self.store.path, exc)

@@ -151,6 +151,9 @@ class Dispatcher:
         # The session answers a job this dispatcher returns None for with an ACK carrying this error.
         self.unsupported_function_error = unsupported_function_error
         self._persist = persist
+        # Set by a server that holds its answers until a save ends (machine/saves.py): a write of
+        # retained data then only asks for the save, and the server sends the answer after it.
+        self.persist_later: Callable[[], None] | None = None
         self.default_access_level = default_access_level
         self._read_requests: dict[bytes, s7.ReadVarRequest] = {}
         # Read jobs by parameter bytes -> the function answering them (see ``_plan_read``).
@@ -302,9 +305,12 @@ class Dispatcher:
             code, changed = self._write_item(address, value, ctx)
             codes.append(code)
             retained_changed = retained_changed or changed
-        if retained_changed and self._persist is not None:
+        if retained_changed:
             # Durability before acknowledgement: the answer leaves only after the state is on disk.
-            self._persist()
+            if self.persist_later is not None:
+                self.persist_later()
+            elif self._persist is not None:
+                self._persist()
         return s7.WriteVarResponse(tuple(codes))
 
     def pi_service(self, request: pi.PiServiceRequest, ctx: AccessContext) -> bytes:

@@ -18,6 +18,7 @@ from nckemu.capture import CaptureWriter
 from nckemu.emulator.faces.s7.dispatch import Dispatcher
 from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits
 from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.saves import GroupSaves
 
 # Loggers keep their names from before the 0.2 layout, so logs and users' log filters stay as they were.
 log = logging.getLogger("nckemu.emulator.server")
@@ -53,6 +54,7 @@ class _Connection(asyncio.BufferedProtocol):
         self.last_activity_s = time.monotonic()
         self.paused_since_s: float | None = None
         self.partial_since_s: float | None = None
+        self.holding = False  # answers wait for a save of retained data (reading paused meanwhile)
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         # uvloop's TCP transport has asyncio.Transport's methods without being its subclass.
@@ -97,6 +99,8 @@ class _Connection(asyncio.BufferedProtocol):
         recorder = self.server.recorder
         if recorder is not None:
             recorder.segment(self, True, data, client=self._peer_tuple())
+        saves = self.server.saves
+        requested = saves.requested if saves is not None else 0
         answers = session.receive(data)
         if session.has_partial_frame:
             if self.partial_since_s is None:
@@ -105,13 +109,34 @@ class _Connection(asyncio.BufferedProtocol):
         elif self.partial_since_s is not None:
             self.partial_since_s = None
             self.server.watched.discard(self)
-        if answers:
-            out = answers[0] if len(answers) == 1 else b"".join(answers)
+        out = (answers[0] if len(answers) == 1 else b"".join(answers)) if answers else b""
+        if saves is not None and saves.requested != requested:
+            # A write of retained data: its acknowledgement (and what follows it on this connection)
+            # leaves once a save holding it has ended; the other connections are served meanwhile.
+            self.holding = True
+            transport.pause_reading()
+            saves.after_requests().add_done_callback(lambda _saved: self._release(out))
+            return
+        self._send(out)
+
+    def _send(self, out: bytes) -> None:
+        session, transport = self.session, self.transport
+        assert session is not None and transport is not None
+        if out:
             transport.write(out)
-            if recorder is not None:
-                recorder.segment(self, False, out, client=self._peer_tuple())
+            if self.server.recorder is not None:
+                self.server.recorder.segment(self, False, out, client=self._peer_tuple())
         if session.closed:
             transport.close()
+
+    def _release(self, out: bytes) -> None:
+        self.holding = False
+        transport = self.transport
+        if transport is None or transport.is_closing():
+            return
+        self._send(out)
+        if not transport.is_closing() and self.paused_since_s is None:
+            transport.resume_reading()
 
     def _peer_tuple(self) -> tuple[str, int] | None:
         assert self.transport is not None
@@ -127,7 +152,8 @@ class _Connection(asyncio.BufferedProtocol):
 
     def resume_writing(self) -> None:
         if self.transport is not None:
-            self.transport.resume_reading()
+            if not self.holding:
+                self.transport.resume_reading()
             self.paused_since_s = None
             if self.partial_since_s is None:
                 self.server.watched.discard(self)
@@ -188,6 +214,8 @@ class EmulatorServer:
         self.refused_connections = 0
         self._server: asyncio.AbstractServer | None = None
         self._watchdog: asyncio.Task[None] | None = None
+        # With retained state on disk, writes are saved off the event loop (machine/saves.py).
+        self.saves: GroupSaves | None = None
 
     @property
     def port(self) -> int:
@@ -207,6 +235,9 @@ class EmulatorServer:
         self._server = await loop.create_server(lambda: _Connection(self), self.host,
                                                 self.requested_port, reuse_address=True)
         self._watchdog = asyncio.create_task(self._watch_timeouts())
+        if self.emulator.saves.enabled:
+            self.saves = self.emulator.saves
+            self.dispatcher.persist_later = self.saves.request
         log.info("nckemu listening on %s:%d", self.host, self.port)
         return self
 
@@ -238,6 +269,9 @@ class EmulatorServer:
                     connection.transport.abort()
             await self._server.wait_closed()
             self._server = None
+        if self.saves is not None and self.dispatcher.persist_later == self.saves.request:
+            self.dispatcher.persist_later = None
+        self.saves = None
         self.emulator.persist()
         if self.recorder is not None:
             self.recorder.close()

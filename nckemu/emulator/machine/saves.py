@@ -1,0 +1,75 @@
+"""Retained data saved off the event loop, many writes to one save (a group commit).
+
+The S7 face acknowledges a write of retained data only once a save holding it has ended. Saving on
+the event loop (``Emulator.persist``) made every client of every face wait for each fsync; here the
+face asks for a save (``request``), holds that connection's answers until ``after_requests`` is
+done, and serves everyone else meanwhile. One save runs at a time: the snapshot is taken and encoded
+on the loop (the machine does not change under it), the file is written and synced in a thread, and
+every write asked for before the snapshot was taken is then acknowledged together.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from nckemu.emulator.machine.core import Emulator
+
+log = logging.getLogger("nckemu.emulator.saves")
+
+
+class GroupSaves:
+    def __init__(self, emulator: Emulator) -> None:
+        self._emulator = emulator
+        self.requested = 0  # saves asked for so far: a caller compares it before and after its work
+        self._waiting: list[tuple[int, asyncio.Future[None]]] = []
+        self._saver: asyncio.Task[None] | None = None
+        self.saves = 0  # saves done, for the benches (how many writes one save carried)
+
+    @property
+    def enabled(self) -> bool:
+        return self._emulator.store is not None
+
+    def request(self) -> None:
+        """Retained data changed: a save is due (``after_requests`` waits for it)."""
+        self.requested += 1
+
+    def after_requests(self) -> asyncio.Future[None]:
+        """Done when a save that holds every change requested so far has ended (written, or failed
+        with the alarm raised: as ``persist``, a failed save does not hold the answer back forever)."""
+        loop = asyncio.get_running_loop()
+        future: asyncio.Future[None] = loop.create_future()
+        self._waiting.append((self.requested, future))
+        if self._saver is None:
+            self._saver = loop.create_task(self._save_while_asked())
+        return future
+
+    async def _save_while_asked(self) -> None:
+        emulator, store = self._emulator, self._emulator.store
+        try:
+            while self._waiting:
+                covered = self.requested
+                error: Exception | None = None
+                if store is not None:
+                    try:
+                        data, sequence = emulator.encode_retained()
+                        await asyncio.to_thread(store.write, data, sequence)
+                    except Exception as exc:  # noqa: BLE001 - any failure is an alarm, never a lost answer
+                        error = exc
+                    emulator.saved(error)
+                self.saves += 1
+                still = []
+                for wanted, future in self._waiting:
+                    if wanted > covered:
+                        still.append((wanted, future))
+                    elif not future.done():
+                        future.set_result(None)
+                self._waiting = still
+        finally:
+            self._saver = None
+            for _wanted, future in self._waiting:  # cancelled (the loop is closing): nobody waits on
+                if not future.done():
+                    future.cancel()
+            self._waiting = []
