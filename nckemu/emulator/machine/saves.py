@@ -1,9 +1,10 @@
 """Retained data saved off the event loop, many writes to one save (a group commit).
 
-The S7 face acknowledges a write of retained data only once a save holding it has ended. Saving on
-the event loop (``Emulator.persist``) made every client of every face wait for each fsync; here the
-face asks for a save (``request``), holds that connection's answers until ``after_requests`` is
-done, and serves everyone else meanwhile. One save runs at a time: the snapshot is taken and encoded
+A face acknowledges a write of retained data only once a save holding it has ended. Saving on the
+event loop (``Emulator.persist``) made every client of every face wait for each fsync; here a face
+asks for a save (``request``) and holds that answer until the save is done (the S7 face: that
+connection's answers until ``after_requests`` is done; the OPC UA face's handlers ``await
+durable()``), and everyone else is served meanwhile. One save runs at a time: the snapshot is taken and encoded
 on the loop (the machine does not change under it), the file is written and synced in a thread, and
 every write asked for before the snapshot was taken is then acknowledged together.
 """
@@ -35,6 +36,12 @@ class GroupSaves:
     def request(self) -> None:
         """Retained data changed: a save is due (``after_requests`` waits for it)."""
         self.requested += 1
+
+    async def durable(self) -> None:
+        """Return once every change asked for so far is on disk (at once without a state file): for
+        handlers that answer after awaiting, as the OPC UA face's."""
+        if self.enabled:
+            await self.after_requests()
 
     def after_requests(self) -> asyncio.Future[None]:
         """Done when a save that holds every change requested so far has ended (written, or failed

@@ -102,7 +102,7 @@ class OpcUaFace:
         quiet = logging.getLogger("asyncua")
         if quiet.level == logging.NOTSET:  # its INFO lines (a thousand at init) would drown serve's own
             quiet.setLevel(logging.WARNING)
-        self.users = UserRegistry(self.settings, changed=emulator.persist)
+        self.users = UserRegistry(self.settings, changed=emulator.saves.request)  # methods await the save
         self.users.restore(emulator.restored_face_state.get(USERS_STATE))
         emulator.face_state[USERS_STATE] = self.users.snapshot
         self.server = Server(user_manager=_UserManager(self))
@@ -739,6 +739,7 @@ class _SinumerikAttributes(AttributeService):
     async def write(self, params: ua.WriteParameters, user: UaUser = _ADMIN) -> list[ua.StatusCode]:
         face = self._face
         results: list[ua.StatusCode] = []
+        retained = False
         for item in params.NodesToWrite:
             nodeid = item.NodeId
             ours = nodeid.NamespaceIndex == face.namespace and isinstance(nodeid.Identifier, str)
@@ -762,9 +763,12 @@ class _SinumerikAttributes(AttributeService):
                 continue
             try:
                 if write_value(face.emulator, name, item.Value.Value if item.Value else None):
-                    face.emulator.persist()
+                    face.emulator.saves.request()
+                    retained = True
             except UaStatus as status:
                 results.append(status.code)
                 continue
             results.append(ua.StatusCode())  # monitored items: the model's write listener pushes the value
+        if retained:
+            await face.emulator.saves.durable()  # acknowledged once on disk; other clients go on meanwhile
         return results

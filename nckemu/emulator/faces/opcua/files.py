@@ -71,7 +71,8 @@ async def add_methods(face: OpcUaFace, server: Server) -> Any:
             return _bad("BadInvalidState")
         programs.add(target)
         programs.texts[target] = bytes(data)
-        face.emulator.persist()  # the program store is retained data (serve --state)
+        face.emulator.saves.request()  # the program store is retained data (serve --state)
+        await face.emulator.saves.durable()
         return []
 
     async def copy_from_server(_parent: Any, path: Any) -> Any:

@@ -173,12 +173,16 @@ async def add_methods(face: OpcUaFace, server: Server, methods: Any, registry: U
             if not caller:
                 return ua.StatusCode(ua.StatusCodes.BadRequestNotAllowed)
             values = [a.Value if isinstance(a, ua.Variant) else a for a in arguments]
+            saves = face.emulator.saves
+            requested = saves.requested
             try:
                 answer = action(caller, *values)
             except UserError as refusal:
                 return ua.StatusCode(getattr(ua.StatusCodes, refusal.status))
             except TypeError:  # an argument of another type (the count is checked before)
                 return ua.StatusCode(ua.StatusCodes.BadInvalidArgument)
+            if saves.requested != requested:  # the users changed: answered once they are on disk
+                await saves.durable()
             if result is None:
                 return []
             return [ua.Variant(answer, result)]
