@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from nckemu.emulator.machine.state import RetainedStore
 
@@ -40,3 +42,21 @@ def test_a_full_disk_leaves_the_old_file_and_no_temporary(tmp_path: Path, monkey
     monkeypatch.undo()
     assert json.loads((tmp_path / "state.json").read_text()) == {"kept": 1}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["state.json"]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.permutations(list(range(1, 9))))
+def test_the_newest_snapshot_stays_whatever_order_the_writes_end_in(tmp_path: Path, order: list[int]) -> None:
+    """The loop and the saving thread may write in either order: an older snapshot never replaces a
+    newer one."""
+    store = RetainedStore(tmp_path / "state.json")
+    for sequence in order:
+        store.write(RetainedStore.encode({"sequence": sequence}), sequence)
+        assert store.load() == {"sequence": max(order[:order.index(sequence) + 1])}
+
+
+def test_a_value_json_cannot_spell_is_a_config_error_not_a_crash(tmp_path: Path) -> None:
+    from nckemu.errors import NckConfigError
+
+    with pytest.raises(NckConfigError, match="cannot be written as JSON"):
+        RetainedStore.encode({"r": [float("nan")]})
