@@ -178,7 +178,7 @@ def szl_client(port: int, deadline: float, stop: Any, out: Any) -> None:
 
 # ------------------------------------------------------------------ OPC UA sessions
 def ua_client(url: str, number: int, operations: int, items: int, deadline: float, acked: Any, users: Any,
-              programs: Any, watch: bool, out: Any) -> None:
+              programs: Any, watch: bool, progress: Any, out: Any) -> None:
     """One session (reconnecting): a subscription on ``items`` nodes incl. its own PLC word; writes of
     that word and of R[64 + number]; reads; method calls; user changes (sessions 0..3), programs."""
     import logging
@@ -251,6 +251,7 @@ def ua_client(url: str, number: int, operations: int, items: int, deadline: floa
                         await methods.call_method(f"{ns}:DeleteUser", ua.Variant(f"s{number}u{state['user'] - 1}"))
                 latencies.append(time.perf_counter() - started)
                 result["done"] += 1
+                progress[number] = result["done"]
             if watch:
                 await asyncio.sleep(2.5)  # the last publishing interval and one more
                 result["written"] += len(written)
@@ -338,6 +339,7 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
     users, programs = ctx.Array("i", ua_sessions), ctx.Array("i", ua_sessions)
     out, stop = ctx.Queue(), ctx.Event()
     progress = ctx.Array("q", s7_clients, lock=False)
+    progress_ua = ctx.Array("q", max(1, ua_sessions), lock=False)
     items = max(1, min(1000 // max(1, ua_sessions), 25 * s7_jobs // 1000))
     with tempfile.TemporaryDirectory() as scratch:
         state, log = Path(scratch) / "state.json", Path(scratch) / "server.log"
@@ -347,7 +349,8 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
         workers = [ctx.Process(target=s7_client, args=(port, w, s7_jobs, deadline, acked, progress, out))
                    for w in range(s7_clients)]
         workers += [ctx.Process(target=ua_client, args=(url, k, ua_operations, items, deadline, acked, users,
-                                                        programs, kills == 0, out)) for k in range(ua_sessions)]
+                                                        programs, kills == 0, progress_ua, out))
+                    for k in range(ua_sessions)]
         szl = ctx.Process(target=szl_client, args=(port, deadline, stop, out))
         for worker in [*workers, szl]:
             worker.start()
@@ -377,7 +380,8 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
                     server = serve(port, opcua, state, log, s7_clients + 1)
                 samples.append((time.time() - started, *process_figures(server.pid)))
                 if sys.stderr.isatty() or len(samples) % 240 == 0:  # every minute in a log, live on a terminal
-                    print(f"\rsoak: {sum(progress):,} of {planned_jobs:,} S7 jobs, {len(restarts)} kills, "
+                    print(f"\rsoak: {sum(progress):,} of {planned_jobs:,} S7 jobs, {sum(progress_ua):,} of "
+                          f"{ua_sessions * ua_operations:,} OPC UA operations, {len(restarts)} kills, "
                           f"{time.time() - started:.0f} s", end="" if sys.stderr.isatty() else "\n",
                           file=sys.stderr, flush=True)
                 done = max((time.time() - started) / seconds, sum(progress) / planned_jobs)
