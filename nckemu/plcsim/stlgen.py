@@ -244,25 +244,19 @@ def _gradient(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, t
 def _lag(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: str) -> str:
     p = term.parameters
     state, scratch = e.field(f"S{index}"), e.field("U")
-    if term.effect == "thermal_lag":
+    if term.effect in ("thermal_lag", "transient_gradient"):
         alpha = lag_coefficient(cycle_s, float(p["tau_s"]))
-        e.op(f"// thermal_lag {p['sensor']}: tau {float(p['tau_s']):.0f} s, {term.coefficient:.6g} um/K, "
+        e.op(f"// {term.effect} {p['sensor']}: tau {float(p['tau_s']):.0f} s, {term.coefficient:.6g} um/K, "
              f"alpha {alpha:.6g} per {cycle_s:g} s cycle")
         e.deviation(p["sensor"], float(p.get("t_ref_C", 20.0)))
         e.op(f"T {scratch}")
         e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(alpha)}", "*R", f"L {state}", "+R", f"T {state}")
         detail = f"S += {alpha:.6g} * (T - t_ref - S) per cycle"
-    elif term.effect == "transient_gradient":
-        # The skin against the core: the sensor minus its own lag, zero once the structure is even.
-        alpha = lag_coefficient(cycle_s, float(p["tau_s"]))
-        e.op(f"// transient_gradient {p['sensor']}: tau {float(p['tau_s']):.0f} s, {term.coefficient:.6g} um/K, "
-             f"alpha {alpha:.6g} per {cycle_s:g} s cycle")
-        e.deviation(p["sensor"], float(p.get("t_ref_C", 20.0)))
-        e.op(f"T {scratch}")
-        e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(alpha)}", "*R", f"L {state}", "+R", f"T {state}")
-        e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(term.coefficient)}", "*R")
-        e.accumulate(total)
-        return f"S += {alpha:.6g} * (T - t_ref - S) per cycle; c * (T - t_ref - S)"
+        if term.effect == "transient_gradient":
+            # The skin against the core: the sensor minus its own lag, zero once the structure is even.
+            e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(term.coefficient)}", "*R")
+            e.accumulate(total)
+            return f"{detail}; c * (T - t_ref - S)"
     else:
         heat = lag_coefficient(cycle_s, float(p["tau_heat_s"]))
         cool = lag_coefficient(cycle_s, float(p["tau_cool_s"]))
