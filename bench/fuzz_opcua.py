@@ -203,6 +203,7 @@ class Fuzzer:
         self.stuck = 0
         self.stuck_cases: list[dict[str, Any]] = []  # what was sent, to replay it as a regression test
         self.late = 0  # answered after ANSWER_S, then idle: no message is pending, nothing to close
+        self.probe_taken_in = 0  # the probe completed a cut message exactly (answered, not waiting)
         self.closed_in: list[float] = []
         self.handshake_failures = 0
 
@@ -271,9 +272,17 @@ class Fuzzer:
 
     async def _settle(self, wire: Wire, kind: str, how: str, data: bytes, probe: bool) -> bool:
         """After a mutated message: its outcome; True if the connection is still good to use."""
+        skipped = wire.skipped
         if probe:
             wire.send(wire.read())
         got = await wire.until(wire.request_id, ANSWER_S) if probe else await wire.answer(ANSWER_S)
+        if got.kind == "silent" and wire.skipped > skipped:
+            # A cut message whose missing bytes the probe happened to fill exactly: the server answered
+            # that message (under its own request id) and waits for nothing; the probe is gone in it.
+            self._count(kind, how, Answer("MSG"))
+            self.probe_taken_in += 1
+            wire.close()
+            return False
         self._count(kind, how, got)
         if got.kind == "silent":
             asyncio.get_running_loop().create_task(self._watch_eof(self._park(wire, kind, how, data)))
@@ -569,6 +578,7 @@ def run(cases: int, seconds: float, seed: int, workers: int = 6, attack_scale: f
     return {"cases": fuzzer.done, "seconds": round(elapsed_s, 1), "cases_per_s": round(fuzzer.done / fuzz_s, 1),
             "outcomes": dict(fuzzer.outcomes.most_common()), "by_message": dict(fuzzer.by_kind),
             "stuck": fuzzer.stuck, "stuck_cases": fuzzer.stuck_cases[:5], "late_answers": fuzzer.late,
+            "probe_taken_into_a_cut_message": fuzzer.probe_taken_in,
             "waiting_closed_by_server_max_s": round(max(fuzzer.closed_in, default=0), 1),
             "handshake_failures": fuzzer.handshake_failures, "attacks": named, "fuzz_started": fuzz_started,
             "crashed": not alive, "internal_errors": tracebacks, "first_errors": first,

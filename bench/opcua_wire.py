@@ -63,6 +63,7 @@ class Wire:
         self.subscription = 0
         self.reader: asyncio.StreamReader | None = None
         self.writer: asyncio.StreamWriter | None = None
+        self.skipped = 0  # answers ``until`` passed over (to other request ids)
 
     # ---------------------------------------------------------------- building
     def hello(self) -> bytes:
@@ -234,6 +235,7 @@ class Wire:
         while True:
             got = await self.answer(max(0.0, deadline - loop.time()))
             if got.kind in ("MSG", "OPN") and got.request_id != request_id:
+                self.skipped += 1
                 continue
             return got
 
