@@ -21,6 +21,7 @@ import asyncio
 import json
 import multiprocessing as mp
 import os
+import queue
 import random
 import signal
 import subprocess
@@ -372,9 +373,22 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
             server = serve(port, opcua, state, log, s7_clients + 1)
             restarts.append(check_durable(port, url, *snapshot))
 
+        # A worker's result is read as soon as it is sent: a process that sent a result larger than the
+        # pipe holds cannot exit until it is read (the first full-size run waited on exactly that).
+        results: list[Any] = []
+
+        def collect() -> None:
+            try:
+                while True:
+                    results.append(out.get_nowait())
+            except queue.Empty:
+                pass
+
         try:
-            while any(worker.is_alive() for worker in workers) and time.time() < deadline + 60:
+            while (len(results) < len(workers) and any(worker.is_alive() for worker in workers)
+                   and time.time() < deadline + 60):
                 time.sleep(0.25)
+                collect()
                 if server.poll() is not None:
                     died += 1
                     server = serve(port, opcua, state, log, s7_clients + 1)
@@ -391,7 +405,7 @@ def run(s7_clients: int, s7_jobs: int, ua_sessions: int, ua_operations: int, kil
                 kill_and_restart()
             if sys.stderr.isatty():
                 print(file=sys.stderr)
-            results = [out.get(timeout=120) for _ in range(len(workers))]
+            results += [out.get(timeout=120) for _ in range(len(workers) - len(results))]
             stop.set()
             results.append(out.get(timeout=60))
             for worker in [*workers, szl]:
