@@ -63,6 +63,7 @@ def is_a_write(value: float, writer: int | None = None) -> bool:
 OPCUA_USERS = """
 [opcua]
 anonymous = ["SinuReadAll"]
+max_sessions = 11  # the soak's 10 sessions at the 840D's limit, and one for the checks after a restart
 
 [opcua.users.nckemu]
 password = "SUNRISE"
