@@ -12,14 +12,10 @@ every write asked for before the snapshot was taken is then acknowledged togethe
 from __future__ import annotations
 
 import asyncio
-import logging
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from nckemu.emulator.machine.core import Emulator
-
-log = logging.getLogger("nckemu.emulator.saves")
-
 
 class GroupSaves:
     def __init__(self, emulator: Emulator) -> None:
@@ -55,17 +51,17 @@ class GroupSaves:
 
     async def _save_while_asked(self) -> None:
         emulator, store = self._emulator, self._emulator.store
+        assert store is not None, "saves are asked for only with a state file (enabled)"
         try:
             while self._waiting:
                 covered = self.requested
                 error: Exception | None = None
-                if store is not None:
-                    try:
-                        data, sequence = emulator.encode_retained()
-                        await asyncio.to_thread(store.write, data, sequence)
-                    except Exception as exc:  # noqa: BLE001 - any failure is an alarm, never a lost answer
-                        error = exc
-                    emulator.saved(error)
+                try:
+                    data, sequence = emulator.encode_retained()
+                    await asyncio.to_thread(store.write, data, sequence)
+                except Exception as exc:  # noqa: BLE001 - any failure is an alarm, never a lost answer
+                    error = exc
+                emulator.saved(error)
                 self.saves += 1
                 still = []
                 for wanted, future in self._waiting:
