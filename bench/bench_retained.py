@@ -23,14 +23,14 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from bench.bench_server import percentile  # noqa: E402
 from nckemu.clients.async_client import AsyncNckClient  # noqa: E402
 from nckemu.emulator.faces.s7.server import EmulatorServer  # noqa: E402
 from nckemu.emulator.machine.core import Emulator  # noqa: E402
 
 
 def percentile_ms(values: list[float], fraction: float) -> float:
-    ordered = sorted(values)
-    return round(1000 * ordered[min(len(ordered) - 1, int(fraction * len(ordered)))], 2) if ordered else float("nan")
+    return round(1000 * percentile(values, fraction), 2)
 
 
 async def one_way(on_the_loop: bool, writers: int, seconds: float) -> dict[str, Any]:

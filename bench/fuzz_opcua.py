@@ -38,7 +38,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.bench_server import process_figures  # noqa: E402
+from bench.bench_server import percentile, process_figures  # noqa: E402
 from bench.opcua_wire import Answer, Wire  # noqa: E402
 
 SIZES = {"small": 1_500, "medium": 20_000, "full": 100_000}
@@ -116,13 +116,6 @@ def ua_watcher(url: str, stop: Any, out: Any) -> None:
 
     latencies, failures = asyncio.run(go())
     out.put(("opcua", latencies, failures, slow))
-
-
-def percentile(values: list[float], fraction: float) -> float:
-    if not values:
-        return float("nan")
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, int(fraction * len(ordered)))]
 
 
 # ------------------------------------------------------------------ mutations
