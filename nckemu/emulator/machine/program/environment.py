@@ -1,0 +1,55 @@
+"""What the interpreter may ask of the NCK while a program runs.
+
+The channel gives the interpreter a subclass bound to the NCK model; tests and offline tools may use
+:class:`ProgramEnvironment` itself (R parameters in a dict, axes at zero). Every method has a default
+here, so new questions can be added without breaking existing environments.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+
+class UndefinedName(KeyError):
+    """A system variable or name the environment does not know (the interpreter raises alarm 12550)."""
+
+
+class ProgramEnvironment:
+    def __init__(self, axes: Sequence[str] = ("X", "Y", "Z"), r_parameters: int = 100) -> None:
+        self.axes = tuple(axes)
+        self.r_count = r_parameters
+        self._r: dict[int, float] = {}
+        self._position_mm: dict[str, float] = {axis: 0.0 for axis in self.axes}
+
+    # R parameters: the same R the NCK serves (nckemu get R1 reads what R1=... wrote)
+    def r_parameter(self, index: int) -> float:
+        return self._r.get(index, 0.0)
+
+    def set_r_parameter(self, index: int, value: float) -> None:
+        self._r[index] = float(value)
+
+    # positions
+    def machine_position_mm(self, axis: str) -> float:
+        """Where ``axis`` is now ($AA_IM), machine coordinates; the end of the last executed motion."""
+        return self._position_mm[axis]
+
+    def work_offset_mm(self, frame: str, axis: str) -> float:
+        """The settable frame ``frame`` (G54...G57, G505...) of ``axis``; 0 where none is set."""
+        return 0.0
+
+    def tool_length_mm(self, tool: int | str | None, edge: int | None) -> float:
+        """The active tool edge's length 1 (applied along the infeed axis of the plane)."""
+        return 0.0
+
+    # system variables ($AC_TIME, $AC_ACTUAL_PARTS, $P_EP[X], ...)
+    def system_variable(self, name: str, indices: tuple[object, ...] = ()) -> object:
+        raise UndefinedName(name)
+
+    def set_system_variable(self, name: str, indices: tuple[object, ...], value: object) -> None:
+        raise UndefinedName(name)
+
+    # subprograms
+    def find_program(self, name: str, caller: str) -> tuple[str, str] | None:
+        """The NC path and text of the program a call names (``WARMUP_CYCLE``), searched from the
+        caller's directory, then /_N_SPF_DIR, the cycle directories and /_N_MPF_DIR; None if none."""
+        return None
