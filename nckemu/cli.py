@@ -49,6 +49,19 @@ def _add_logging_options(parser: argparse.ArgumentParser, *, top: bool) -> None:
                         help="append the log to FILE instead of stderr")
 
 
+def command_group(subparsers: argparse._SubParsersAction, name: str, help_text: str) -> argparse._SubParsersAction:
+    """The subcommands of the group ``name`` (``nckemu program ...``), made by whichever area's
+    ``register`` asks first, so that several areas can add commands to one group."""
+    group = subparsers.choices.get(name)
+    if group is None:
+        group = subparsers.add_parser(name, help=help_text, description=help_text)
+        group.set_defaults(func=lambda _args, _group=group: (_group.print_help(), 1)[1])
+    for action in group._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action
+    return group.add_subparsers(dest=f"{name}_command", metavar="COMMAND")
+
+
 def _walk(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
     found = []
     for action in parser._actions:
