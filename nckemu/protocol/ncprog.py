@@ -57,6 +57,21 @@ TRANSPORT_SIZE_OCTET_STRING = 0x09
 CHUNK_PREFIX = b"\x00\xFB"
 # The data part of an error answer (return code "object does not exist", no payload).
 ERROR_DATA = b"\x0A\x00\x00\x00"
+# The 2-byte error codes an NC transfer answers with. No source gives the codes an NCK puts there
+# (reference programs.md §5, §12.2: UNCONFIRMED); these are S7 codes whose meaning fits and that
+# tshark names, so a capture reads well. A client only tests "not 0" (libnodave).
+ERROR_NO_SUCH_FILE = 0xD209      # "(at least) one of the given blocks not found on the module"
+ERROR_STORE_FULL = 0x8301        # "insufficient memory space or work memory on the module"
+ERROR_NOT_A_FILE_NAME = 0xD201   # "syntax error in block name" (``..``, spaces, not _N_..._MPF)
+ERROR_IN_USE = 0x8001            # "service cannot be performed while the block is in the current status"
+ERROR_BAD_CONTENT = 0xD202       # "syntax error in function parameters" (header, length, $PATH line)
+ERROR_SEQUENCE = 0x8401          # "invalid service sequence" (no such transfer on this connection)
+ERROR_TEXTS = {
+    ERROR_NO_SUCH_FILE: "no such file or directory", ERROR_STORE_FULL: "the program store is full",
+    ERROR_NOT_A_FILE_NAME: "not an NC file name", ERROR_IN_USE: "the program is running",
+    ERROR_BAD_CONTENT: "the transfer's header is not valid (length, time stamp, $PATH line)",
+    ERROR_SEQUENCE: "no such transfer (sequence)",
+}
 # Window sizes the clients use: libnodave's upload asks for 20 pushes before its continue upload.
 UPLOAD_WINDOW = 20
 HEADER_BYTES = 24
