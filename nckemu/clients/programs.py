@@ -27,6 +27,7 @@ from nckemu.errors import (
     NckConnectionError,
     NckError,
     NckProtocolError,
+    NckServiceError,
     NckTimeoutError,
     service_error_for,
 )
@@ -175,7 +176,10 @@ async def get_file(nck: AsyncNckClient, name: str, *, mark: bool = True) -> ncpr
     the transfer content (directory, text, time stamp) as the NC sent it."""
     path = directory_path(name) or program_path(name)
     if mark:
-        await nck.pi_service("_N_F_XFER", FILE_PI_IDENT, path)
+        try:
+            await nck.pi_service("_N_F_XFER", FILE_PI_IDENT, path)
+        except NckServiceError as exc:
+            raise service_error_for(exc.error_class, exc.error_code, f"{path}: _N_F_XFER refused ({exc})") from None
     leaf = path.rsplit("/", 1)[-1]
 
     async def transfer(wire: _Wire) -> ncprog.TransferContent:

@@ -154,7 +154,7 @@ class NcTransfers:
     def _download_block(self, pdu_ref: int, parameter: NcParameter, payload: bytes) -> list[s7.S7Pdu]:
         download = self._download
         if download is None or parameter.sequence != download.sequence:
-            log.info("NC download block with sequence %d from %s belongs to no transfer", parameter.sequence,
+            log.debug("NC download block with sequence %d from %s belongs to no transfer", parameter.sequence,
                      self.peer)
             return []
         chunk = ncprog.parse_chunk(payload)

@@ -52,6 +52,13 @@ _BLOCK_UPLOAD_FUNCTIONS = frozenset({s7.Function.START_UPLOAD, s7.Function.UPLOA
 _PDU_OFFSET = cotp.DATA_FRAME_PDU_OFFSET
 
 
+def _is_nc_push(frame: bytes, offset: int) -> bool:
+    """An NC push (download block, continue upload) at ``offset``: a telegram of a transfer, not a
+    job. It waits for no answer, and the window of them the transfer announced is not the AMQ's."""
+    return len(frame) >= offset + 18 and frame[offset + 1] == s7.Rosctr.USERDATA \
+        and frame[offset + 10:offset + 13] == ncprog.PARAMETER_HEAD and frame[offset + 15] == ncprog.NC_PUSH
+
+
 class SessionState(enum.Enum):
     WAIT_CONNECT = "wait_connect"
     CONNECTED = "connected"
@@ -223,6 +230,13 @@ class ServerSession:
             if frame[4:7] == cotp.DT_HEADER_EOT and len(frame) > _PDU_OFFSET and self.state is SessionState.READY \
                     and not self._fragments:
                 # The common case, a whole S7 PDU in one DT: skip building a DataTpdu for it.
+                if _is_nc_push(frame, _PDU_OFFSET):
+                    answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=False)
+                    if answer is not None:
+                        out.extend(self._data_frames(answer))
+                    if self._pushes:
+                        out.extend(self._flush_pushes())
+                    continue
                 jobs_in_flight += 1
                 over_amq = jobs_in_flight > self.info.amq
                 if not over_amq:
@@ -246,7 +260,8 @@ class ServerSession:
                 pdu_bytes = self._reassemble(tpdu)
                 if pdu_bytes is None:
                     continue
-                jobs_in_flight += 1
+                if not _is_nc_push(pdu_bytes, 0):
+                    jobs_in_flight += 1
                 answer = self._handle_pdu(pdu_bytes, over_amq=jobs_in_flight > self.info.amq)
                 if answer is not None:
                     out.extend(self._data_frames(answer))
@@ -357,9 +372,7 @@ class ServerSession:
             return self._error_answer(pdu, refused)
         nc_userdata = pdu.rosctr == s7.Rosctr.USERDATA and self._nc is not None \
             and ncprog.is_nc_parameter(pdu.parameter)
-        # NC pushes (download blocks, continue upload) are telegrams of a transfer, not jobs: they
-        # wait for no answer, and a window of them is what the transfer announced.
-        if over_amq and not (nc_userdata and pdu.parameter[5] == ncprog.NC_PUSH):
+        if over_amq:
             return self._error_answer(pdu, HeaderError.NO_RESOURCES)
         if len(raw) > self.info.pdu_size:
             return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
