@@ -35,7 +35,14 @@ from ..motions import (
     ToolSelect,
 )
 from . import blocks as b
-from .alarms import ALARM_CALL_DEPTH, ALARM_NESTING, ALARM_UNKNOWN_G, MAX_CALL_DEPTH
+from .alarms import (
+    ALARM_AUXILIARY,
+    ALARM_CALL_DEPTH,
+    ALARM_NESTING,
+    ALARM_UNKNOWN_G,
+    MAX_CALL_DEPTH,
+    MAX_M_PER_BLOCK,
+)
 from .blocks import BlockCompiler, Compiled
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
 from .lexer import strip_comment, tokenize
@@ -58,6 +65,7 @@ _SETTLED_G = frozenset({
     347, 348, 620, 621, 460, 461, 462, 810, 811, 812, 820, 821, 822, 931, 942, 952, 962, 971, 973, 290, 291,
 })
 _STANDARD_CYCLE = re.compile(r"(CYCLE\d+[A-Z]?|POCKET\d+|SLOT\d+|LONGHOLE|HOLES\d|WORKPIECE|[EF]_[A-Z0-9_]+)")
+_BLOCK_NUMBER = re.compile(r"(?:/\d?\s*)?(N\d+)", re.IGNORECASE)
 _END_CODES = frozenset({0, 1, 2, 17, 30})
 
 
@@ -223,6 +231,10 @@ class Interpreter:
                 try:
                     compiled = self._compile(raw)
                 except ProgramAlarm as alarm:
+                    # the faulty block is the current block on the control's display
+                    text_only = strip_comment(raw).strip()
+                    number = _BLOCK_NUMBER.match(text_only)
+                    yield Block(source.path, line, number.group(1).upper() if number else "", text_only, frame.depth)
                     raise self._located(alarm, source, line, raw) from None
                 if compiled is None:
                     continue
@@ -512,7 +524,7 @@ class Interpreter:
 
     def _define(self, declarations: list, frame: _Frame) -> None:
         for name, kind, dims, init in declarations:
-            if name in self._axes or re.fullmatch(r"R\d+", name):
+            if name in self._axes or len(name) == 1 or re.fullmatch(r"R\d+", name) or name in b.WORD_ADDRESSES:
                 raise ProgramAlarm(ALARM_SYNTAX, f"DEF {name}: the name is taken by the control")
             variable = Variable(name, kind, dims)
             if init is not None:
@@ -793,8 +805,12 @@ class Interpreter:
 
     def _spindle_words(self, address: dict, m_codes: list, spos: list, flags: dict, events: list) -> None:
         directions: dict[int, str] = {}
+        if len(m_codes) > MAX_M_PER_BLOCK:
+            raise ProgramAlarm(ALARM_AUXILIARY, f"{len(m_codes)} M functions in one block (at most {MAX_M_PER_BLOCK})")
         for extension, m_code in m_codes:
             if m_code in (3, 4, 5):
+                if (extension or 1) in directions:
+                    raise ProgramAlarm(ALARM_AUXILIARY, f"two spindle directions for spindle {extension or 1} in one block")
                 directions[extension or 1] = f"M{m_code}"
         for spindle in spos:
             directions[spindle] = "M5"
