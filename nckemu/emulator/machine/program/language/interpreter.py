@@ -36,6 +36,7 @@ from ..motions import (
 )
 from . import blocks as b
 from .alarms import (
+    ALARM_ARITHMETIC,
     ALARM_AUXILIARY,
     ALARM_CALL_DEPTH,
     ALARM_NESTING,
@@ -229,7 +230,10 @@ class Interpreter:
             if compiled is None:
                 raw = text[pos:end]
                 try:
-                    compiled = self._compile(raw)
+                    try:
+                        compiled = self._compile(raw)
+                    except ArithmeticError as exc:
+                        raise ProgramAlarm(ALARM_ARITHMETIC, f"arithmetic error ({exc})") from None
                 except ProgramAlarm as alarm:
                     # the faulty block is the current block on the control's display
                     text_only = strip_comment(raw).strip()
@@ -248,6 +252,9 @@ class Interpreter:
             try:
                 events = self._execute(compiled, frame, pos)
             except ProgramAlarm as alarm:
+                raise self._located(alarm, source, line, compiled.text) from None
+            except ArithmeticError as exc:  # an overflow deep in a conversion is still arithmetic
+                alarm = ProgramAlarm(ALARM_ARITHMETIC, f"arithmetic error ({exc})")
                 raise self._located(alarm, source, line, compiled.text) from None
             if events:
                 yield from events

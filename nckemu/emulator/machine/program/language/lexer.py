@@ -8,6 +8,7 @@ Names come out in upper case (the language is case-insensitive); strings keep th
 
 from __future__ import annotations
 
+import math
 import re
 
 from ..motions import ALARM_SYNTAX, ProgramAlarm
@@ -46,14 +47,26 @@ def strip_comment(line: str) -> str:
     return line
 
 
+INT_LIMIT = 2**31 - 1  # INT is 32 bits on the control; larger constants are REAL
+
+
 def _number(text: str) -> float | int:
     upper = text.upper()
-    if "EX" in upper:
-        mantissa, exponent = upper.split("EX")
-        return float(mantissa) * 10.0 ** int(exponent)
-    if "." in text:
-        return float(text)
-    return int(text)
+    try:
+        if "EX" in upper:
+            mantissa, exponent = upper.split("EX")
+            value: float | int = float(mantissa) * 10.0 ** int(exponent)
+        elif "." in text:
+            value = float(text)
+        else:
+            value = int(text)
+            if abs(value) > INT_LIMIT:
+                value = float(value)
+    except OverflowError:
+        value = math.inf
+    if value.__class__ is float and not math.isfinite(value):
+        raise ProgramAlarm(ALARM_SYNTAX, f"number {text} out of range")
+    return value
 
 
 def tokenize(text: str) -> list[tuple[int, object, str | None]]:
