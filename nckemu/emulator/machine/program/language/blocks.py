@@ -17,7 +17,10 @@ from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, evaluate, is_dyn
 
 # block kinds
 WORDS, IF, ELSE, ENDIF, WHILE, ENDWHILE, FOR, ENDFOR, REPEAT, UNTIL, LOOP, ENDLOOP = range(12)
-IF_JUMP, CASE, DEF, PROC, EXTERN, NOTHING = range(12, 18)
+IF_JUMP, CASE, DEF, PROC, EXTERN, NOTHING, STRAIGHT = range(12, 19)
+# G functions a STRAIGHT block may carry: modal settings that need nothing of the block's other words
+STRAIGHT_G = frozenset({0, 1, 17, 18, 19, 40, 60, 64, 70, 71, 90, 91, 94, 95, 601, 602, 603, 641, 642, 643,
+                        644, 645, 700, 710})
 
 _KEYWORD_KINDS = {"ELSE": ELSE, "ENDIF": ENDIF, "ENDWHILE": ENDWHILE, "ENDFOR": ENDFOR,
                   "REPEAT": REPEAT, "LOOP": LOOP, "ENDLOOP": ENDLOOP}
@@ -64,12 +67,64 @@ class Compiled:
         self.extra = extra
 
 
+# A block of address words with constant values only (most CAM blocks): N10 G1 X12.5 Y-3 F1200
+_SIMPLE_BLOCK = re.compile(r"(?:[ \t]*[A-Z]+[ \t]*=?[ \t]*[+-]?(?:\d+\.?\d*|\.\d+))+[ \t]*", re.IGNORECASE)
+_SIMPLE_WORD = re.compile(r"([A-Z]+)[ \t]*=?[ \t]*([+-]?(?:\d+\.?\d*|\.\d+))", re.IGNORECASE)
+_SIMPLE_ADDRESSES = frozenset({"M", "S", "F", "T", "D", "H", "CR", "TURN"})
+
+
 class BlockCompiler:
     """Compiles blocks for one interpreter (it knows the axes and how names resolve)."""
 
     def __init__(self, axes: tuple[str, ...], resolver: Any) -> None:
         self.axes = frozenset(axis.upper() for axis in axes)
         self.resolver = resolver
+
+    def compile_simple(self, text: str) -> Compiled | None:
+        """The fast way for a block of constant address words, or None (then :meth:`compile`)."""
+        if _SIMPLE_BLOCK.fullmatch(text) is None:
+            return None
+        items: list[tuple] = []
+        number = ""
+        axes = self.axes
+        straight = True  # only G of STRAIGHT_G, axes and F: the interpreter's fastest way
+        g_codes: list[int] = []
+        axis_words: list[tuple[str, float]] = []
+        feed = None
+        for index, (letters, digits) in enumerate(_SIMPLE_WORD.findall(text)):
+            letters = letters.upper()
+            value: float | int = float(digits) if "." in digits else int(digits)
+            if letters in axes:
+                items.append((I_AXIS, letters, value, None))
+                if any(axis == letters for axis, _ in axis_words):
+                    straight = False
+                axis_words.append((letters, float(value)))
+            elif letters == "G":
+                if value.__class__ is float or value < 0:
+                    return None
+                items.append((I_G, value, None, None))
+                g_codes.append(value)  # type: ignore[arg-type]
+                straight = straight and value in STRAIGHT_G
+            elif letters == "N":
+                if index or value.__class__ is float or value < 0:
+                    return None
+                number = f"N{value}"
+            elif letters in _SIMPLE_ADDRESSES:
+                if letters == "M" and (value.__class__ is float or value < 0):
+                    return None
+                items.append((I_ADDR, letters, value, 0))
+                if letters == "F" and feed is None:
+                    feed = float(value)
+                else:
+                    straight = False
+            elif letters in ("I", "J", "K"):
+                items.append((I_ADDR, letters, value, None))
+                straight = False
+            else:
+                return None
+        if straight:
+            return Compiled(number, STRAIGHT, (tuple(g_codes), tuple(axis_words), feed), text, items)
+        return Compiled(number, WORDS, items, text)
 
     def compile(self, text: str, tokens: list) -> Compiled:
         parser = Parser(tokens, self.resolver)

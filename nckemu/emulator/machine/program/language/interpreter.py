@@ -111,10 +111,10 @@ class Interpreter:
     # --- modal state ------------------------------------------------------------------------------
     def _reset_modal(self) -> None:
         env = self.env
-        self.motion = int(getattr(env, "reset_motion", 0))
+        self.motion = 1 if env.reset_motion == 1 else 0
         self.plane = "G17"
         self.absolute = True
-        self.inch_geometry = bool(getattr(env, "reset_inch", False))
+        self.inch_geometry = bool(env.reset_inch)
         self.inch_feed = False
         self.feed_mode = "G94"
         self.exact_stop = True
@@ -182,13 +182,10 @@ class Interpreter:
         self._update_shift()
 
     def _is_rotary(self, axis: str) -> bool:
-        check = getattr(self.env, "axis_is_rotary", None)
-        if check is not None:
-            try:
-                return bool(check(axis))
-            except Exception:
-                return False
-        return axis in ("A", "B", "C")
+        try:
+            return bool(self.env.axis_is_rotary(axis))
+        except Exception:
+            return axis in ("A", "B", "C")
 
     # --- running ----------------------------------------------------------------------------------
     def events(self) -> Iterator[Event]:
@@ -270,7 +267,7 @@ class Interpreter:
         text = strip_comment(raw).strip()
         if not text or text[0] == "%":
             return None
-        return self._compiler.compile(text, tokenize(text))
+        return self._compiler.compile_simple(text) or self._compiler.compile(text, tokenize(text))
 
     # --- names ------------------------------------------------------------------------------------
     def _resolve(self, parser: Parser, name: str) -> Any:
@@ -447,8 +444,39 @@ class Interpreter:
             raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {target} not found")
         self._go_to(frame, offset)
 
+    def _straight(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
+        """A block of constant axis words, F and modal G only (most CAM blocks), the short way."""
+        g_codes, axis_words, feed = compiled.items
+        for code in g_codes:
+            if code <= 1:
+                self.motion = code
+            else:
+                self._g(code, {})
+        if feed is not None:
+            self.feed_mm = feed * INCH_MM if (self.inch_feed and self.feed_mode != "G93") else feed
+        if not axis_words:
+            return None
+        if self.inch_geometry or not self.absolute:
+            return self._words(compiled.extra, frame, pos)
+        shift = self.shift
+        work_pos = self.work_pos
+        targets = {}
+        for axis, value in axis_words:
+            work_pos[axis] = value
+            targets[axis] = value + shift[axis] if axis in shift else value
+        motion = self.motion
+        if motion == 0:
+            return [Move(targets, None, self.feed_mode, self.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
+        if motion == 1:
+            if self.feed_mm <= 0:
+                raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
+            return [Move(targets, self.feed_mm, self.feed_mode, self.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
+        return self._words(compiled.extra, frame, pos)
+
     def _execute(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
         kind = compiled.kind
+        if kind == b.STRAIGHT:
+            return self._straight(compiled, frame, pos)
         if kind == b.WORDS:
             return self._words(compiled.items, frame, pos)
         if kind == b.NOTHING or kind == b.EXTERN:
@@ -794,7 +822,7 @@ class Interpreter:
             value = address["T"]
             tool = value.upper() if value.__class__ is str else int(number(value))
             self.preselected = tool
-        direct = getattr(self.env, "tool_change_mode", 1) == 0
+        direct = self.env.tool_change_mode == 0
         if change or (has_t and direct):
             self.tool = self.preselected
             tool = self.tool
