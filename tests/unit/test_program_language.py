@@ -283,6 +283,13 @@ def test_standard_cycles_are_accepted_without_motion() -> None:
     assert result.alarm is None and len(result.moves) == 2
 
 
+def test_settings_without_a_model_are_accepted() -> None:
+    text = "FGROUP(X, Y)\nSOFT BRISK FFWON G642 G40 G97\nACC[X]=50\nR1=ACC[X]\nLIMS=3000\nG0 X1\nM30"
+    result = run(text)
+    assert result.alarm is None and len(result.moves) == 1
+    assert run("NO_SUCH_WORD\nM30").alarm.number == ALARM_NAME_NOT_DEFINED  # type: ignore[union-attr]
+
+
 def test_setal_cycle_alarm() -> None:
     result = run("SETAL(61000)\nM30")
     assert result.alarm is not None and result.alarm.number == 61000

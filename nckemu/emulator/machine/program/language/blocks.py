@@ -84,47 +84,62 @@ class BlockCompiler:
         """The fast way for a block of constant address words, or None (then :meth:`compile`)."""
         if _SIMPLE_BLOCK.fullmatch(text) is None:
             return None
+        words = _SIMPLE_WORD.findall(text)
+        straight = self._straight(words, text)
+        if straight is not None:
+            return straight
         items: list[tuple] = []
         number = ""
         axes = self.axes
-        straight = True  # only G of STRAIGHT_G, axes and F: the interpreter's fastest way
-        g_codes: list[int] = []
-        axis_words: list[tuple[str, float]] = []
-        feed = None
-        for index, (letters, digits) in enumerate(_SIMPLE_WORD.findall(text)):
+        for index, (letters, digits) in enumerate(words):
             letters = letters.upper()
             value: float | int = float(digits) if "." in digits else int(digits)
             if letters in axes:
                 items.append((I_AXIS, letters, value, None))
-                if any(axis == letters for axis, _ in axis_words):
-                    straight = False
-                axis_words.append((letters, float(value)))
             elif letters == "G":
                 if value.__class__ is float or value < 0:
                     return None
                 items.append((I_G, value, None, None))
-                g_codes.append(value)  # type: ignore[arg-type]
-                straight = straight and value in STRAIGHT_G
             elif letters == "N":
                 if index or value.__class__ is float or value < 0:
                     return None
-                number = f"N{value}"
+                number = "N" + digits
             elif letters in _SIMPLE_ADDRESSES:
                 if letters == "M" and (value.__class__ is float or value < 0):
                     return None
                 items.append((I_ADDR, letters, value, 0))
-                if letters == "F" and feed is None:
-                    feed = float(value)
-                else:
-                    straight = False
             elif letters in ("I", "J", "K"):
                 items.append((I_ADDR, letters, value, None))
-                straight = False
             else:
                 return None
-        if straight:
-            return Compiled(number, STRAIGHT, (tuple(g_codes), tuple(axis_words), feed), text, items)
         return Compiled(number, WORDS, items, text)
+
+    def _straight(self, words: list[tuple[str, str]], text: str) -> Compiled | None:
+        """A STRAIGHT block (only modal G of STRAIGHT_G, each axis once, F), or None."""
+        axes = self.axes
+        g_codes: list[int] = []
+        axis_words: list[tuple[str, float]] = []
+        seen: set[str] = set()
+        feed = None
+        number = ""
+        for index, (letters, digits) in enumerate(words):
+            letters = letters.upper()
+            if letters in axes:
+                if letters in seen:
+                    return None
+                seen.add(letters)
+                axis_words.append((letters, float(digits)))
+            elif letters == "G":
+                if not digits.isdigit() or int(digits) not in STRAIGHT_G:
+                    return None
+                g_codes.append(int(digits))
+            elif letters == "F" and feed is None:
+                feed = float(digits)
+            elif letters == "N" and index == 0 and digits.isdigit():
+                number = "N" + digits
+            else:
+                return None
+        return Compiled(number, STRAIGHT, (tuple(g_codes), tuple(axis_words), feed), text)
 
     def compile(self, text: str, tokens: list) -> Compiled:
         parser = Parser(tokens, self.resolver)
@@ -401,7 +416,7 @@ class BlockCompiler:
                 items.append((I_AXIS, name, axis_value, mode))
                 continue
             if frac is None and following is not None and following[0] == OP and following[1] == "(" \
-                    and name not in ("MSG", "SETAL") and name not in FUNCTIONS:
+                    and name not in ("MSG", "SETAL") and name not in FUNCTIONS and name not in NO_OP_WORDS:
                 if name in ("IC", "AC"):
                     raise ProgramAlarm(ALARM_SYNTAX, f"{name}() stands after an address and '='")
                 args = parser.arguments()

@@ -444,7 +444,7 @@ class Interpreter:
             raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {target} not found")
         self._go_to(frame, offset)
 
-    def _straight(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
+    def _straight(self, compiled: Compiled, frame: _Frame) -> list[Event] | None:
         """A block of constant axis words, F and modal G only (most CAM blocks), the short way."""
         g_codes, axis_words, feed = compiled.items
         for code in g_codes:
@@ -456,27 +456,31 @@ class Interpreter:
             self.feed_mm = feed * INCH_MM if (self.inch_feed and self.feed_mode != "G93") else feed
         if not axis_words:
             return None
-        if self.inch_geometry or not self.absolute:
-            return self._words(compiled.extra, frame, pos)
-        shift = self.shift
-        work_pos = self.work_pos
-        targets = {}
-        for axis, value in axis_words:
-            work_pos[axis] = value
-            targets[axis] = value + shift[axis] if axis in shift else value
         motion = self.motion
-        if motion == 0:
-            return [Move(targets, None, self.feed_mode, self.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
-        if motion == 1:
-            if self.feed_mm <= 0:
-                raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-            return [Move(targets, self.feed_mm, self.feed_mode, self.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
-        return self._words(compiled.extra, frame, pos)
+        if self.inch_geometry or not self.absolute or motion > 1:
+            events: list[Event] = [self._motion([(axis, value, None) for axis, value in axis_words], {}, {})]
+        else:
+            shift = self.shift
+            work_pos = self.work_pos
+            targets = {}
+            for axis, value in axis_words:
+                work_pos[axis] = value
+                targets[axis] = value + shift[axis] if axis in shift else value
+            if motion == 0:
+                events = [Move(targets, None, self.feed_mode, self.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
+            else:
+                if self.feed_mm <= 0:
+                    raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
+                events = [Move(targets, self.feed_mm, self.feed_mode, self.exact_stop,  # type: ignore[arg-type]
+                               dict(axis_words))]
+        if self._modal_call is not None:
+            self._call(self._modal_call[0], self._modal_call[1], None, frame)
+        return events
 
     def _execute(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
         kind = compiled.kind
         if kind == b.STRAIGHT:
-            return self._straight(compiled, frame, pos)
+            return self._straight(compiled, frame)
         if kind == b.WORDS:
             return self._words(compiled.items, frame, pos)
         if kind == b.NOTHING or kind == b.EXTERN:
