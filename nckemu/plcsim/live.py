@@ -1,7 +1,8 @@
 """A living machine: a recording and the user's STL program driving a served machine on its clock.
 
-``LiveMachine(emulator, inputs=..., plc=..., speed=..., loop=..., server=...)`` hangs one cycle on
-the emulator's :class:`~nckemu.emulator.machine.cycle.CyclePacer`: every ``cycle_s`` of simulated time the
+``LiveMachine(emulator, inputs=..., plc=..., speed=..., loop=..., server=...)`` hangs its steps on
+the emulator's :class:`~nckemu.emulator.machine.cycle.CyclePacer` (the emulator owns it: its channels run
+programs in the same cycle, after these steps): every ``cycle_s`` of simulated time the
 recording's inputs (``drive.RecordingDrive``, the same as ``plc run --inputs``) and then one cycle of
 the program in awlsim (``bridge.PlcRunner``, the same as offline), its FB2/FB3/FB4 jobs going to the
 machine's own S7 face on the same event loop, as a client. The pacer holds the clock at the cycle's
@@ -27,7 +28,7 @@ from nckemu.clients.async_client import AsyncNckClient
 from nckemu.emulator.faces.s7.server import EmulatorServer
 from nckemu.emulator.machine.clock import LiveClock
 from nckemu.emulator.machine.core import Emulator
-from nckemu.emulator.machine.cycle import CyclePacer
+from nckemu.emulator.machine.cycle import CyclePacer, PacerStats
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area
 from nckemu.thermal.recording import Recording, load_recording
@@ -135,7 +136,12 @@ class LiveMachine:
                                  recording=recording.source if recording is not None else None,
                                  plc="RUN" if self.runner is not None else "none",
                                  program=str(self.program) if self.program is not None else None)
-        self.pacer = CyclePacer(self.clock, self.cycle_s, self._step)
+        # The emulator's pacer runs this machine's steps (recording, PLC) before the channels' in each
+        # cycle; the cycle starts when the PLC's client is connected (start()).
+        emulator.cycle_s = self.cycle_s
+        emulator.cycle_deferred = True
+        emulator.cycle_steps.append(self._step)
+        self._stats = PacerStats()
         # The first line after the first minute (the ready line comes first).
         self._next_line_s = MINUTE_S * max(1, int(-(-speed // MINUTE_S)))
         self._next_line_wall_s = 0.0
@@ -169,11 +175,20 @@ class LiveMachine:
             # A real PLC's path to its NCK is never idle: the program's connection is kept alive
             # however long it goes without a job (the server closes idle clients after 300 s).
             self._plc_connection = mine[0] if len(mine) == 1 else None
-        await self.pacer.start()
+        # A cycle the server started before this machine existed starts over with this machine's cycle.
+        await self.emulator.stop_cycle()
+        await self.emulator.start_cycle()
         return self
 
+    @property
+    def pacer(self) -> CyclePacer | None:
+        return self.emulator.pacer
+
     async def stop(self) -> None:
-        await self.pacer.stop()
+        pacer = self.emulator.pacer
+        if pacer is not None:
+            self._stats = pacer.stats
+        await self.emulator.stop_cycle()
         if self.runner is not None:
             self.runner.shutdown()
             await self._client.disconnect()
@@ -241,7 +256,7 @@ class LiveMachine:
             status.recording_end = self.drive is not None and not self.drive.loop and status.cycles > self.drive.cycles
         status.lag_s = self.clock.lag_s()
         status.slips = self.clock.slips
-        stats = self.pacer.stats
+        stats = self.pacer.stats if self.pacer is not None else self._stats
         status.step_wall_ms = 1000.0 * stats.step_wall_s / stats.cycles if stats.cycles else 0.0
         if self.runner is not None:
             jobs = self.runner.log.jobs
