@@ -142,6 +142,7 @@ class LiveMachine:
         emulator.cycle_deferred = True
         emulator.cycle_steps.append(self._step)
         self._stats = PacerStats()
+        self._first_k: int | None = None
         # The first line after the first minute (the ready line comes first).
         self._next_line_s = MINUTE_S * max(1, int(-(-speed // MINUTE_S)))
         self._next_line_wall_s = 0.0
@@ -194,7 +195,11 @@ class LiveMachine:
             await self._client.disconnect()
 
     # ------------------------------------------------------------------ one cycle
-    async def _step(self, k: int, t_s: float) -> None:
+    async def _step(self, k_pacer: int, t_s: float) -> None:
+        # The emulator's pacer may have run before this machine started: its cycles count from here.
+        if self._first_k is None:
+            self._first_k = k_pacer
+        k = k_pacer - self._first_k
         if self.drive is not None:
             self._last_inputs = self.drive.apply(self.emulator.nck, k)
         runner = self.runner

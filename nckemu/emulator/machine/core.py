@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -86,7 +87,8 @@ class Emulator:
         if self.pacer is not None or self._ticker is not None:
             return
         if isinstance(self.clock, LiveClock):
-            self.pacer = CyclePacer(self.clock, self.cycle_s, self._step)
+            first = math.ceil(self.clock.now_s() / self.cycle_s - 1e-9) if self.clock.running else 0
+            self.pacer = CyclePacer(self.clock, self.cycle_s, self._step, first_cycle=max(0, first))
             await self.pacer.start()
         else:
             self._ticker = asyncio.create_task(self._tick(), name="nckemu-channel")
