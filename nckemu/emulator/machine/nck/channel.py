@@ -116,6 +116,7 @@ class Channel:
         self.selected = ""
         self.run: ProgramRun | None = None
         self.waiting = False
+        self.last_run_blocks = 0          # blocks the last run executed (program run offline)
         self._alarms: list[str] = []
         # Told of each change of the program's life, with one of CHANGES (the OPC UA face's umati states).
         self.on_change: list[Callable[[str], None]] = []
@@ -342,6 +343,7 @@ class Channel:
         self.state.path_feed_mm_min = 0.0
         if run is not None:
             run.close(run.t_s if run.ended else self._clock.now_s())
+            self.last_run_blocks = run.blocks
         if self.parts is not None and self.parts.programs.running and self.number == 1:
             self.parts.programs.running = ""
 
