@@ -13,8 +13,7 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from nckemu.cli import command_group
-from nckemu.cliutil import check_output
+from nckemu.cliutil import check_output, command_group
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.nck.programs import program_path
