@@ -21,7 +21,27 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from nckemu.emulator.machine.clock import Clock
+from nckemu.emulator.machine.nck.channel_states import (  # noqa: F401 (also imported from here)
+    AC_INTERRUPTED,
+    AC_RESET,
+    AC_RUNNING,
+    AC_STOPPED,
+    AC_WAITING,
+    CHAN_ACTIVE,
+    CHAN_INTERRUPTED,
+    CHAN_RESET,
+    MODE_AUTOMATIC,
+    MODE_JOG,
+    MODE_MDA,
+    MODE_NAMES,
+    PROG_ABORTED,
+    PROG_INTERRUPTED,
+    PROG_RUNNING,
+    PROG_STOPPED,
+    PROG_WAITING,
+)
 from nckemu.emulator.machine.program.motions import ProgramAlarm
+from nckemu.emulator.machine.program.planner import SpindleRamp
 from nckemu.errors import NckAddressOutOfRange, NckError, NckItemError, NckNoSuchFile, NckPiStateError
 
 if TYPE_CHECKING:
@@ -30,35 +50,12 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("nckemu.emulator.nck.channel")
 
-CHAN_RESET, CHAN_ACTIVE, CHAN_INTERRUPTED = 0, 1, 2
-PROG_INTERRUPTED, PROG_STOPPED, PROG_RUNNING, PROG_WAITING, PROG_ABORTED = 1, 2, 3, 4, 5
-# $AC_PROG (acProg)
-AC_RESET, AC_STOPPED, AC_RUNNING, AC_WAITING, AC_INTERRUPTED = 0, 1, 2, 3, 4
-MODE_JOG, MODE_MDA, MODE_AUTOMATIC = 0, 1, 2
-MODE_NAMES = {MODE_JOG: "JOG", MODE_MDA: "MDA", MODE_AUTOMATIC: "AUTOMATIC"}
 # NCKEMU_CHAN_COMMAND values
 COMMAND_RESET, COMMAND_START, COMMAND_STOP, COMMAND_END_PROGRAM = 0, 1, 2, 3
 # turnState (unconfirmed: the sources give no enumeration): 0 stopped, 1 clockwise M3, 2 counter-clockwise M4
 TURN_STOPPED, TURN_CW, TURN_CCW = 0, 1, 2
 # What on_change listeners are told.
 CHANGES = ("selected", "unselected", "started", "interrupted", "resumed", "ended", "aborted")
-
-
-@dataclass
-class SpindleRamp:
-    """The spindle's actual speed going linearly from ``from_rpm`` at ``start_s`` to ``to_rpm`` at ``end_s``."""
-
-    from_rpm: float
-    to_rpm: float
-    start_s: float
-    end_s: float
-
-    def rpm_at(self, t_s: float) -> float:
-        if t_s >= self.end_s or self.end_s <= self.start_s:
-            return self.to_rpm
-        if t_s <= self.start_s:
-            return self.from_rpm
-        return self.from_rpm + (self.to_rpm - self.from_rpm) * (t_s - self.start_s) / (self.end_s - self.start_s)
 
 
 @dataclass
@@ -101,6 +98,14 @@ class ChannelState:
     end_counter: int = 0
     reset_counter: int = 0
     path_feed_mm_min: float = 0.0     # the path speed of the motion under way (0 when none)
+
+
+def program_text(data: bytes) -> str:
+    """A stored program as text: UTF-8 where it is (comments with a degree sign), else Latin-1 (any byte)."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
 
 
 class Channel:
@@ -189,7 +194,7 @@ class Channel:
             self._refuse(settings.start_refused_alarm, f"NC start not possible: {self.selected} no longer exists")
         from nckemu.emulator.machine.program.run import ProgramRun
 
-        self.run = ProgramRun(self, self.parts, self.selected, text.decode("latin-1"), now)
+        self.run = ProgramRun(self, self.parts, self.selected, program_text(text), now)
         self.parts.programs.running = self.selected if self.number == 1 else self.parts.programs.running
         self._net_s = 0.0
         self._begin_timing()

@@ -16,6 +16,16 @@ import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from nckemu.emulator.machine.nck.channel_states import (
+    CHAN_ACTIVE,
+    CHAN_INTERRUPTED,
+    CHAN_RESET,
+    PROG_ABORTED,
+    PROG_INTERRUPTED,
+    PROG_RUNNING,
+    PROG_STOPPED,
+    PROG_WAITING,
+)
 from nckemu.errors import NckError
 
 if TYPE_CHECKING:
@@ -38,17 +48,6 @@ MODE_ACTIVE_BITS = {2: 0x01, 1: 0x02, 0: 0x04}
 
 
 def state_byte(channel: Channel) -> int:
-    from nckemu.emulator.machine.nck.channel import (
-        CHAN_ACTIVE,
-        CHAN_INTERRUPTED,
-        CHAN_RESET,
-        PROG_ABORTED,
-        PROG_INTERRUPTED,
-        PROG_RUNNING,
-        PROG_STOPPED,
-        PROG_WAITING,
-    )
-
     status, program = channel.state.status, channel.state.program_status
     bits = {PROG_RUNNING: 0x01, PROG_WAITING: 0x02, PROG_STOPPED: 0x04, PROG_INTERRUPTED: 0x08,
             PROG_ABORTED: 0x10}.get(program, 0)

@@ -196,3 +196,20 @@ class Planner:
 
 def _plane_axes(plane: str) -> tuple[str, str]:
     return {"G17": ("X", "Y"), "G18": ("Z", "X"), "G19": ("Y", "Z")}.get(plane, ("X", "Y"))
+
+
+@dataclass
+class SpindleRamp:
+    """The spindle's actual speed going linearly from ``from_rpm`` at ``start_s`` to ``to_rpm`` at ``end_s``."""
+
+    from_rpm: float
+    to_rpm: float
+    start_s: float
+    end_s: float
+
+    def rpm_at(self, t_s: float) -> float:
+        if t_s >= self.end_s or self.end_s <= self.start_s:
+            return self.to_rpm
+        if t_s <= self.start_s:
+            return self.from_rpm
+        return self.from_rpm + (self.to_rpm - self.from_rpm) * (t_s - self.start_s) / (self.end_s - self.start_s)

@@ -31,11 +31,18 @@ from nckemu.emulator.machine.program.motions import (
     SpindleCommand,
     ToolSelect,
 )
-from nckemu.emulator.machine.program.planner import AxisLimits, MotionLimits, Overrides, Planner, Timed
+from nckemu.emulator.machine.program.planner import (
+    AxisLimits,
+    MotionLimits,
+    Overrides,
+    Planner,
+    SpindleRamp,
+    Timed,
+)
 from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments
 
 if TYPE_CHECKING:
-    from nckemu.emulator.machine.nck.channel import Channel
+    from nckemu.emulator.machine.nck.channel import Channel, Spindle
     from nckemu.emulator.machine.nck.parts import NckParts
 
 # Where a called subprogram is looked for after the caller's own directory (programs.md 7).
@@ -220,7 +227,11 @@ class NckEnvironment(ProgramEnvironment):
         for path in dict.fromkeys(candidates):
             if programs.exists(path):
                 try:
-                    return path, programs.read(path).decode("latin-1")
+                    data = programs.read(path)
+                    try:
+                        return path, data.decode("utf-8")
+                    except UnicodeDecodeError:
+                        return path, data.decode("latin-1")
                 except NckNoSuchFile:
                     continue
         return None
@@ -454,10 +465,7 @@ class ProgramRun:
             self.planner.spindle_target_rpm(spindle.commanded_rpm, self._overrides())
         self._spindle_ready_s = max(self._spindle_ready_s, self._ramp_spindle(spindle, target, self.t_s))
 
-    def _ramp_spindle(self, spindle: object, target_rpm: float, t_s: float) -> float:
-        from nckemu.emulator.machine.nck.channel import Spindle, SpindleRamp
-
-        assert isinstance(spindle, Spindle)
+    def _ramp_spindle(self, spindle: Spindle, target_rpm: float, t_s: float) -> float:
         current = spindle.ramp.rpm_at(t_s) if spindle.ramp is not None else 0.0
         end_s = t_s + self.planner.spindle_ramp_s(current, target_rpm)
         spindle.ramp = SpindleRamp(current, target_rpm, t_s, end_s)
