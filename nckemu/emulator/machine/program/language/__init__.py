@@ -81,7 +81,7 @@ class Interpreter:
             if message:
                 yield Message(message.group(1))
                 continue
-            if re.fullmatch(r"[A-Z_][A-Z0-9_]*(\(\))?", code) and not re.fullmatch(r"[A-Z]+[0-9.]*", code):
+            if re.fullmatch(r"[A-Z_][A-Z0-9_]*(\(\))?", code) and not _WORD.fullmatch(code):
                 found = self.env.find_program(code.rstrip("()"), path)
                 if found is None:
                     raise alarm(ALARM_PROGRAM_NOT_FOUND, f"program {code} not existing")
