@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from nckemu import __version__
-from nckemu.cliutil import command_group  # noqa: F401 (its home is cliutil: areas below the CLI use it)
+from nckemu.cliutil import command_group  # noqa: F401 - areas below the CLI import it from cliutil
 from nckemu.errors import NckConfigError, NckError
 
 COMMAND_MODULES = (
@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "nckemu.emulator.fleet_commands",  # fleet
     "nckemu.catalogue.commands",  # vars
     "nckemu.clients.commands",    # get, put, pi, comp840c, lec
+    "nckemu.clients.program_commands",  # program put, get, list, select, start, stop, reset
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
     "nckemu.thermal.recording_commands",  # recording import, recording check
