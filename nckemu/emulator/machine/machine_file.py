@@ -180,7 +180,7 @@ class ProgramSettings:
     # The channel's cycle on the server's clock when no living machine sets one (simulated seconds).
     cycle_s: float = 0.1
     # Blocks the channel executes at most per cycle (an endless loop never starves the faces).
-    max_blocks_per_cycle: int = 20000
+    max_blocks_per_cycle: int = 5000
     # The spindle's acceleration in speed control (rev/s²; MD35200's name is unconfirmed, so a setting).
     spindle_accel_rev_s2: float = 50.0
     # Path motion waits for the spindle to reach its speed (as MD35500 SPIND_ON_SPEED_AT_IPO_START = 1).

@@ -301,8 +301,8 @@ def test_select_start_and_mode_refusals() -> None:
 
 
 @pytest.mark.parametrize(("text", "number"), [
-    ("G0 X10\nG1 X20 Q7 F100\nM30\n", 12080),                    # syntax error
-    ("G0 X10\nNOSUCHSUB\nM30\n", 14011),                          # missing subprogram
+    ("G0 X10\nG1 X=)\nM30\n", 12080),                            # syntax error
+    ("EXTERN NOSUCHSUB(REAL)\nG0 X10\nNOSUCHSUB(1)\nM30\n", 14011),  # missing subprogram
     ("G0 X10\nGOTOF NOWHERE\nM30\n", 14080),                      # jump to nowhere
     ("R1=0\nR2=5/R1\nM30\n", None),                                # division by zero: the interpreter's alarm
     ("G0 X5000\nM30\n", 10720),                                    # beyond the travel
