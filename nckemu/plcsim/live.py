@@ -40,6 +40,11 @@ log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 JOB_WAIT_S = 10.0
+# The NCK interface DBs a program may declare: DB11 (mode group) and DB21.. (channels); bytes below
+# the first NCK byte are the PLC's (requests), from it on the NCK's (states): DB11.DBB6, DB21.DBB35
+# (docs/programs.md). Whatever the program writes there reaches the NCK once per cycle.
+MODE_GROUP_DB, MODE_GROUP_FIRST_NCK_BYTE = 11, 6
+CHANNEL_DB, CHANNEL_FIRST_NCK_BYTE = 21, 35
 # A PLC cycle that takes this much wall time is taken for a hanging program (an endless loop).
 CYCLE_WATCHDOG_WALL_S = 1.0
 MINUTE_S = 60.0
@@ -143,6 +148,8 @@ class LiveMachine:
         emulator.cycle_steps.append(self._step)
         self._stats = PacerStats()
         self._first_k: int | None = None
+        self._interface: list[tuple[int, bytearray, int]] | None = None
+        self._sent: dict[int, bytes] = {}
         # The first line after the first minute (the ready line comes first).
         self._next_line_s = MINUTE_S * max(1, int(-(-speed // MINUTE_S)))
         self._next_line_wall_s = 0.0
@@ -206,10 +213,12 @@ class LiveMachine:
         if self._plc_connection is not None:
             self._plc_connection.last_activity_s = time.monotonic()
         if runner is not None and self.status.fault is None:
+            self._interface_in(runner)
             try:
                 runner.run_cycle()
             except Exception as exc:  # awlsim's run-time errors: the PLC stops, the machine serves on
                 self._fault(exc, t_s)
+            self._interface_out(runner)
             pending = runner.pending()
             if pending:  # simulated time waits for the network, as offline
                 await asyncio.wait(pending, timeout=JOB_WAIT_S)
@@ -219,6 +228,47 @@ class LiveMachine:
         self.status.t_s = t_s
         if t_s >= self._next_line_s:
             self._minute(t_s)
+
+    # ------------------------------------------------------------------ the NCK interface DBs
+    def _interface_dbs(self, runner: PlcRunner) -> list[tuple[int, bytearray, int]]:
+        """DB11 and DB21.. as the program declares them: (number, its memory in awlsim, first NCK byte)."""
+        found = []
+        channels = len(self.emulator.nck.channels)
+        for number, first_nck in ((MODE_GROUP_DB, MODE_GROUP_FIRST_NCK_BYTE),
+                                  *((CHANNEL_DB + n, CHANNEL_FIRST_NCK_BYTE) for n in range(channels))):
+            try:
+                db = runner.sim.cpu.getDB(number)
+                memory = db.structInstance.memory.getDataBytes() if db is not None else None
+            except Exception:  # not declared by the program: the PLC does not use that interface
+                memory = None
+            if memory is not None and number in self.emulator.plc.data_blocks:
+                found.append((number, memory, first_nck))
+        return found
+
+    def _interface_in(self, runner: PlcRunner) -> None:
+        """The NCK's part of the interface DBs (DB21.DBB35, DB11.DBB6, ...) into the program's DBs."""
+        if self._interface is None:
+            self._interface = self._interface_dbs(runner)
+        plc = self.emulator.plc.data_blocks
+        for number, memory, first in self._interface:
+            end = min(len(memory), len(plc[number]))
+            if end > first:
+                memory[first:end] = plc[number][first:end]
+            # another writer (an S7 client, an OPC UA write) changed the PLC's part: the program sees it
+            mine = min(first, end)
+            if bytes(plc[number][:mine]) != self._sent.get(number, bytes(plc[number][:mine])):
+                memory[:mine] = plc[number][:mine]
+
+    def _interface_out(self, runner: PlcRunner) -> None:
+        """The program's part (DB21.DBX7.1 NC start, DB11.DBX0.2 JOG, ...) to the NCK, as a write of the
+        PLC memory would (so its edges act exactly as an S7 client's)."""
+        plc = self.emulator.plc
+        for number, memory, first in self._interface or ():
+            end = min(first, len(memory), len(plc.data_blocks[number]))
+            mine = bytes(memory[:end])
+            if mine != bytes(plc.data_blocks[number][:end]):
+                plc.write(S7Area.DB, number, 0, mine)
+            self._sent[number] = mine
 
     def _fold_log(self) -> None:
         """Count the older jobs and errors and drop them, keeping the last ``LOG_KEEP`` of each."""
