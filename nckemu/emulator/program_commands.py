@@ -75,6 +75,15 @@ def _read(path: Path) -> bytes:
         raise NckConfigError(f"cannot read: {exc.strerror}", path=str(path)) from None
 
 
+def store_programs(emulator: Emulator, files: list[str]) -> str:
+    """Store ``files`` (the first is the main program; the .MPF/.SPF files beside it come too) and
+    return the main program's NC path (``serve --program``, ``program run``)."""
+    main = Path(files[0])
+    if not main.is_file():
+        raise NckConfigError("no such program file", path=str(main))
+    return _store(emulator, main, list(files[1:]))
+
+
 def _store(emulator: Emulator, main: Path, extra: list[str]) -> str:
     programs = emulator.nck.programs
     for sibling in sorted(main.parent.glob("*")) if main.parent.is_dir() else []:

@@ -180,7 +180,7 @@ class Channel:
         if self.state.status == CHAN_INTERRUPTED:
             if self.run is not None:
                 self.run.resume(now)
-            self._begin_timing()
+            self._begin_timing(now)
             self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
             self.state.start_counter += 1
             self._tell("resumed")
@@ -197,7 +197,7 @@ class Channel:
         self.run = ProgramRun(self, self.parts, self.selected, program_text(text), now)
         self.parts.programs.running = self.selected if self.number == 1 else self.parts.programs.running
         self._net_s = 0.0
-        self._begin_timing()
+        self._begin_timing(now)
         self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
         self.state.message = ""
         self.state.start_counter += 1
@@ -333,9 +333,10 @@ class Channel:
         raise NckPiStateError(reason)
 
     def _interrupt(self, program_status: int, at_s: float | None = None) -> None:
+        at_s = self._clock.now_s() if at_s is None else at_s
         self._hold(at_s)
         if self.run is not None:
-            self.run.pause(self._clock.now_s() if at_s is None else at_s)
+            self.run.pause(at_s)
         self.waiting = False
         self.state.status, self.state.program_status = CHAN_INTERRUPTED, program_status
         self.state.path_feed_mm_min = 0.0
@@ -358,9 +359,9 @@ class Channel:
                 self.parts.alarm_list.clear(text)
         self._alarms.clear()
 
-    def _begin_timing(self) -> None:
+    def _begin_timing(self, at_s: float | None = None) -> None:
         if self._running_since is None:
-            self._running_since = self._clock.now_s()
+            self._running_since = self._clock.now_s() if at_s is None else at_s
 
     def _tell(self, change: str) -> None:
         for listener in list(self.on_change):
