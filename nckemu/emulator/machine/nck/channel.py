@@ -122,7 +122,8 @@ class Channel:
         self.run: ProgramRun | None = None
         self.waiting = False
         self.last_run_blocks = 0          # blocks the last run executed (program run offline)
-        self._alarms: list[str] = []
+        self._alarms: list[str] = []      # program alarms: the run stopped, reset clears them
+        self._notices: list[str] = []     # refusals (NC start, mode): cleared by reset or the next start
         # Told of each change of the program's life, with one of CHANGES (the OPC UA face's umati states).
         self.on_change: list[Callable[[str], None]] = []
         # Told after every change of status, program status or mode (the PLC's DB21.DBB35, DB11.DBB6).
@@ -176,6 +177,7 @@ class Channel:
             self._refuse(settings.start_refused_alarm, "NC start not possible in JOG")
         if self._alarms:
             self._refuse(settings.start_refused_alarm, "NC start not possible: reset the channel's alarm first")
+        self._clear_alarms(self._notices)
         now = self._clock.now_s()
         if self.state.status == CHAN_INTERRUPTED:
             if self.run is not None:
@@ -217,7 +219,8 @@ class Channel:
         if not was_reset:
             self.state.old_net_time_s = self._net_s
         self._finish_run()
-        self._clear_alarms()
+        self._clear_alarms(self._alarms)
+        self._clear_alarms(self._notices)
         self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
         self.state.reset_counter += 1
         if not was_reset:
@@ -328,7 +331,8 @@ class Channel:
         text = f"channel {self.number}: {reason}"
         if self.parts is not None and alarm_number:
             self.parts.alarm_list.raise_alarm(text, alarm_number, (str(self.number),))
-            self._alarms.append(text)
+            if text not in self._notices:
+                self._notices.append(text)
         log.info("%s", text)
         raise NckPiStateError(reason)
 
@@ -353,11 +357,11 @@ class Channel:
         if self.parts is not None and self.parts.programs.running and self.number == 1:
             self.parts.programs.running = ""
 
-    def _clear_alarms(self) -> None:
+    def _clear_alarms(self, texts: list[str]) -> None:
         if self.parts is not None:
-            for text in self._alarms:
+            for text in texts:
                 self.parts.alarm_list.clear(text)
-        self._alarms.clear()
+        texts.clear()
 
     def _begin_timing(self, at_s: float | None = None) -> None:
         if self._running_since is None:
@@ -398,8 +402,14 @@ class Channel:
 
     @property
     def alarms(self) -> list[str]:
-        """The texts of the alarms this channel raised that are still pending (reset clears them)."""
+        """The texts of the program alarms this channel raised that are still pending (reset clears
+        them; NC start is refused while there are any)."""
         return list(self._alarms)
+
+    @property
+    def notices(self) -> list[str]:
+        """Refusals still on the alarm list (NC start in JOG, a mode change while running)."""
+        return list(self._notices)
 
     @property
     def net_time_s(self) -> float:
