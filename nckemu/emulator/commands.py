@@ -25,6 +25,7 @@ examples:
   nckemu serve --port 1102
   nckemu serve --machine fixtures/machines/warm_z.toml --state state.json --record session.pcapng
   nckemu serve --port 1102 --opcua 4840
+  nckemu serve --port 1102 --program fixtures/programs/SHORT.MPF
 then, e.g. with python-snap7 (and asyncua's uaread -u opc.tcp://127.0.0.1:4840/ -n 'ns=2;s=/Bag/State/opMode'):
   import snap7; c = snap7.Client(); c.connect("127.0.0.1", 0, 4, 1102); print(c.get_cpu_info())
 """
@@ -57,6 +58,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                              "compensation over time, PLC, clients)")
     parser.add_argument("--opcua", type=listen_port, default=None, metavar="PORT",
                         help="also serve OPC UA (SINUMERIK node ids, same model) on PORT, e.g. 4840 (default off)")
+    parser.add_argument("--program", action="append", default=[], metavar="FILE",
+                        help="store this part program (and the .MPF/.SPF files beside it) and select the first "
+                             "one in channel 1; NC start is DB21.DBX7.1 (docs/programs.md); repeatable")
     parser.add_argument("--json", action="store_true", help="print the ready line as JSON on stdout")
     parser.set_defaults(func=run_serve)
 
@@ -143,6 +147,10 @@ def run_serve(args: argparse.Namespace, *, clock: Clock | None = None, faces: Se
             raise NckConfigError("no leadscrew table in it (expected $AA_ENC_COMP[...] lines)", path=path)
     if args.lec:
         emulator.power_on()
+    if getattr(args, "program", None):
+        from nckemu.emulator.program_commands import store_programs
+
+        emulator.nck.channels[1].select(store_programs(emulator, args.program))
     limits = ServerLimits(max_connections=args.max_connections, idle_timeout_s=args.idle_timeout,
                           partial_frame_timeout_s=args.partial_frame_timeout)
     server = EmulatorServer(emulator, host=args.host, port=args.port, limits=limits,

@@ -179,7 +179,7 @@ class RecordingDrive:
         if abs(inputs.spindle_rpm) >= SPINDLE_TURNING_RPM:
             self._idle_since_s = None
             if not active:
-                channel.start()
+                channel.run_without_program()  # the recording says a program runs; none is selected
             return
         if not active:
             return

@@ -1,7 +1,8 @@
 """A living machine: a recording and the user's STL program driving a served machine on its clock.
 
-``LiveMachine(emulator, inputs=..., plc=..., speed=..., loop=..., server=...)`` hangs one cycle on
-the emulator's :class:`~nckemu.emulator.machine.cycle.CyclePacer`: every ``cycle_s`` of simulated time the
+``LiveMachine(emulator, inputs=..., plc=..., speed=..., loop=..., server=...)`` hangs its steps on
+the emulator's :class:`~nckemu.emulator.machine.cycle.CyclePacer` (the emulator owns it: its channels run
+programs in the same cycle, after these steps): every ``cycle_s`` of simulated time the
 recording's inputs (``drive.RecordingDrive``, the same as ``plc run --inputs``) and then one cycle of
 the program in awlsim (``bridge.PlcRunner``, the same as offline), its FB2/FB3/FB4 jobs going to the
 machine's own S7 face on the same event loop, as a client. The pacer holds the clock at the cycle's
@@ -27,7 +28,7 @@ from nckemu.clients.async_client import AsyncNckClient
 from nckemu.emulator.faces.s7.server import EmulatorServer
 from nckemu.emulator.machine.clock import LiveClock
 from nckemu.emulator.machine.core import Emulator
-from nckemu.emulator.machine.cycle import CyclePacer
+from nckemu.emulator.machine.cycle import CyclePacer, PacerStats
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area
 from nckemu.thermal.recording import Recording, load_recording
@@ -39,6 +40,11 @@ log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 JOB_WAIT_S = 10.0
+# The NCK interface DBs a program may declare: DB11 (mode group) and DB21.. (channels); bytes below
+# the first NCK byte are the PLC's (requests), from it on the NCK's (states): DB11.DBB6, DB21.DBB35
+# (docs/programs.md). Whatever the program writes there reaches the NCK once per cycle.
+MODE_GROUP_DB, MODE_GROUP_FIRST_NCK_BYTE = 11, 6
+CHANNEL_DB, CHANNEL_FIRST_NCK_BYTE = 21, 35
 # A PLC cycle that takes this much wall time is taken for a hanging program (an endless loop).
 CYCLE_WATCHDOG_WALL_S = 1.0
 MINUTE_S = 60.0
@@ -135,7 +141,15 @@ class LiveMachine:
                                  recording=recording.source if recording is not None else None,
                                  plc="RUN" if self.runner is not None else "none",
                                  program=str(self.program) if self.program is not None else None)
-        self.pacer = CyclePacer(self.clock, self.cycle_s, self._step)
+        # The emulator's pacer runs this machine's steps (recording, PLC) before the channels' in each
+        # cycle; the cycle starts when the PLC's client is connected (start()).
+        emulator.cycle_s = self.cycle_s
+        emulator.cycle_deferred = True
+        emulator.cycle_steps.append(self._step)
+        self._stats = PacerStats()
+        self._first_k: int | None = None
+        self._interface: list[tuple[int, bytearray, int]] | None = None
+        self._sent: dict[int, bytes] = {}
         # The first line after the first minute (the ready line comes first).
         self._next_line_s = MINUTE_S * max(1, int(-(-speed // MINUTE_S)))
         self._next_line_wall_s = 0.0
@@ -169,27 +183,42 @@ class LiveMachine:
             # A real PLC's path to its NCK is never idle: the program's connection is kept alive
             # however long it goes without a job (the server closes idle clients after 300 s).
             self._plc_connection = mine[0] if len(mine) == 1 else None
-        await self.pacer.start()
+        # A cycle the server started before this machine existed starts over with this machine's cycle.
+        await self.emulator.stop_cycle()
+        await self.emulator.start_cycle()
         return self
 
+    @property
+    def pacer(self) -> CyclePacer | None:
+        return self.emulator.pacer
+
     async def stop(self) -> None:
-        await self.pacer.stop()
+        pacer = self.emulator.pacer
+        if pacer is not None:
+            self._stats = pacer.stats
+        await self.emulator.stop_cycle()
         if self.runner is not None:
             self.runner.shutdown()
             await self._client.disconnect()
 
     # ------------------------------------------------------------------ one cycle
-    async def _step(self, k: int, t_s: float) -> None:
+    async def _step(self, k_pacer: int, t_s: float) -> None:
+        # The emulator's pacer may have run before this machine started: its cycles count from here.
+        if self._first_k is None:
+            self._first_k = k_pacer
+        k = k_pacer - self._first_k
         if self.drive is not None:
             self._last_inputs = self.drive.apply(self.emulator.nck, k)
         runner = self.runner
         if self._plc_connection is not None:
             self._plc_connection.last_activity_s = time.monotonic()
         if runner is not None and self.status.fault is None:
+            self._interface_in(runner)
             try:
                 runner.run_cycle()
             except Exception as exc:  # awlsim's run-time errors: the PLC stops, the machine serves on
                 self._fault(exc, t_s)
+            self._interface_out(runner)
             pending = runner.pending()
             if pending:  # simulated time waits for the network, as offline
                 await asyncio.wait(pending, timeout=JOB_WAIT_S)
@@ -199,6 +228,47 @@ class LiveMachine:
         self.status.t_s = t_s
         if t_s >= self._next_line_s:
             self._minute(t_s)
+
+    # ------------------------------------------------------------------ the NCK interface DBs
+    def _interface_dbs(self, runner: PlcRunner) -> list[tuple[int, bytearray, int]]:
+        """DB11 and DB21.. as the program declares them: (number, its memory in awlsim, first NCK byte)."""
+        found = []
+        channels = len(self.emulator.nck.channels)
+        for number, first_nck in ((MODE_GROUP_DB, MODE_GROUP_FIRST_NCK_BYTE),
+                                  *((CHANNEL_DB + n, CHANNEL_FIRST_NCK_BYTE) for n in range(channels))):
+            try:
+                db = runner.sim.cpu.getDB(number)
+                memory = db.structInstance.memory.getDataBytes() if db is not None else None
+            except Exception:  # not declared by the program: the PLC does not use that interface
+                memory = None
+            if memory is not None and number in self.emulator.plc.data_blocks:
+                found.append((number, memory, first_nck))
+        return found
+
+    def _interface_in(self, runner: PlcRunner) -> None:
+        """The NCK's part of the interface DBs (DB21.DBB35, DB11.DBB6, ...) into the program's DBs."""
+        if self._interface is None:
+            self._interface = self._interface_dbs(runner)
+        plc = self.emulator.plc.data_blocks
+        for number, memory, first in self._interface:
+            end = min(len(memory), len(plc[number]))
+            if end > first:
+                memory[first:end] = plc[number][first:end]
+            # another writer (an S7 client, an OPC UA write) changed the PLC's part: the program sees it
+            mine = min(first, end)
+            if bytes(plc[number][:mine]) != self._sent.get(number, bytes(plc[number][:mine])):
+                memory[:mine] = plc[number][:mine]
+
+    def _interface_out(self, runner: PlcRunner) -> None:
+        """The program's part (DB21.DBX7.1 NC start, DB11.DBX0.2 JOG, ...) to the NCK, as a write of the
+        PLC memory would (so its edges act exactly as an S7 client's)."""
+        plc = self.emulator.plc
+        for number, memory, first in self._interface or ():
+            end = min(first, len(memory), len(plc.data_blocks[number]))
+            mine = bytes(memory[:end])
+            if mine != bytes(plc.data_blocks[number][:end]):
+                plc.write(S7Area.DB, number, 0, mine)
+            self._sent[number] = mine
 
     def _fold_log(self) -> None:
         """Count the older jobs and errors and drop them, keeping the last ``LOG_KEEP`` of each."""
@@ -241,7 +311,7 @@ class LiveMachine:
             status.recording_end = self.drive is not None and not self.drive.loop and status.cycles > self.drive.cycles
         status.lag_s = self.clock.lag_s()
         status.slips = self.clock.slips
-        stats = self.pacer.stats
+        stats = self.pacer.stats if self.pacer is not None else self._stats
         status.step_wall_ms = 1000.0 * stats.step_wall_s / stats.cycles if stats.cycles else 0.0
         if self.runner is not None:
             jobs = self.runner.log.jobs

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from nckemu.emulator.machine.clock import Clock, MonotonicClock
+from nckemu.emulator.machine.clock import Clock, LiveClock, MonotonicClock
+from nckemu.emulator.machine.cycle import CyclePacer, Step
+from nckemu.emulator.machine.heat import Heat
 from nckemu.emulator.machine.machine_file import Machine, load_machine
 from nckemu.emulator.machine.nck.access import HIGHEST_LEVEL, AccessContext
 from nckemu.emulator.machine.nck.alarms import ALARM_RETAINED_STATE
@@ -42,6 +47,15 @@ class Emulator:
         self._snapshots = 0
         # Saves off the event loop for the S7 face (its acknowledgements wait for them); saves.py.
         self.saves = GroupSaves(self)
+        # The machine's cycle on the server's clock: the channels run their programs and the machine
+        # heats in it; a living machine adds its recording and PLC steps (``cycle_steps``) and its cycle
+        # time, and starts the cycle itself when its PLC client is connected (``cycle_deferred``).
+        self.heat = Heat(self.machine, self.nck)
+        self.cycle_s = self.machine.program.cycle_s
+        self.cycle_steps: list[Step] = []
+        self.cycle_deferred = False
+        self.pacer: CyclePacer | None = None
+        self._ticker: asyncio.Task[None] | None = None
         # Retained data of faces (the OPC UA face's users): name -> a function giving it, JSON-able; and
         # what the state file held for each, for the face to take up when it starts. A face not started
         # this time keeps what it had: its section is written back as it was read.
@@ -54,6 +68,50 @@ class Emulator:
                 faces = snapshot.get("faces", {})
                 self.restored_face_state = dict(faces) if isinstance(faces, dict) else {}
                 log.info("retained state loaded from %s", self.store.path)
+
+    # ------------------------------------------------------------------ the cycle
+    def step_machine(self, t_s: float) -> None:
+        """The NCK's own part of a cycle at simulated time ``t_s``: programs run, the machine heats."""
+        for channel in self.nck.channels.values():
+            channel.step(t_s)
+        self.heat.step(t_s)
+
+    async def _step(self, k: int, t_s: float) -> None:
+        for step in self.cycle_steps:
+            await step(k, t_s)
+        self.step_machine(t_s)
+
+    async def start_cycle(self) -> None:
+        """Run the machine's cycle on the running loop (idempotent): a :class:`CyclePacer` on a
+        :class:`LiveClock`, else a tick every ``cycle_s`` of the clock's own time."""
+        if self.pacer is not None or self._ticker is not None:
+            return
+        if isinstance(self.clock, LiveClock):
+            first = math.ceil(self.clock.now_s() / self.cycle_s - 1e-9) if self.clock.running else 0
+            self.pacer = CyclePacer(self.clock, self.cycle_s, self._step, first_cycle=max(0, first))
+            await self.pacer.start()
+        else:
+            self._ticker = asyncio.create_task(self._tick(), name="nckemu-channel")
+
+    async def stop_cycle(self) -> None:
+        pacer, self.pacer = self.pacer, None
+        if pacer is not None:
+            await pacer.stop()
+        ticker, self._ticker = self._ticker, None
+        if ticker is not None:
+            ticker.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await ticker
+
+    async def _tick(self) -> None:
+        k = 0
+        while True:
+            try:
+                await self._step(k, self.clock.now_s())
+            except Exception:  # a step that fails is logged; the machine serves on
+                log.exception("the machine's cycle failed at %.1f s", self.clock.now_s())
+            k += 1
+            await asyncio.sleep(self.cycle_s)
 
     @property
     def default_access_level(self) -> int:

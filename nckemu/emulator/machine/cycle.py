@@ -40,13 +40,16 @@ class CyclePacer:
     wall time, it lets simulated time slip rather than race to catch up, and counts that.
     """
 
-    def __init__(self, clock: LiveClock, cycle_s: float, step: Step, *, max_lag_wall_s: float = 2.0) -> None:
+    def __init__(self, clock: LiveClock, cycle_s: float, step: Step, *, max_lag_wall_s: float = 2.0,
+                 first_cycle: int = 0) -> None:
         if not cycle_s > 0:
             raise ValueError("a cycle must be longer than 0 s")
         self.clock = clock
         self.cycle_s = float(cycle_s)
         self.step = step
         self.max_lag_wall_s = max_lag_wall_s
+        # A pacer started on a clock that already runs begins at the cycle the clock has reached.
+        self.first_cycle = first_cycle
         self.stats = PacerStats()
         self._task: asyncio.Task[None] | None = None
         self.error: BaseException | None = None
@@ -56,7 +59,7 @@ class CyclePacer:
         return self._task is not None and not self._task.done()
 
     async def start(self) -> CyclePacer:
-        self.clock.hold(0.0)
+        self.clock.hold(self.first_cycle * self.cycle_s)
         self.clock.start()
         self._task = asyncio.create_task(self._run(), name="nckemu-cycle")
         return self
@@ -73,7 +76,7 @@ class CyclePacer:
 
     async def _run(self) -> None:
         clock, stats = self.clock, self.stats
-        k = 0
+        k = self.first_cycle
         try:
             while True:
                 t_s = k * self.cycle_s
@@ -96,7 +99,7 @@ class CyclePacer:
                 started = time.perf_counter()
                 await self.step(k, t_s)
                 spent = time.perf_counter() - started
-                stats.cycles = k + 1
+                stats.cycles = k + 1 - self.first_cycle
                 stats.step_wall_s += spent
                 stats.max_step_wall_s = max(stats.max_step_wall_s, spent)
                 k += 1

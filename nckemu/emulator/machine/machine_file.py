@@ -51,6 +51,12 @@ class Sensor:
     raw_per_C: float = 276.48
     # (t_s, temperature_C) points; linear in between, end values held.
     profile: tuple[tuple[float, float], ...] = ()
+    # The heat a running machine makes (emulator/machine/heat.py): a first-order response with time
+    # constant ``heat_time_constant_s`` towards ``heat_spindle_K_per_krpm`` per 1000 rpm of the spindle plus
+    # ``heat_axes_K_per_m_min`` per m/min of path speed, added to the value above (assumed defaults).
+    heat_spindle_K_per_krpm: float = 1.0
+    heat_axes_K_per_m_min: float = 0.2
+    heat_time_constant_s: float = 600.0
 
     def raw_value(self, temperature_C: float) -> int:
         raw = round(self.raw_offset + self.raw_per_C * temperature_C)
@@ -168,6 +174,28 @@ class DriveSettings:
 
 
 @dataclass(frozen=True)
+class ProgramSettings:
+    """How the channel runs part programs ([program]; docs/programs.md says where each comes from)."""
+
+    # The channel's cycle on the server's clock when no living machine sets one (simulated seconds).
+    cycle_s: float = 0.1
+    # Blocks the channel executes at most per cycle (an endless loop never starves the faces).
+    max_blocks_per_cycle: int = 5000
+    # The spindle's acceleration in speed control (rev/s²; MD35200's name is unconfirmed, so a setting).
+    spindle_accel_rev_s2: float = 50.0
+    # Path motion waits for the spindle to reach its speed (as MD35500 SPIND_ON_SPEED_AT_IPO_START = 1).
+    wait_for_spindle: bool = True
+    # M1 stops only with "optional stop" selected (SINF optStopActive), as on the control.
+    optional_stop: bool = False
+    # The alarm NC start raises where the control refuses it (JOG, nothing selected, an alarm pending),
+    # and the one a refused mode change raises: 16912 / 16913 are UNCONFIRMED.
+    start_refused_alarm: int = 16912
+    mode_refused_alarm: int = 16913
+    # The alarm a move beyond an axis' travel raises (10720 software limit switch; from memory, unconfirmed).
+    travel_alarm: int = 10720
+
+
+@dataclass(frozen=True)
 class Settings:
     compensation_sign: int = -1
     tc_requires_referenced: bool = False
@@ -217,6 +245,7 @@ class Machine:
     # SINAMICS drives (area V): the file's [[drive]] rows, else one per machine axis (drive n = axis n).
     drives: tuple[Drive, ...] = ()
     drive_settings: DriveSettings = field(default_factory=DriveSettings)
+    program: ProgramSettings = field(default_factory=ProgramSettings)
 
     def tool(self, number: int) -> Tool | None:
         for tool in self.tools:
@@ -249,12 +278,14 @@ def _get(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: 
 _KNOWN_KEYS: dict[str, frozenset[str]] = {
     "": frozenset({"name", "ipo_cycle_s", "pdu_size_max", "max_amq", "channels", "connection_access_level",
                    "passwords", "settings", "axis", "sensor", "plc", "initial", "var", "tools", "tool",
-                   "work_offsets", "opcua", "drives", "drive"}),
+                   "work_offsets", "opcua", "drives", "drive", "program"}),
     # every setting the dataclass has (a new setting needs no second list)
     "settings.": frozenset(setting.name for setting in fields(Settings)),
     "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
                        "tool_temp_comp_component", "recording"}),
-    "sensor": frozenset({"name", "temperature_C", "plc_input", "raw_offset", "raw_per_C", "profile"}),
+    "sensor": frozenset({"name", "temperature_C", "plc_input", "raw_offset", "raw_per_C", "profile",
+                         "heat_spindle_K_per_krpm", "heat_axes_K_per_m_min", "heat_time_constant_s"}),
+    "program.": frozenset(setting.name for setting in fields(ProgramSettings)),
     "plc.": frozenset({"data_blocks"}),
     "tools.": frozenset({"cutting_edge_params", "active_t", "active_d", "ori_length_components"}),
     "tool": frozenset({"number", "ident", "edges"}),
@@ -443,7 +474,12 @@ def _sensor(table: dict[str, Any], index: int, source: str) -> Sensor:
                   plc_input=plc_input.upper() if plc_input else None,
                   raw_offset=_get(table, "raw_offset", float, where, source, 0.0),
                   raw_per_C=_get(table, "raw_per_C", float, where, source, 276.48),
-                  profile=tuple(profile))
+                  profile=tuple(profile),
+                  heat_spindle_K_per_krpm=_positive(table, "heat_spindle_K_per_krpm", 1.0, where, source, None,
+                                                    low=-1000.0, high=1000.0),
+                  heat_axes_K_per_m_min=_positive(table, "heat_axes_K_per_m_min", 0.2, where, source, None,
+                                                  low=-1000.0, high=1000.0),
+                  heat_time_constant_s=_positive(table, "heat_time_constant_s", 600.0, where, source, None))
 
 
 def parse_machine(text: str, source: str = "<string>") -> Machine:
@@ -517,7 +553,31 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         tools=tools, tool_settings=tool_settings, work_offsets=work_offsets,
         opcua=_opcua_table(data.get("opcua", {}), source),
         drives=drives, drive_settings=drive_settings,
+        program=_program_settings(data.get("program", {}), text, source),
     )
+
+
+def _program_settings(table: Any, text: str, source: str) -> ProgramSettings:
+    line = _header_line(text, "[program]")
+    _check_keys(table, "program.", "program.", source, line)
+    defaults = ProgramSettings()
+    flags = {}
+    for key in ("wait_for_spindle", "optional_stop"):
+        value = table.get(key, getattr(defaults, key))
+        if not isinstance(value, bool):
+            raise NckConfigError(f"expected true or false, got {value!r}", path=source, line=line,
+                                 field=f"program.{key}")
+        flags[key] = value
+    alarms = {key: _whole(table.get(key, getattr(defaults, key)), 1, 999999, "an alarm number", source, line,
+                          f"program.{key}")
+              for key in ("start_refused_alarm", "mode_refused_alarm", "travel_alarm")}
+    return ProgramSettings(
+        cycle_s=_positive(table, "cycle_s", defaults.cycle_s, "program.", source, line, high=3600.0),
+        max_blocks_per_cycle=_whole(table.get("max_blocks_per_cycle", defaults.max_blocks_per_cycle), 1, 10**7,
+                                    "a number of blocks", source, line, "program.max_blocks_per_cycle"),
+        spindle_accel_rev_s2=_positive(table, "spindle_accel_rev_s2", defaults.spindle_accel_rev_s2, "program.",
+                                       source, line),
+        **flags, **alarms)
 
 
 def _positive(table: dict[str, Any], key: str, default: float, where: str, source: str, line: int | None,

@@ -68,15 +68,15 @@ def machine_status(emulator: Emulator, server: ClientList | None = None) -> dict
     spindles = []
     if channel is not None:
         state = channel.state
-        try:
-            mode_value = store.stored_value("opMode", 1)
-        except (KeyError, IndexError):
-            mode_value = None
-        channel_state = {"mode": _OP_MODES.get(mode_value, str(mode_value)) if mode_value is not None else None,
+        mode_value = state.mode
+        channel_state = {"mode": _OP_MODES.get(mode_value, str(mode_value)),
                          "status": _CHANNEL_STATUS.get(state.status, str(state.status)),
                          "program": _PROGRAM_STATUS.get(state.program_status, str(state.program_status)),
                          "actual_parts": state.actual_parts, "total_parts": state.total_parts,
-                         "net_time_s": channel.net_time_s}
+                         "net_time_s": channel.net_time_s,
+                         # the part program (issue 41): selected, the block running and its line
+                         "selected": channel.selected, "block_program": state.program,
+                         "line": state.line_number, "block": state.block_text, "message": state.message}
         spindles = [{"number": number, "rpm": channel.spindle_speed_rpm(number)} for number in state.spindles]
     clients = server.clients() if server is not None else []
     document: dict[str, Any] = {

@@ -191,7 +191,7 @@ def test_channel_run_times_parts_and_spindle(emulator: Emulator, clock: Simulate
     channel = emulator.nck.channels[1]
     channel.state.spindles[1].commanded_rpm = 1000.0
     channel.state.spindles[1].direction = 1
-    channel.start()
+    channel.run_without_program()  # a run the recording says is on (NC start needs a selected program)
     clock.advance(12.5)
     (status, net, speed) = read(session, item(0x41, 11, 1, 0x7F), item(0x41, 0x129, 1, 0x7F),
                                 item(0x41, 2, 1, 0x72))

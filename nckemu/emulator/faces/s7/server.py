@@ -238,6 +238,8 @@ class EmulatorServer:
         if self.emulator.saves.enabled:
             self.saves = self.emulator.saves
             self.dispatcher.persist_later = self.saves.request
+        if not self.emulator.cycle_deferred:  # the channels run programs on every served machine
+            await self.emulator.start_cycle()
         log.info("nckemu listening on %s:%d", self.host, self.port)
         return self
 
@@ -259,6 +261,7 @@ class EmulatorServer:
                 connection.check_timeouts(now_s)
 
     async def stop(self) -> None:
+        await self.emulator.stop_cycle()
         if self._watchdog is not None:
             self._watchdog.cancel()
             self._watchdog = None

@@ -1,28 +1,61 @@
-"""Channel state: what a channel reports about its program run (status, parts, tools, feed, times).
+"""Channel state: what a channel reports about its program run (status, parts, tools, feed, times), and
+the small interface every way in uses to run a program: select, unselect, start, stop, reset, mode.
 
 The values HMIs and collectors poll from module S (0x7F), SSP (0x72), SPARP (0x7D) and DIAGN (0x3B).
 A channel is reset until it is started; the net program time runs while it is active; the end of a
-program counts a part. The emulator drives it through ``start``/``stop``/``reset``/``end_program``
-(the extension variable ``NCKEMU_CHAN_COMMAND`` does it over the wire).
+program counts a part. PI ``_N_SELECT``, OPC UA ``Select``, the PLC's ``DB21.DBX7.x`` edges and the
+extension variable ``NCKEMU_CHAN_COMMAND`` all end in the same calls. The program itself runs in
+:mod:`nckemu.emulator.machine.program.run`, one cycle at a time (:meth:`Channel.step`).
 
-Value meanings (sources in ``catalogue/variables.toml``): chanStatus 0 reset, 1 active, 2 interrupted
-(two sources); progStatus 2 stopped, 3 running, 5 aborted (one source; 1 interrupted and 4 waiting
-unconfirmed).
+Value meanings (sources in ``catalogue/variables.toml``, docs/programs.md): chanStatus 0 reset,
+1 active, 2 interrupted (two sources); progStatus 1 interrupted, 2 stopped, 3 running, 4 waiting,
+5 aborted (2, 3, 5 one source; 1 and 4 unconfirmed); acProg 0 reset, 1 stopped, 2 running, 3 waiting,
+4 interrupted (one source); opMode 0 JOG, 1 MDA, 2 AUTOMATIC.
 """
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 from nckemu.emulator.machine.clock import Clock
-from nckemu.errors import NckAddressOutOfRange, NckItemError
+from nckemu.emulator.machine.nck.channel_states import (  # noqa: F401 (also imported from here)
+    AC_INTERRUPTED,
+    AC_RESET,
+    AC_RUNNING,
+    AC_STOPPED,
+    AC_WAITING,
+    CHAN_ACTIVE,
+    CHAN_INTERRUPTED,
+    CHAN_RESET,
+    MODE_AUTOMATIC,
+    MODE_JOG,
+    MODE_MDA,
+    MODE_NAMES,
+    PROG_ABORTED,
+    PROG_INTERRUPTED,
+    PROG_RUNNING,
+    PROG_STOPPED,
+    PROG_WAITING,
+)
+from nckemu.emulator.machine.program.motions import ProgramAlarm
+from nckemu.emulator.machine.program.planner import SpindleRamp
+from nckemu.errors import NckAddressOutOfRange, NckError, NckItemError, NckNoSuchFile, NckPiStateError
 
-CHAN_RESET, CHAN_ACTIVE, CHAN_INTERRUPTED = 0, 1, 2
-PROG_INTERRUPTED, PROG_STOPPED, PROG_RUNNING, PROG_WAITING, PROG_ABORTED = 1, 2, 3, 4, 5
+if TYPE_CHECKING:
+    from nckemu.emulator.machine.nck.parts import NckParts
+    from nckemu.emulator.machine.program.run import BlockRecord, ProgramRun
+
+log = logging.getLogger("nckemu.emulator.nck.channel")
+
 # NCKEMU_CHAN_COMMAND values
 COMMAND_RESET, COMMAND_START, COMMAND_STOP, COMMAND_END_PROGRAM = 0, 1, 2, 3
 # turnState (unconfirmed: the sources give no enumeration): 0 stopped, 1 clockwise M3, 2 counter-clockwise M4
 TURN_STOPPED, TURN_CW, TURN_CCW = 0, 1, 2
+# What on_change listeners are told.
+CHANGES = ("selected", "unselected", "started", "interrupted", "resumed", "ended", "aborted")
 
 
 @dataclass
@@ -33,6 +66,8 @@ class Spindle:
     # An actual speed measured on the machine (plc run --inputs drives it from a recording's
     # spindle_rpm): when set, actSpeed reports it whatever the channel and the commanded speed say.
     measured_rpm: float | None = None
+    # Set while a program drives the spindle: its speed ramps (program/run.py), whatever the channel's status.
+    ramp: SpindleRamp | None = None
 
 
 @dataclass
@@ -52,10 +87,29 @@ class ChannelState:
     old_net_time_s: float = 0.0
     cutting_time_s: float = 0.0
     spindles: dict[int, Spindle] = field(default_factory=dict)
+    # What the program run shows (SPARP/SPARPP, S columns 20/251/252)
+    mode: int = MODE_AUTOMATIC
+    message: str = ""
+    block_number: str = ""
+    line_number: int = 0
+    block_text: str = ""
+    program: str = ""                 # the program the current block belongs to (a subprogram too)
+    start_counter: int = 0
+    end_counter: int = 0
+    reset_counter: int = 0
+    path_feed_mm_min: float = 0.0     # the path speed of the motion under way (0 when none)
+
+
+def program_text(data: bytes) -> str:
+    """A stored program as text: UTF-8 where it is (comments with a degree sign), else Latin-1 (any byte)."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
 
 
 class Channel:
-    """One channel's run state on the emulator's clock."""
+    """One channel's run state on the emulator's clock, and its program run."""
 
     def __init__(self, number: int, clock: Clock, spindles: int) -> None:
         self.number = number
@@ -63,50 +117,300 @@ class Channel:
         self.state = ChannelState(spindles={n: Spindle() for n in range(1, spindles + 1)})
         self._net_s = 0.0
         self._running_since: float | None = None
+        self.parts: NckParts | None = None
+        self.selected = ""
+        self.run: ProgramRun | None = None
+        self.waiting = False
+        self.last_run_blocks = 0          # blocks the last run executed (program run offline)
+        self._alarms: list[str] = []      # program alarms: the run stopped, reset clears them
+        self._notices: list[str] = []     # refusals (NC start, mode): cleared by reset or the next start
+        # Told of each change of the program's life, with one of CHANGES (the OPC UA face's umati states).
+        self.on_change: list[Callable[[str], None]] = []
+        # Told after every change of status, program status or mode (the PLC's DB21.DBB35, DB11.DBB6).
+        self.state_listeners: list[Callable[[Channel], None]] = []
+        # Told of every executed block (program run offline: the block table).
+        self.block_listeners: list[Callable[[BlockRecord], None]] = []
 
-    # ------------------------------------------------------------------ commands
+    def attach(self, parts: NckParts) -> None:
+        """The NCK's parts the channel runs programs with (programs, axes, alarms, tools, frames, store)."""
+        self.parts = parts
+
+    # ------------------------------------------------------------------ the interface every face uses
+    def select(self, path: str) -> None:
+        """Select ``path`` for execution (only in reset). NckNoSuchFile without such a program."""
+        parts = self._parts()
+        if not path.startswith("/"):
+            from nckemu.emulator.machine.nck.programs import program_path
+
+            path = program_path(path)
+        if self.state.status != CHAN_RESET:
+            raise NckPiStateError(f"channel {self.number} is not in reset: a program is selected only in reset")
+        if not parts.programs.exists(path):
+            raise NckNoSuchFile(f"no program {path}")
+        self.selected = path
+        if self.number == 1:
+            parts.programs.select(path)
+        self._tell("selected")
+        self._tell_state()
+
+    def unselect(self) -> None:
+        if self.state.status != CHAN_RESET:
+            raise NckPiStateError(f"channel {self.number} is not in reset")
+        if not self.selected:
+            raise NckPiStateError(f"channel {self.number} has no program selected")
+        self.selected = ""
+        if self.number == 1 and self.parts is not None:
+            self.parts.programs.selected = ""
+        self._tell("unselected")
+        self._tell_state()
+
+    def start(self) -> None:
+        """NC start: from reset the selected program starts; interrupted, it resumes. Refused (an
+        alarm, NckPiStateError) in JOG, with nothing selected, or with a program alarm pending."""
+        if self.state.status == CHAN_ACTIVE:
+            return
+        if self.parts is None:  # a channel without the NCK (tests of the state alone)
+            self.run_without_program()
+            return
+        settings = self.parts.machine.program
+        if self.state.mode == MODE_JOG:
+            self._refuse(settings.start_refused_alarm, "NC start not possible in JOG")
+        if self._alarms:
+            self._refuse(settings.start_refused_alarm, "NC start not possible: reset the channel's alarm first")
+        self._clear_alarms(self._notices)
+        now = self._clock.now_s()
+        if self.state.status == CHAN_INTERRUPTED:
+            if self.run is not None:
+                self.run.resume(now)
+            self._begin_timing(now)
+            self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
+            self.state.start_counter += 1
+            self._tell("resumed")
+            self._tell_state()
+            return
+        if not self.selected:
+            self._refuse(settings.start_refused_alarm, "NC start not possible: no program selected")
+        try:
+            text = self.parts.programs.read(self.selected)
+        except NckNoSuchFile:
+            self._refuse(settings.start_refused_alarm, f"NC start not possible: {self.selected} no longer exists")
+        from nckemu.emulator.machine.program.run import ProgramRun
+
+        self.run = ProgramRun(self, self.parts, self.selected, program_text(text), now)
+        self.parts.programs.running = self.selected if self.number == 1 else self.parts.programs.running
+        self._net_s = 0.0
+        self._begin_timing(now)
+        self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
+        self.state.message = ""
+        self.state.start_counter += 1
+        self._tell("started")
+        self._tell_state()
+
+    def stop(self) -> None:
+        """NC stop: the run holds where it is (motion and dwell resume where they stopped)."""
+        if self.state.status != CHAN_ACTIVE:
+            return
+        self._interrupt(PROG_STOPPED)
+
+    def reset(self) -> None:
+        """Reset: the run is aborted, alarms of the run are cleared, the spindle stops."""
+        self._hold()
+        was_reset = self.state.status == CHAN_RESET
+        if not was_reset:
+            self.state.old_net_time_s = self._net_s
+        self._finish_run()
+        self._clear_alarms(self._alarms)
+        self._clear_alarms(self._notices)
+        self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
+        self.state.reset_counter += 1
+        if not was_reset:
+            self._tell("aborted")
+        self._tell_state()
+
+    def set_mode(self, mode: int) -> None:
+        """AUTOMATIC (2), MDA (1) or JOG (0); refused (an alarm, NckPiStateError) while a program runs."""
+        if mode not in MODE_NAMES:
+            raise NckItemError(f"operating mode {mode} is not 0 (JOG), 1 (MDA) or 2 (AUTOMATIC)", return_code=0x05)
+        if mode == self.state.mode:
+            return
+        if self.state.status == CHAN_ACTIVE:
+            alarm = self.parts.machine.program.mode_refused_alarm if self.parts is not None else 0
+            self._refuse(alarm, f"mode change to {MODE_NAMES[mode]} not possible while a program runs")
+        self.state.mode = mode
+        self._tell_state()
+
+    # ------------------------------------------------------------------ the older commands
     def command(self, value: int) -> None:
-        actions = {COMMAND_RESET: self.reset, COMMAND_START: self.start, COMMAND_STOP: self.stop,
+        """NCKEMU_CHAN_COMMAND: 0 reset, 1 start (the selected program, or a run without one), 2 stop,
+        3 end of program."""
+        actions = {COMMAND_RESET: self.reset, COMMAND_START: self._command_start, COMMAND_STOP: self.stop,
                    COMMAND_END_PROGRAM: self.end_program}
         action = actions.get(value)
         if action is None:
             raise NckItemError(f"channel command {value} is not one of {sorted(actions)}", return_code=0x05)
         action()
 
-    def start(self) -> None:
+    def _command_start(self) -> None:
+        if self.selected or self.state.status == CHAN_INTERRUPTED and self.run is not None:
+            self.start()
+        else:
+            self.run_without_program()
+
+    def run_without_program(self) -> None:
+        """The channel active with no program (a recording says the machine works): times and counters
+        run, nothing executes."""
         if self.state.status == CHAN_RESET:
             self._net_s = 0.0
-        if self._running_since is None:
-            self._running_since = self._clock.now_s()
+        self._begin_timing()
+        if self.state.status != CHAN_ACTIVE:
+            self.state.start_counter += 1
         self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
+        self._tell_state()
 
-    def stop(self) -> None:
-        self._hold()
-        if self.state.status == CHAN_ACTIVE:
-            self.state.status, self.state.program_status = CHAN_INTERRUPTED, PROG_STOPPED
-
-    def reset(self) -> None:
-        self._hold()
-        if self.state.status != CHAN_RESET:
-            self.state.old_net_time_s = self._net_s
-        self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
-
-    def end_program(self) -> None:
-        """M30: the run ends, its net time becomes the last program's, a part is counted."""
-        self._hold()
+    def end_program(self, at_s: float | None = None) -> None:
+        """M30: the run ends, its net time becomes the last program's, a part is counted. ``at_s``: the
+        simulated time the program reached its end (within the cycle that found it)."""
+        self._hold(at_s)
         self.state.old_net_time_s = self._net_s
         self.state.actual_parts += 1.0
         self.state.total_parts += 1.0
+        self.state.end_counter += 1
+        had_run = self.run is not None
+        self._finish_run()
         self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
+        if had_run:
+            self._tell("ended")
+        self._tell_state()
 
-    def _hold(self) -> None:
+    # ------------------------------------------------------------------ the cycle
+    def step(self, t_s: float) -> None:
+        """Run the program up to simulated time ``t_s`` (at most the machine's blocks per cycle)."""
+        run = self.run
+        if run is None or self.state.status != CHAN_ACTIVE or self.parts is None:
+            return
+        try:
+            outcome = run.advance(t_s, self.parts.machine.program.max_blocks_per_cycle)
+        except ProgramAlarm as exc:
+            self.program_alarm(exc)
+            return
+        except NckError as exc:  # a value the model refused: the program's fault, never the server's
+            self.program_alarm(ProgramAlarm(12080, str(exc)))
+            return
+        except Exception as exc:  # the interpreter's own fault: an alarm, never a traceback to a client
+            log.exception("channel %d: the program run failed", self.number)
+            self.program_alarm(ProgramAlarm(12080, f"internal error: {type(exc).__name__}: {exc}"))
+            return
+        waiting = outcome == "waiting"
+        if waiting != self.waiting:
+            self.waiting = waiting
+            self.state.program_status = PROG_WAITING if waiting else PROG_RUNNING
+            self._tell_state()
+        if outcome == "ended":
+            self.end_program(run.t_s)
+        elif outcome == "stopped":  # M0 / M1
+            self._interrupt(PROG_STOPPED, run.t_s)
+
+    def program_alarm(self, alarm: ProgramAlarm) -> None:
+        """A program alarm: on the NCK's list (cleared by reset), the channel interrupted."""
+        block = alarm.block or self.state.block_number
+        text = f"channel {self.number}: {alarm}"
+        log.warning("%s", text)
+        if self.parts is not None:
+            self.parts.alarm_list.raise_alarm(text, alarm.number, (str(self.number), block or str(alarm.line)))
+        self._alarms.append(text)
+        if self.state.status == CHAN_ACTIVE:
+            self._interrupt(PROG_INTERRUPTED)
+
+    # ------------------------------------------------------------------ helpers
+    def _parts(self) -> NckParts:
+        if self.parts is None:
+            raise NckPiStateError("the channel has no NCK to run programs with")
+        return self.parts
+
+    def _refuse(self, alarm_number: int, reason: str) -> Any:
+        text = f"channel {self.number}: {reason}"
+        if self.parts is not None and alarm_number:
+            self.parts.alarm_list.raise_alarm(text, alarm_number, (str(self.number),))
+            if text not in self._notices:
+                self._notices.append(text)
+        log.info("%s", text)
+        raise NckPiStateError(reason)
+
+    def _interrupt(self, program_status: int, at_s: float | None = None) -> None:
+        at_s = self._clock.now_s() if at_s is None else at_s
+        self._hold(at_s)
+        if self.run is not None:
+            self.run.pause(at_s)
+        self.waiting = False
+        self.state.status, self.state.program_status = CHAN_INTERRUPTED, program_status
+        self.state.path_feed_mm_min = 0.0
+        self._tell("interrupted")
+        self._tell_state()
+
+    def _finish_run(self) -> None:
+        run, self.run = self.run, None
+        self.waiting = False
+        self.state.path_feed_mm_min = 0.0
+        if run is not None:
+            run.close(run.t_s if run.ended else self._clock.now_s())
+            self.last_run_blocks = run.blocks
+        if self.parts is not None and self.parts.programs.running and self.number == 1:
+            self.parts.programs.running = ""
+
+    def _clear_alarms(self, texts: list[str]) -> None:
+        if self.parts is not None:
+            for text in texts:
+                self.parts.alarm_list.clear(text)
+        texts.clear()
+
+    def _begin_timing(self, at_s: float | None = None) -> None:
+        if self._running_since is None:
+            self._running_since = self._clock.now_s() if at_s is None else at_s
+
+    def _tell(self, change: str) -> None:
+        for listener in list(self.on_change):
+            try:
+                listener(change)
+            except Exception:  # a listener's fault never stops the channel
+                log.exception("channel %d: an on_change listener failed on %r", self.number, change)
+
+    def _tell_state(self) -> None:
+        for listener in list(self.state_listeners):
+            try:
+                listener(self)
+            except Exception:
+                log.exception("channel %d: a state listener failed", self.number)
+
+    def _hold(self, at_s: float | None = None) -> None:
         if self._running_since is not None:
-            elapsed = self._clock.now_s() - self._running_since
+            now_s = self._clock.now_s() if at_s is None else min(at_s, self._clock.now_s())
+            elapsed = max(0.0, now_s - self._running_since)
             self._net_s += elapsed
             self.state.cutting_time_s += elapsed
             self._running_since = None
 
     # ------------------------------------------------------------------ values
+    @property
+    def ac_prog(self) -> int:
+        """$AC_PROG from the channel's state."""
+        status, program = self.state.status, self.state.program_status
+        if status == CHAN_RESET:
+            return AC_RESET
+        if status == CHAN_ACTIVE:
+            return AC_WAITING if program == PROG_WAITING else AC_RUNNING
+        return AC_INTERRUPTED if program == PROG_INTERRUPTED else AC_STOPPED
+
+    @property
+    def alarms(self) -> list[str]:
+        """The texts of the program alarms this channel raised that are still pending (reset clears
+        them; NC start is refused while there are any)."""
+        return list(self._alarms)
+
+    @property
+    def notices(self) -> list[str]:
+        """Refusals still on the alarm list (NC start in JOG, a mode change while running)."""
+        return list(self._notices)
+
     @property
     def net_time_s(self) -> float:
         """actProgNetTime: time the current program has been running, pauses excluded."""
@@ -122,6 +426,8 @@ class Channel:
     def actual_feed_mm_min(self) -> float:
         if self.state.status != CHAN_ACTIVE:
             return 0.0
+        if self.run is not None:
+            return self.state.path_feed_mm_min
         return self.state.commanded_feed_mm_min * self.state.feed_override_pct / 100.0
 
     def spindle(self, line: int) -> Spindle:
@@ -142,6 +448,17 @@ class Channel:
         spindle = self.spindle(line)
         if spindle.measured_rpm is not None:
             return spindle.measured_rpm
+        if spindle.ramp is not None:
+            return spindle.ramp.rpm_at(self._clock.now_s())
         if self.state.status != CHAN_ACTIVE or spindle.direction == TURN_STOPPED:
+            return 0.0
+        return spindle.commanded_rpm * spindle.override_pct / 100.0
+
+    def spindle_commanded_rpm(self, line: int) -> float:
+        """cmdSpeed: the speed the spindle is commanded to turn at now (0 when stopped)."""
+        spindle = self.spindle(line)
+        if spindle.ramp is not None:
+            return spindle.ramp.to_rpm
+        if spindle.direction == TURN_STOPPED:
             return 0.0
         return spindle.commanded_rpm * spindle.override_pct / 100.0

@@ -89,6 +89,8 @@ class NckModel:
                          for number in range(1, machine.channels + 1)}
         self.tools = Tools(machine)
         self.frames = Frames(machine, machine.channels)
+        for channel in self.channels.values():
+            channel.attach(self)
         if machine.tool_settings.active_t:
             self.select_tool(machine.tool_settings.active_t, machine.tool_settings.active_d)
         self._power_on_hooks: list[Callable[[], None]] = []

@@ -41,7 +41,11 @@ def _logout(model: NckParts, arguments: list[str], ctx: AccessContext) -> None:
 
 
 def _select(model: NckParts, arguments: list[str], ctx: AccessContext) -> None:
-    model.programs.select(arguments[1])
+    """_N_SELECT(ident, path): the channel selects the program (only in reset). The ident's last two
+    digits name the channel ("201": channel 1; inferred, programs.md 7); others select in channel 1."""
+    ident = arguments[0].strip()
+    number = int(ident[-2:]) if len(ident) == 3 and ident.isdigit() and int(ident[-2:]) in model.channels else 1
+    model.channels[number].select(arguments[1])
 
 
 def _delete(model: NckParts, arguments: list[str], ctx: AccessContext) -> None:

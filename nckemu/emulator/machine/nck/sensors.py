@@ -26,6 +26,8 @@ class Sensors:
         self.machine = machine
         self.clock = clock
         self._override_C: dict[str, float] = {}
+        # What a running program's heat adds to each sensor (emulator/machine/heat.py), K.
+        self.heat_C: dict[str, float] = {}
         self._times_s = {sensor.name: [t_s for t_s, _c in sensor.profile] for sensor in machine.sensors}
 
     def _sensor(self, name: str) -> Sensor:
@@ -41,19 +43,21 @@ class Sensors:
         """A function of no arguments giving what ``temperature_C(name)`` gives at the time of the
         call, with the sensor looked up once (a polled sensor word reads it on every job)."""
         sensor = self._sensor(name)
-        overrides = self._override_C
+        overrides, heat = self._override_C, self.heat_C
         if not sensor.profile:
             fixed_C = sensor.temperature_C
 
             def fixed() -> float:
-                return overrides.get(name, fixed_C)
+                override_C = overrides.get(name)
+                return fixed_C + heat.get(name, 0.0) if override_C is None else override_C
 
             return fixed
         points, times_s, now_s = sensor.profile, self._times_s[name], self.clock.now_s
 
         def over_time() -> float:
             override_C = overrides.get(name)
-            return profile_value_C(points, times_s, now_s()) if override_C is None else override_C
+            return profile_value_C(points, times_s, now_s()) + heat.get(name, 0.0) if override_C is None \
+                else override_C
 
         return over_time
 

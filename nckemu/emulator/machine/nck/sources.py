@@ -124,9 +124,16 @@ def _spindle(model: NckParts, unit: int, line: int) -> Spindle:
     return model.channels[unit].spindle(line)
 
 
-def _program_name(model: NckParts, _unit: int, _line: int) -> object:
+def _selected(model: NckParts, unit: int) -> str:
+    """The channel's selected program (channel 1's is also the program store's selection)."""
+    channel = model.channels.get(unit)
+    selected = channel.selected if channel is not None else ""
+    return selected or (model.programs.selected if unit == 1 else "")
+
+
+def _program_name(model: NckParts, unit: int, _line: int) -> object:
     """The selected program's file name without its directory (``_N_TEST_MPF``)."""
-    return model.programs.selected.rsplit("/", 1)[-1]
+    return _selected(model, unit).rsplit("/", 1)[-1]
 
 
 def _set_state(attribute: str, kind: type) -> Writer:
@@ -184,6 +191,16 @@ def _set_channel_command(model: NckParts, unit: int, _line: int, value: object) 
     _channel(model, unit).command(int(value))  # type: ignore[call-overload]
 
 
+def _set_mode(model: NckParts, _unit: int, _line: int, value: object) -> None:
+    """opMode of the mode group: every channel of it (one mode group) takes the mode."""
+    for channel in model.channels.values():
+        channel.set_mode(int(value))  # type: ignore[call-overload]
+
+
+def _channel_value(attribute: str) -> Source:
+    return Source(lambda model, unit, _line: getattr(_channel(model, unit).state, attribute))
+
+
 SOURCES: dict[str, Source] = {
     # SMA actToolBasePos: a channel variable whose line is the machine axis
     "axes.actual_position_by_line": Source(_machine_axis_position),
@@ -208,6 +225,17 @@ SOURCES: dict[str, Source] = {
     "channel.status": Source(lambda model, unit, _line: _channel(model, unit).state.status),
     "channel.program_status": Source(lambda model, unit, _line: _channel(model, unit).state.program_status),
     "channel.command": Source(lambda model, unit, _line: _channel(model, unit).state.status, _set_channel_command),
+    "channel.ac_prog": Source(lambda model, unit, _line: _channel(model, unit).ac_prog),
+    "channel.start_counter": _channel_value("start_counter"),
+    "channel.end_counter": _channel_value("end_counter"),
+    "channel.reset_counter": _channel_value("reset_counter"),
+    "channel.block_number": _channel_value("block_number"),
+    "channel.line_number": _channel_value("line_number"),
+    "channel.block_text": _channel_value("block_text"),
+    "channel.message": _channel_value("message"),
+    "channel.spindle_commanded_speed": Source(
+        lambda model, unit, line: _channel(model, unit).spindle_commanded_rpm(line)),
+    "bag.mode": Source(lambda model, _unit, _line: model.channels[1].state.mode if model.channels else 2, _set_mode),
     "channel.t_number": Source(lambda model, unit, _line: _channel(model, unit).state.t_number),
     "channel.d_number": Source(lambda model, unit, _line: _channel(model, unit).state.d_number),
     "channel.d_number_text": Source(lambda model, unit, _line: str(_channel(model, unit).state.d_number)),
@@ -250,7 +278,7 @@ SOURCES: dict[str, Source] = {
     "nck.channel_count": Source(lambda model, _unit, _line: len(model.channels)),
     "axes.highest_number": Source(lambda model, _unit, _line: max((a.number for a in model.machine.axes), default=0)),
     "programs.selected_name": Source(_program_name),
-    "programs.selected": Source(lambda model, _unit, _line: model.programs.selected),
+    "programs.selected": Source(lambda model, unit, _line: _selected(model, unit)),
     "compensation.tc_value": Source(lambda model, unit, _line: model.compensation.tc_value_mm(unit)),
     "compensation.lec_value": Source(lambda model, unit, _line: model.compensation.lec_value_mm(unit)),
     "compensation.total": Source(lambda model, unit, _line: model.compensation.total_mm(unit)),

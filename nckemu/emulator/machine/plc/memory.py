@@ -14,6 +14,7 @@ from datetime import datetime, timedelta
 from typing import Any
 
 from nckemu.emulator.machine.clock import Clock, MonotonicClock
+from nckemu.emulator.machine.plc.channel_signals import ChannelSignals
 from nckemu.errors import NckAddressOutOfRange, NckError, NckObjectDoesNotExist, NckServiceError
 from nckemu.protocol import c840, db41, szl
 from nckemu.protocol.addresses import S7Area
@@ -80,6 +81,9 @@ class PlcModel:
         for sensor in getattr(machine, "sensors", ()) if machine is not None else ():
             if sensor.plc_input:
                 self._sensor_inputs[int(sensor.plc_input[3:])] = sensor
+        # NC start/stop/reset and mode requests in DB21../DB11, the channels' state back (channel_signals.py).
+        self.channel_signals = ChannelSignals(self.data_blocks, nck.channels, self._tell_written) \
+            if nck is not None and getattr(nck, "channels", None) else None
         if nck is not None:
             nck.add_power_on_hook(self.power_on)
 
@@ -153,6 +157,13 @@ class PlcModel:
                 area = S7Area.DB  # one memory: an instance DB is a DB
             for listener in self.write_listeners:
                 listener(area, db_number, start_byte, len(data))
+        signals = self.channel_signals
+        if signals is not None and area in (S7Area.DB, S7Area.DI) and signals.watches(db_number, start_byte, len(data)):
+            signals.written(db_number)
+
+    def _tell_written(self, db_number: int, start_byte: int, size: int) -> None:
+        for listener in self.write_listeners:
+            listener(S7Area.DB, db_number, start_byte, size)
 
     def read_bit(self, area: int, db_number: int, byte: int, bit: int) -> bool:
         return bool(self.read(area, db_number, byte, 1)[0] >> bit & 1)

@@ -1,0 +1,58 @@
+"""The heat a running program makes: each sensor answers the spindle's speed and the axes' motion.
+
+Every sensor of the machine file has a first-order response (``heat_time_constant_s``) towards a rise
+of ``heat_spindle_K_per_krpm`` per 1000 rpm of the spindle plus ``heat_axes_K_per_m_min`` per m/min of
+path speed, on top of its fixed value or profile (assumed defaults, docs/programs.md). Only what a
+program drives heats: a recording's spindle speed or a test's values do not (a recording brings its
+own temperatures). The inputs are taken at each cycle and held over it, so the rise is exact for
+inputs that change at cycle boundaries and within a cycle's sampling otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from nckemu.emulator.machine.machine_file import Machine
+
+if TYPE_CHECKING:
+    from nckemu.emulator.machine.nck.model import NckModel
+
+M_PER_MM = 0.001
+
+
+class Heat:
+    def __init__(self, machine: Machine, nck: NckModel) -> None:
+        self.machine = machine
+        self.nck = nck
+        self._last_s: float | None = None
+        self._inputs = (0.0, 0.0)   # spindle rpm and path speed in m/min over the last cycle
+
+    def inputs(self) -> tuple[float, float]:
+        """The program-driven spindle speed (rpm) and path speed (m/min) now."""
+        spindle_rpm = 0.0
+        path_m_min = 0.0
+        for channel in self.nck.channels.values():
+            for line, spindle in channel.state.spindles.items():
+                if spindle.ramp is not None and spindle.measured_rpm is None:
+                    spindle_rpm += abs(channel.spindle_speed_rpm(line))
+            if channel.run is not None:
+                path_m_min += channel.state.path_feed_mm_min * M_PER_MM
+        return spindle_rpm, path_m_min
+
+    def step(self, t_s: float) -> None:
+        last, self._last_s = self._last_s, t_s
+        if last is None or t_s <= last:
+            self._inputs = self.inputs()
+            return
+        dt_s = t_s - last
+        spindle_rpm, path_m_min = self._inputs
+        heat = self.nck.sensors.heat_C
+        for sensor in self.machine.sensors:
+            target_K = sensor.heat_spindle_K_per_krpm * spindle_rpm / 1000.0 + sensor.heat_axes_K_per_m_min * path_m_min
+            now_K = heat.get(sensor.name, 0.0)
+            if target_K == 0.0 and now_K == 0.0:
+                continue
+            decay = math.exp(-dt_s / sensor.heat_time_constant_s)
+            heat[sensor.name] = target_K + (now_K - target_K) * decay
+        self._inputs = self.inputs()

@@ -1,0 +1,112 @@
+"""A program run without a server: the same channel, the same cycle, on a simulated clock.
+
+``run_offline(emulator, path)`` selects and starts ``path`` on channel 1 of an emulator built with a
+:class:`~nckemu.emulator.machine.clock.SimulatedClock` and steps the machine's cycle
+(:meth:`Emulator.step_machine`) until the program ends, raises an alarm or ``max_time_s`` has passed.
+An M0 (or M1 with optional stop) is answered with NC start at once: offline nobody presses it.
+What the run would have recorded is sampled every ``sample_s``: the columns of a recording
+(``t_s``, ``temp_<sensor>_C``, ``spindle_rpm``, ``pos_<axis>_mm``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.nck.channel import CHAN_INTERRUPTED, CHAN_RESET
+from nckemu.emulator.machine.program.run import BlockRecord
+from nckemu.errors import NckConfigError
+
+if TYPE_CHECKING:
+    from nckemu.emulator.machine.core import Emulator
+
+DEFAULT_MAX_TIME_S = 7 * 24 * 3600.0
+
+
+@dataclass
+class OfflineResult:
+    outcome: str                    # ended, alarm, timeout
+    t_s: float                      # simulated time at the end
+    net_time_s: float
+    blocks: int
+    parts: float
+    alarms: list[str] = field(default_factory=list)
+
+
+def recording_columns(emulator: Emulator) -> list[str]:
+    machine = emulator.machine
+    columns = ["t_s", *(f"temp_{sensor.name}_C" for sensor in machine.sensors)]
+    if any(axis.spindle for axis in machine.axes):
+        columns.append("spindle_rpm")
+    columns += [f"pos_{axis.recording}_mm" for axis in machine.axes if not axis.spindle and axis.recording]
+    return columns
+
+
+def sample(emulator: Emulator, t_s: float) -> list[float]:
+    nck = emulator.nck
+    row = [t_s, *(nck.sensor_temperature_C(sensor.name) for sensor in emulator.machine.sensors)]
+    if any(axis.spindle for axis in emulator.machine.axes):
+        row.append(nck.channels[1].spindle_speed_rpm(1) if nck.channels[1].state.spindles else 0.0)
+    row += [nck.actual_position_mm(axis.number) for axis in emulator.machine.axes
+            if not axis.spindle and axis.recording]
+    return row
+
+
+def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, sample_s: float = 1.0,
+                max_time_s: float = DEFAULT_MAX_TIME_S,
+                on_block: Callable[[BlockRecord], None] | None = None,
+                on_sample: Callable[[list[float]], None] | None = None,
+                on_progress: Callable[[float, BlockRecord | None], None] | None = None) -> OfflineResult:
+    clock = emulator.clock
+    if not isinstance(clock, SimulatedClock):
+        raise NckConfigError("an offline run needs an emulator built with clock=SimulatedClock()")
+    cycle = cycle_s or emulator.machine.program.cycle_s
+    channel = emulator.nck.channels[1]
+    last: list[BlockRecord | None] = [None]
+
+    def seen(record: BlockRecord) -> None:
+        last[0] = record
+        if on_block is not None:
+            on_block(record)
+
+    channel.block_listeners.append(seen)
+    start_s = clock.now_s()
+    channel.select(path)
+    channel.start()
+    if on_sample is not None:
+        on_sample(sample(emulator, start_s))
+    next_sample_s = start_s + sample_s
+    k = 0
+    outcome = "timeout"
+    try:
+        while True:
+            k += 1
+            t_s = start_s + k * cycle
+            clock.set(t_s)
+            emulator.step_machine(t_s)
+            while on_sample is not None and next_sample_s <= t_s + 1e-9:
+                on_sample(sample(emulator, t_s))
+                next_sample_s += sample_s
+            if on_progress is not None and k % 600 == 0:
+                on_progress(t_s - start_s, last[0])
+            status = channel.state.status
+            if channel.alarms:
+                outcome = "alarm"
+                break
+            if status == CHAN_RESET:
+                outcome = "ended"
+                break
+            if status == CHAN_INTERRUPTED:
+                channel.start()  # M0 / M1: offline nobody waits at the machine
+            if t_s - start_s >= max_time_s:
+                break
+    finally:
+        channel.block_listeners.remove(seen)
+    if on_sample is not None and next_sample_s - sample_s < clock.now_s() - 1e-9:
+        on_sample(sample(emulator, clock.now_s()))
+    alarms = [alarm.text for alarm in emulator.nck.alarm_list.pending]
+    net_s = channel.state.old_net_time_s if outcome == "ended" else channel.net_time_s
+    blocks = channel.run.blocks if channel.run is not None else channel.last_run_blocks
+    return OfflineResult(outcome, clock.now_s() - start_s, net_s, blocks, channel.state.actual_parts, alarms)

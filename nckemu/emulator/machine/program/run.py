@@ -1,0 +1,495 @@
+"""One run of a part program on a channel: the interpreter's events, one at a time, finished in
+simulated time by the planner.
+
+:class:`ProgramRun` asks the interpreter for the next event only when the last one has finished in
+simulated time (a move has arrived, a dwell has passed), so the interpreter's reads (``$AA_IM``,
+``$AC_TIME``, R parameters) see the machine as the block sees it on a control. :meth:`ProgramRun.advance`
+runs up to a simulated time and at most a number of blocks, so an endless loop never holds the cycle.
+:class:`NckEnvironment` is what the interpreter may ask of the NCK: R parameters (the ones the NCK
+serves), positions, work offsets, tool lengths, system variables and subprograms.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from nckemu.emulator.machine.program.environment import ProgramEnvironment, UndefinedName
+from nckemu.emulator.machine.program.motions import (
+    ALARM_FEED_ZERO,
+    Arc,
+    Block,
+    Dwell,
+    Event,
+    Message,
+    MFunction,
+    Move,
+    ProgramAlarm,
+    ProgramEnd,
+    SpindleCommand,
+    ToolSelect,
+)
+from nckemu.emulator.machine.program.planner import (
+    AxisLimits,
+    MotionLimits,
+    Overrides,
+    Planner,
+    SpindleRamp,
+    Timed,
+)
+from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments
+
+if TYPE_CHECKING:
+    from nckemu.emulator.machine.nck.channel import Channel, Spindle
+    from nckemu.emulator.machine.nck.parts import NckParts
+
+# Where a called subprogram is looked for after the caller's own directory (programs.md 7).
+SEARCH_DIRECTORIES = ("/_N_SPF_DIR", "/_N_CUS_DIR", "/_N_CMA_DIR", "/_N_CST_DIR", "/_N_MPF_DIR")
+TURN_STOPPED, TURN_CW, TURN_CCW = 0, 1, 2
+_DIRECTIONS = {"M3": TURN_CW, "M4": TURN_CCW, "M5": TURN_STOPPED}
+
+
+def channel_axes(parts: NckParts) -> dict[str, int]:
+    """The channel's axis names (X, Y, Z, A, ...: the machine axis names without trailing digits,
+    as MD20080 by default) and the machine axis names (X1), each to its machine axis number; spindles
+    are no path axes."""
+    names: dict[str, int] = {}
+    for axis in sorted(parts.machine.axes, key=lambda axis: axis.number):
+        if axis.spindle:
+            continue
+        short = axis.name.rstrip("0123456789") or axis.name
+        names.setdefault(short.upper(), axis.number)
+        names.setdefault(axis.name.upper(), axis.number)
+    return names
+
+
+def motion_limits(parts: NckParts) -> MotionLimits:
+    """MD32000 / MD32300 of every path axis (the active values) and the spindle's limits."""
+    store = parts.store
+    axes: dict[str, AxisLimits] = {}
+    for name, number in channel_axes(parts).items():
+        axes[name] = AxisLimits(float(store.active_value("MAX_AX_VELO", number)),
+                                float(store.active_value("MAX_AX_ACCEL", number)))
+    spindle_max = 1.0e9
+    for axis in parts.machine.axes:
+        if axis.spindle:
+            spindle_max = min(spindle_max, float(store.active_value("SPIND_VELO_LIMIT", axis.number)))
+    return MotionLimits(axes, parts.machine.program.spindle_accel_rev_s2,
+                        spindle_max if spindle_max < 1.0e9 else 1.0e6)
+
+
+@dataclass
+class BlockRecord:
+    """One executed block as a block table shows it (``program run --blocks``)."""
+
+    start_s: float
+    program: str
+    line: int
+    number: str
+    text: str
+    depth: int
+    end_s: float = 0.0
+    positions_mm: dict[str, float] = field(default_factory=dict)
+    feed_mm_min: float = 0.0
+    spindle_rpm: float = 0.0
+    m_codes: list[int] = field(default_factory=list)
+    alarm: str = ""
+
+
+@dataclass
+class _Motion:
+    start_s: float
+    end_s: float
+    from_mm: dict[str, float]
+    to_mm: dict[str, float]
+    feed_mm_min: float
+
+
+class NckEnvironment(ProgramEnvironment):
+    """The interpreter's view of the NCK: the channel's axes, the NCK's R parameters and state."""
+
+    def __init__(self, channel: Channel, parts: NckParts, run: ProgramRun) -> None:
+        self._channel = channel
+        self._parts = parts
+        self._run = run
+        self._axes = channel_axes(parts)
+        short = [name for name, number in self._axes.items()
+                 if parts.machine.axis(number) is not None and name != parts.machine.axis(number).name.upper()]
+        super().__init__(axes=short or list(self._axes), r_parameters=self._r_spec_lines())
+
+    def _r_spec_lines(self) -> int:
+        spec = self._parts.store.spec("R")
+        return spec.lines - self._parts.machine.settings.r_parameter_line_offset + 1
+
+    def _r_line(self, index: int) -> int:
+        line = index + self._parts.machine.settings.r_parameter_line_offset
+        spec = self._parts.store.spec("R")
+        if not 1 <= line <= spec.lines or index < 0:
+            raise UndefinedName(f"R{index}")
+        return line
+
+    def r_parameter(self, index: int) -> float:
+        spec = self._parts.store.spec("R")
+        return float(self._parts.store.read_lines(spec, self._channel.number, self._r_line(index), 1)[0])
+
+    def set_r_parameter(self, index: int, value: float) -> None:
+        spec = self._parts.store.spec("R")
+        self._parts.store.write_lines(spec, self._channel.number, self._r_line(index), [float(value)])
+
+    def machine_position_mm(self, axis: str) -> float:
+        number = self._axes.get(axis.upper())
+        if number is None:
+            raise UndefinedName(axis)
+        return self._parts.axes.positions_mm[number]
+
+    def work_offset_mm(self, frame: str, axis: str) -> float:
+        from nckemu.emulator.machine.machine_file import SETTABLE_FRAMES
+
+        number = self._axes.get(axis.upper())
+        index = SETTABLE_FRAMES.get(frame.upper())
+        frames = self._parts.frames
+        if number is None or index is None or index >= frames.count:
+            return 0.0
+        return frames.shifts_mm[self._channel.number][index].get(number, 0.0)
+
+    def tool_length_mm(self, tool: int | str | None, edge: int | None) -> float:
+        number = self._tool_number(tool)
+        if not number or not edge:
+            return 0.0
+        try:
+            return self._parts.tools.active_length_mm(number, edge, 1)
+        except NckError:
+            return 0.0
+
+    def _tool_number(self, tool: int | str | None) -> int:
+        if isinstance(tool, int):
+            return tool
+        if isinstance(tool, str):
+            for number, ident in self._parts.tools.idents.items():
+                if ident.upper() == tool.upper():
+                    return number
+        return 0
+
+    def system_variable(self, name: str, indices: tuple[object, ...] = ()) -> object:
+        key = name.upper()
+        state = self._channel.state
+        if key == "$AC_TIME":  # time since the start of the block (s)
+            return max(0.0, self._run.t_s - self._run.block_start_s)
+        if key in ("$AA_IM", "$AA_IW", "$P_EP", "$AA_MM") and indices:
+            axis = str(indices[0]).upper()
+            position = self.machine_position_mm(axis)
+            if key in ("$AA_IW", "$P_EP"):
+                number = self._axes[axis]
+                position -= self._parts.frames.active_shift_mm(self._channel.number, number)
+            return position
+        counters = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
+                    "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
+        if key in counters:
+            return getattr(state, counters[key])
+        if key == "$AC_PROG":
+            return self._channel.ac_prog
+        if key == "$P_TOOLNO":
+            return state.t_number
+        if key == "$P_TOOL":
+            return state.d_number
+        raise UndefinedName(name)
+
+    def set_system_variable(self, name: str, indices: tuple[object, ...], value: object) -> None:
+        counters = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
+                    "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
+        attribute = counters.get(name.upper())
+        if attribute is None:
+            raise UndefinedName(name)
+        setattr(self._channel.state, attribute, float(value))  # type: ignore[arg-type]
+
+    def find_program(self, name: str, caller: str) -> tuple[str, str] | None:
+        from nckemu.emulator.machine.nck.programs import program_path
+
+        programs = self._parts.programs
+        stem = name.strip().upper()
+        candidates: list[str] = []
+        if "/" in stem or stem.endswith((".SPF", ".MPF")) or stem.startswith("_N_"):
+            try:
+                candidates.append(program_path(stem, default_type="SPF"))
+            except NckPiBadArguments:
+                return None
+        else:
+            if not stem.replace("_", "A").isalnum():
+                return None
+            caller_dir = caller.rsplit("/", 1)[0] if "/" in caller else ""
+            for directory in (caller_dir, *SEARCH_DIRECTORIES):
+                if not directory:
+                    continue
+                for kind in ("SPF", "MPF"):
+                    candidates.append(f"{directory}/_N_{stem}_{kind}")
+        for path in dict.fromkeys(candidates):
+            if programs.exists(path):
+                try:
+                    data = programs.read(path)
+                    try:
+                        return path, data.decode("utf-8")
+                    except UnicodeDecodeError:
+                        return path, data.decode("latin-1")
+                except NckNoSuchFile:
+                    continue
+        return None
+
+
+class ProgramRun:
+    """The run of one main program on ``channel`` from simulated time ``start_s``."""
+
+    def __init__(self, channel: Channel, parts: NckParts, path: str, text: str, start_s: float) -> None:
+        from nckemu.emulator.machine.program.language import Interpreter
+
+        self.channel = channel
+        self.parts = parts
+        self.path = path
+        self.t_s = float(start_s)           # the end of the last finished event
+        self.block_start_s = self.t_s
+        self.planner = Planner(motion_limits(parts))
+        self.axes = channel_axes(parts)
+        self.env = NckEnvironment(channel, parts, self)
+        self._events: Iterator[Event] = Interpreter(self.env, path, text).events()
+        self._motion: _Motion | None = None
+        self._paused_at: float | None = None
+        self._spindle_ready_s = self.t_s
+        self.blocks = 0
+        self.record: BlockRecord | None = None
+        self.ended = False
+
+    # ------------------------------------------------------------------ time
+    def pause(self, now_s: float) -> None:
+        if self._paused_at is None:
+            self._move_axes(now_s)
+            self._paused_at = now_s
+
+    def resume(self, now_s: float) -> None:
+        if self._paused_at is None:
+            return
+        shift = max(0.0, now_s - self._paused_at)
+        self._paused_at = None
+        self.t_s += shift
+        self.block_start_s += shift
+        self._spindle_ready_s += shift
+        if self._motion is not None:
+            self._motion.start_s += shift
+            self._motion.end_s += shift
+
+    def close(self, now_s: float) -> None:
+        """Reset or end: motion stops where it is, the spindle runs down, the interpreter is closed."""
+        if self._paused_at is None:
+            self._move_axes(now_s)
+        self._motion = None
+        self._finish_record(now_s)
+        close = getattr(self._events, "close", None)
+        if close is not None:
+            close()
+        for spindle in self.channel.state.spindles.values():
+            if spindle.ramp is not None or spindle.direction != TURN_STOPPED:
+                self._ramp_spindle(spindle, 0.0, now_s)
+                spindle.direction = TURN_STOPPED
+
+    def advance(self, until_s: float, max_blocks: int) -> str:
+        """Execute up to ``until_s``: 'running', 'waiting' (feed override 0), 'stopped' (M0/M1) or 'ended'."""
+        if self._paused_at is not None or self.ended:
+            return "ended" if self.ended else "running"
+        blocks = 0
+        state = self.channel.state
+        while True:
+            motion = self._motion
+            if motion is not None:
+                if motion.end_s > until_s:
+                    self._move_axes(until_s)
+                    state.path_feed_mm_min = motion.feed_mm_min if until_s >= motion.start_s else 0.0
+                    return "running"
+                self._set_positions(motion.to_mm)
+                self.t_s = motion.end_s
+                self._motion = None
+                state.path_feed_mm_min = 0.0
+            if blocks >= max_blocks:
+                # The control spends time on blocks too: a cycle's worth of blocks takes the cycle.
+                self.t_s = max(self.t_s, until_s)
+                return "running"
+            try:
+                event = next(self._events)
+            except StopIteration:
+                return self._end()
+            if isinstance(event, Block):
+                blocks += 1
+                self.blocks += 1
+                self._begin_block(event)
+            elif isinstance(event, Move | Arc):
+                if not self._start_path(event, until_s):
+                    return "waiting"
+            elif isinstance(event, Dwell):
+                timed = self.planner.dwell(event, self._spindle_rpm(self.t_s))
+                self._motion = _Motion(self.t_s, self.t_s + timed.duration_s, {}, {}, 0.0)
+            elif isinstance(event, SpindleCommand):
+                self._spindle(event)
+            elif isinstance(event, MFunction):
+                if self.record is not None:
+                    self.record.m_codes.append(event.code)
+                if event.code == 0 or (event.code == 1 and self.parts.machine.program.optional_stop):
+                    return "stopped"
+            elif isinstance(event, ToolSelect):
+                self._tool(event)
+            elif isinstance(event, Message):
+                state.message = event.text
+            elif isinstance(event, ProgramEnd):
+                if self.record is not None and event.code and event.code not in self.record.m_codes:
+                    self.record.m_codes.append(event.code)
+                return self._end()
+
+    # ------------------------------------------------------------------ events
+    def _end(self) -> str:
+        self.ended = True
+        self._finish_record(self.t_s)
+        return "ended"
+
+    def _begin_block(self, block: Block) -> None:
+        self._finish_record(self.t_s)
+        state = self.channel.state
+        self.block_start_s = self.t_s
+        state.program, state.line_number, state.block_number = block.program, block.line, block.number
+        state.block_text = block.text
+        if self.channel.block_listeners:
+            self.record = BlockRecord(self.t_s, block.program, block.line, block.number, block.text, block.depth)
+
+    def _finish_record(self, end_s: float) -> None:
+        record, self.record = self.record, None
+        if record is None:
+            return
+        record.end_s = end_s
+        record.positions_mm = {name: self.parts.axes.positions_mm[number] for name, number in self.axes.items()
+                               if name in self.env.axes}
+        record.spindle_rpm = self._spindle_rpm(end_s)
+        for listener in self.channel.block_listeners:
+            listener(record)
+
+    def _overrides(self) -> Overrides:
+        state = self.channel.state
+        spindle = state.spindles.get(1)
+        return Overrides(state.feed_override_pct, state.rapid_override_pct,
+                         spindle.override_pct if spindle is not None else 100.0)
+
+    def _start_path(self, event: Move | Arc, until_s: float) -> bool:
+        overrides = self._overrides()
+        feed_move = event.feed is not None
+        if (overrides.feed_pct <= 0.0 if feed_move else overrides.rapid_pct <= 0.0):
+            # override 0: the block waits (time passes) until the override opens again
+            self._pending = event
+            self._events = _prepend(event, self._events)
+            self.t_s = max(self.t_s, until_s)
+            return False
+        start_s = self.t_s
+        if feed_move and self.parts.machine.program.wait_for_spindle:
+            start_s = max(start_s, self._spindle_ready_s)
+        spindle_rpm = self._spindle_rpm(start_s)
+        start_mm = {name: self.parts.axes.positions_mm[number] for name, number in self.axes.items()}
+        targets = {self._axis_name(axis): value for axis, value in event.target_mm.items()}
+        self._check_travel(targets)
+        if isinstance(event, Arc):
+            centre = {self._axis_name(axis): value for axis, value in event.centre_mm.items()}
+            timed = self.planner.arc(start_mm, _with(event, targets, centre), overrides, spindle_rpm)
+        else:
+            timed = self.planner.move(start_mm, _with(event, targets), overrides, spindle_rpm)
+        if math.isinf(timed.duration_s):
+            raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity is zero (F0, or G95 with the "
+                                                "spindle standing)", program=self.channel.state.program,
+                               line=self.channel.state.line_number, block=self.channel.state.block_number)
+        self._begin_motion(start_s, start_mm, targets, timed)
+        if self.record is not None:
+            self.record.feed_mm_min = event.feed or 0.0
+        self.channel.state.commanded_feed_mm_min = event.feed if event.feed is not None else 0.0
+        return True
+
+    def _begin_motion(self, start_s: float, start_mm: dict[str, float], targets: dict[str, float],
+                      timed: Timed) -> None:
+        moved = {axis: start_mm.get(axis, 0.0) for axis in targets}
+        self._motion = _Motion(start_s, start_s + timed.duration_s, moved, targets, timed.feed_mm_min)
+
+    def _axis_name(self, axis: str) -> str:
+        name = axis.upper()
+        if name not in self.axes:
+            raise ProgramAlarm(12550, f"axis {axis} is not an axis of this channel", program=self.channel.state.program,
+                               line=self.channel.state.line_number, block=self.channel.state.block_number)
+        return name
+
+    def _check_travel(self, targets: dict[str, float]) -> None:
+        for name, value in targets.items():
+            spec = self.parts.axes.specs[self.axes[name]]
+            if not spec.rotary and not spec.travel_min_mm <= value <= spec.travel_max_mm:
+                state = self.channel.state
+                raise ProgramAlarm(self.parts.machine.program.travel_alarm,
+                                   f"axis {spec.name}: {value:.3f} mm beyond its travel {spec.travel_min_mm:g}.."
+                                   f"{spec.travel_max_mm:g} mm (software limit switch)",
+                                   program=state.program, line=state.line_number, block=state.block_number)
+
+    def _move_axes(self, t_s: float) -> None:
+        motion = self._motion
+        if motion is None or not motion.to_mm:
+            return
+        if t_s <= motion.start_s:
+            return
+        span = motion.end_s - motion.start_s
+        fraction = 1.0 if span <= 0 or t_s >= motion.end_s else (t_s - motion.start_s) / span
+        self._set_positions({axis: start + (motion.to_mm[axis] - start) * fraction
+                             for axis, start in motion.from_mm.items()})
+
+    def _set_positions(self, positions: dict[str, float]) -> None:
+        axes = self.parts.axes
+        for name, value in positions.items():
+            number = self.axes[name]
+            if axes.positions_mm[number] != value:
+                axes.set_position(number, value)
+
+    def _spindle_rpm(self, t_s: float) -> float:
+        spindle = self.channel.state.spindles.get(1)
+        if spindle is None:
+            return 0.0
+        if spindle.ramp is not None:
+            return spindle.ramp.rpm_at(t_s)
+        return 0.0 if spindle.direction == TURN_STOPPED else spindle.commanded_rpm * spindle.override_pct / 100.0
+
+    def _spindle(self, command: SpindleCommand) -> None:
+        spindle = self.channel.state.spindles.get(command.spindle)
+        if spindle is None:
+            return  # a machine without that spindle: S and M3 are taken and change nothing
+        if command.speed_rpm is not None:
+            spindle.commanded_rpm = min(abs(command.speed_rpm), self.planner.limits.spindle_max_rpm)
+        if command.direction is not None:
+            spindle.direction = _DIRECTIONS[command.direction]
+        target = 0.0 if spindle.direction == TURN_STOPPED else \
+            self.planner.spindle_target_rpm(spindle.commanded_rpm, self._overrides())
+        self._spindle_ready_s = max(self._spindle_ready_s, self._ramp_spindle(spindle, target, self.t_s))
+
+    def _ramp_spindle(self, spindle: Spindle, target_rpm: float, t_s: float) -> float:
+        current = spindle.ramp.rpm_at(t_s) if spindle.ramp is not None else 0.0
+        end_s = t_s + self.planner.spindle_ramp_s(current, target_rpm)
+        spindle.ramp = SpindleRamp(current, target_rpm, t_s, end_s)
+        return end_s
+
+    def _tool(self, event: ToolSelect) -> None:
+        state = self.channel.state
+        number = self.env._tool_number(event.tool) if event.tool is not None else state.t_number
+        if event.tool is not None:
+            state.t_number = number
+            state.tool_ident = self.parts.tools.idents.get(number, str(event.tool) if isinstance(event.tool, str)
+                                                           else "")
+        if event.edge is not None:
+            state.d_number = event.edge
+
+
+def _prepend(event: Event, events: Iterator[Event]) -> Iterator[Event]:
+    yield event
+    yield from events
+
+
+def _with(event: Move | Arc, targets: dict[str, float], centre: dict[str, float] | None = None) -> Move | Arc:
+    from dataclasses import replace
+
+    if isinstance(event, Arc):
+        return replace(event, target_mm=targets, centre_mm=centre or {})
+    return replace(event, target_mm=targets)
