@@ -284,7 +284,7 @@ def test_program_commands(emu: EmulatorThread, tmp_path: Path, capsys: pytest.Ca
     for signal, bit in (("start", 1), ("stop", 3), ("reset", 7)):
         assert main(["program", signal, *port]) == 0
         assert json.loads(capsys.readouterr().out)["address"] == f"DB21.DBX7.{bit}"
-        assert emu.call(lambda: emu.plc.read_bit(0x84, 21, 7, bit)) is False  # the edge ended at 0
+        assert emu.call(lambda bit=bit: emu.plc.read_bit(0x84, 21, 7, bit)) is False  # the edge ended at 0
 
 
 @pytest.mark.parametrize(("argv", "line"), [
