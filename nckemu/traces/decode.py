@@ -635,7 +635,13 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
         elif function == s7.Function.PI_SERVICE:
             exchange.detail = _describe_pi(pi.parse_pi_request(parsed.parameter))
         elif function in blocks.FUNCTIONS:
-            exchange.detail = blocks.describe_block_control(blocks.parse_block_control(parsed.parameter))
+            control = blocks.parse_block_control(parsed.parameter)
+            exchange.detail = blocks.describe_block_control(control)
+            name = control.file_name or ""
+            if function == blocks.START_UPLOAD and (name.upper().startswith("_N_") or name.startswith("/")):
+                # an NC file uploaded through the PLC-block jobs (libnodave's daveGetNCProgram)
+                exchange.detail = f"NC file {name}"
+                exchange.nc = {"s7comm.param.blockcontrol.filename": name}
         elif function == s7.Function.SETUP_COMMUNICATION:
             setup = s7.parse_setup_communication(parsed.parameter)
             exchange.detail = f"PDU {setup.pdu_length}, AMQ {setup.max_amq_calling}/{setup.max_amq_called}"

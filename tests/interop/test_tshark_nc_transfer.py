@@ -8,12 +8,14 @@ from collections import defaultdict
 from pathlib import Path
 
 import pytest
+import snap7
 
 from nckemu.cli import main
 from nckemu.clients import NckClient
 from nckemu.clients import programs as P
 from nckemu.emulator.faces.s7.session import SessionLimits
 from nckemu.emulator.runner import EmulatorThread
+from nckemu.protocol import blocks, s7
 from nckemu.traces.decode import decode
 from nckemu.traces.reader import read_capture
 from tests.interop.tshark_tools import requires_tshark, tshark_fields
@@ -32,10 +34,18 @@ TEXT = b"".join(b"N%d G1 X%d.5 F300 ; line %d\n" % (i, i, i) for i in range(400)
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A download over many windows and an upload over many pushes, at PDU 240 (serve --record)."""
     path = tmp_path_factory.mktemp("nc") / "transfer.pcapng"
-    with EmulatorThread(record_path=path, session_limits=SessionLimits(pdu_size_max=240)) as emu, \
-            NckClient("127.0.0.1", emu.port) as nck:
-        P.put_program_sync(nck, "DAILY.MPF", TEXT)
-        assert P.get_program_sync(nck, "DAILY.MPF") == TEXT
+    with EmulatorThread(record_path=path, session_limits=SessionLimits(pdu_size_max=240)) as emu:
+        with NckClient("127.0.0.1", emu.port) as nck:
+            P.put_program_sync(nck, "DAILY.MPF", TEXT)
+            assert P.get_program_sync(nck, "DAILY.MPF") == TEXT
+        # and libnodave's daveGetNCProgram: the PLC-block start upload naming the NC file
+        client = snap7.Client()
+        client.connect("127.0.0.1", 0, 4, emu.port)
+        try:
+            parameter = blocks.build_block_control(blocks.BlockControl(blocks.START_UPLOAD, 0, 0, 0, "_N_DAILY_MPF"))
+            client.iso_exchange_buffer(bytearray(s7.build_pdu(s7.S7Pdu(s7.Rosctr.JOB, 7, parameter))))
+        finally:
+            client.disconnect()
     return path
 
 
@@ -63,7 +73,7 @@ def _ours(path: Path) -> dict[int, dict[str, list[str]]]:
 def test_nc_transfer_fields_equal_tsharks(recorded: Path) -> None:
     theirs = {int(row["frame.number"]): row for row in tshark_fields(recorded, ["frame.number", *FIELDS])}
     ours = _ours(recorded)
-    nc_frames = {frame for frame, row in theirs.items() if row["s7comm.param.userdata.funcgroup"]}
+    nc_frames = {frame for frame, row in theirs.items() if any(row[name] for name in FIELDS)}
     assert nc_frames and set(ours) == nc_frames
     for frame in sorted(nc_frames):
         for name in FIELDS:
@@ -83,3 +93,4 @@ def test_trace_show_names_the_transfer(recorded: Path, capsys: pytest.CaptureFix
     assert out.count("/_N_MPF_DIR/_N_DAILY_MPF: length") == 2  # the download and the upload, reassembled
     assert "first: 'N0 G1 X0.5 F300 ; line 0'" in out
     assert "Download ended: sequence 1 -> stored" in out
+    assert "start upload NC file _N_DAILY_MPF -> upload id 1, block length 1" in out
