@@ -245,6 +245,9 @@ def test_programs_are_retained_with_state(tmp_path: Path) -> None:
         assert "_N_KEPT_MPF" in state.read_text()
     with EmulatorThread(state_path=state) as emu, NckClient("127.0.0.1", emu.port) as nck:
         assert P.get_program_sync(nck, "KEPT.MPF") == text
+        P.delete_program_sync(nck, "KEPT.MPF")
+    with EmulatorThread(state_path=state) as emu:
+        assert not emu.call(lambda: emu.nck.programs.exists("/_N_MPF_DIR/_N_KEPT_MPF"))
 
 
 def test_transfers_of_two_clients_at_once(emu: EmulatorThread) -> None:
