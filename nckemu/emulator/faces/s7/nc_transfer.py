@@ -271,7 +271,10 @@ class NcTransfers:
     # ------------------------------------------------------------------ PLC-block path
     def block_job(self, pdu: s7.S7Pdu, pdu_size: int) -> s7.S7Pdu | None:
         """The answer to a 0x1D/0x1E/0x1F job about an NC file; None for anything else (a PLC block)."""
-        control = blocks.parse_block_control(pdu.parameter)
+        try:
+            control = blocks.parse_block_control(pdu.parameter)
+        except NckProtocolError:
+            return None  # not one of ours: answered as any block job the emulator does not serve
         if control.function == blocks.START_UPLOAD:
             name = control.file_name or ""
             if not (name.upper().startswith("_N_") or name.startswith("/")):
