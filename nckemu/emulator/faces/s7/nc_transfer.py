@@ -190,7 +190,8 @@ class NcTransfers:
         """Write the downloaded program whole; 0, or the error code of why not."""
         try:
             content = ncprog.parse_transfer_content(b"".join(download.pieces))
-            path = program_path(f"{content.path.rstrip('/')}/{download.name}")
+            name = download.name
+            path = program_path(name if name.startswith("/") else f"{content.path.rstrip('/')}/{name}")
             old = len(self.programs.texts.get(path, b""))
             if self.programs.stored_bytes() - old + len(content.text) > self.store_bytes:
                 return ERROR_STORE_FULL
