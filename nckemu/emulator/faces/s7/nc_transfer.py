@@ -113,6 +113,9 @@ class NcTransfers:
         sub = parameter.subfunction
         if sub == NcSubfunction.REQUEST_DOWNLOAD and parameter.type == ncprog.NC_REQUEST:
             return [self._request_download(pdu.pdu_ref, data.payload)]
+        if parameter.type == ncprog.NC_REQUEST and sub in (NcSubfunction.DOWNLOAD_BLOCK, NcSubfunction.CONTINUE_UPLOAD):
+            # pushes sent as requests: a request is always answered, and these are not requests
+            return [self._answer(pdu.pdu_ref, sub, parameter.sequence, error=ERROR_SEQUENCE)]
         if sub == NcSubfunction.DOWNLOAD_BLOCK:
             return self._download_block(pdu.pdu_ref, parameter, data.payload)
         if sub == NcSubfunction.DOWNLOAD_ENDED and parameter.type == ncprog.NC_REQUEST:
