@@ -338,7 +338,8 @@ def test_subscriptions_follow_the_machine(faces: tuple[EmulatorThread, OpcUaFace
     run(go())
     assert seen["state"] == [2, 0, 2]               # Reset, Active, Reset
     assert seen["btss"] == [0, 1, 0]
-    assert [text.Text for text in seen["program"]] == ["Aborted", "Running", "Aborted"]
+    # power-on is the initial state (no program has run yet), a reset aborts the running program
+    assert [text.Text for text in seen["program"]] == ["Initializing", "Running", "Aborted"]
     assert seen["override"][-3:] == seen["btss override"][-3:] == [50.0, 60.0, 70.0]   # every write, none lost
     assert seen["rotating"] == [False, True, False]
     assert seen["name"][-1] == seen["btss name"][-1] == "_N_UMATI_MPF"
