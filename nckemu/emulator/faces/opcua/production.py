@@ -146,14 +146,33 @@ class ProgramTracker:
         self.listeners: list[Callable[[list[Step], list[Step]], None]] = []
         self.tells = isinstance(getattr(self.channel, "on_change", None), list)
         self._look = self.look()
+        self._poller: asyncio.Task[None] | None = None
 
-    def start(self) -> None:
+    async def start(self, interval_s: float) -> None:
+        """Listen to the channel, or look at it every ``interval_s`` when it does not tell."""
         if self.tells:
             self.channel.on_change.append(self.tell)
+        else:
+            self._poller = asyncio.get_running_loop().create_task(self._poll_forever(interval_s))
 
-    def stop(self) -> None:
+    async def stop(self) -> None:
         if self.tells and self.tell in self.channel.on_change:
             self.channel.on_change.remove(self.tell)
+        if self._poller is not None:
+            self._poller.cancel()
+            try:
+                await self._poller
+            except asyncio.CancelledError:
+                pass
+            self._poller = None
+
+    async def _poll_forever(self, interval_s: float) -> None:
+        while True:
+            try:
+                self.poll()
+            except Exception:  # the poller must go on; the fault is logged
+                log.exception("OPC UA program tracker")
+            await asyncio.sleep(interval_s)
 
     def counters(self) -> tuple[float, float]:
         """RunsCompleted and RunsPlanned: actParts and reqParts."""
@@ -207,7 +226,7 @@ class Production:
         self.instance = instance
         self.models = instance.models
         self.face = instance.face
-        self.tracker = ProgramTracker(instance.emulator)
+        self.tracker = self.models.tracker(1)
         self.tracker.listeners.append(self._stepped)
         types = instance.maker.types
         mt = self.models.ns(nodesets.MACHINE_TOOL)
@@ -219,7 +238,6 @@ class Production:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wake: asyncio.Event | None = None
         self._sender: asyncio.Task[None] | None = None
-        self._poller: asyncio.Task[None] | None = None
         self._generators: dict[str, list[Any]] = {}
         self.events_sent = 0
 
@@ -283,9 +301,6 @@ class Production:
                 generators.append(generator)
             self._generators[key] = generators
         self._sender = self._loop.create_task(self._send_forever())
-        self.tracker.start()
-        if not self.tracker.tells:
-            self._poller = self._loop.create_task(self._poll_forever())
 
     async def _concrete(self, server: Server, abstract: ua.NodeId, name: str) -> ua.NodeId:
         """A concrete subtype of an abstract event type, in the instance namespace (once per address space)."""
@@ -296,15 +311,14 @@ class Production:
         return made.nodeid  # type: ignore[no-any-return]
 
     async def stop(self) -> None:
-        self.tracker.stop()
-        for task in (self._poller, self._sender):
-            if task is not None:
-                task.cancel()
-                try:
-                    await task
-                except asyncio.CancelledError:
-                    pass
-        self._poller = self._sender = None
+        self.tracker.listeners.remove(self._stepped)
+        if self._sender is not None:
+            self._sender.cancel()
+            try:
+                await self._sender
+            except asyncio.CancelledError:
+                pass
+            self._sender = None
 
     def _stepped(self, program_steps: list[Step], job_steps: list[Step]) -> None:
         """Queue the events of the transitions just taken (any thread), with the values after them."""
@@ -363,15 +377,6 @@ class Production:
             generator.event = event
             await generator.trigger(time_attr=now)
         self.events_sent += 1
-
-    async def _poll_forever(self) -> None:
-        interval_s = self.face.settings.sample_interval_ms / 1000.0 / 2
-        while True:
-            try:
-                self.tracker.poll()
-            except Exception:  # the poller must go on; the fault is logged
-                log.exception("OPC UA program tracker")
-            await asyncio.sleep(interval_s)
 
 
 _VARIANT_OF = {str: ua.VariantType.String, bool: ua.VariantType.Boolean, int: ua.VariantType.UInt32,
