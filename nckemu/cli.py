@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from nckemu import __version__
+from nckemu.cliutil import command_group  # noqa: F401 - areas below the CLI import it from cliutil
 from nckemu.errors import NckConfigError, NckError
 
 COMMAND_MODULES = (
@@ -22,6 +23,7 @@ COMMAND_MODULES = (
     "nckemu.emulator.fleet_commands",  # fleet
     "nckemu.catalogue.commands",  # vars
     "nckemu.clients.commands",    # get, put, pi, comp840c, lec
+    "nckemu.clients.program_commands",  # program put, get, list, select, start, stop, reset
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
     "nckemu.thermal.recording_commands",  # recording import, recording check
@@ -47,19 +49,6 @@ def _add_logging_options(parser: argparse.ArgumentParser, *, top: bool) -> None:
                         help="more log output (-v info, -vv debug); serve logs at info already")
     parser.add_argument("--log-file", metavar="FILE", default=None if top else argparse.SUPPRESS,
                         help="append the log to FILE instead of stderr")
-
-
-def command_group(subparsers: argparse._SubParsersAction, name: str, help_text: str) -> argparse._SubParsersAction:
-    """The subcommands of the group ``name`` (``nckemu program ...``), made by whichever area's
-    ``register`` asks first, so that several areas can add commands to one group."""
-    group = subparsers.choices.get(name)
-    if group is None:
-        group = subparsers.add_parser(name, help=help_text, description=help_text)
-        group.set_defaults(func=lambda _args, _group=group: (_group.print_help(), 1)[1])
-    for action in group._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            return action
-    return group.add_subparsers(dest=f"{name}_command", metavar="COMMAND")
 
 
 def _walk(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:

@@ -152,3 +152,16 @@ async def until_signalled() -> None:
         except (NotImplementedError, RuntimeError):
             pass
     await stop.wait()
+
+
+def command_group(subparsers: argparse._SubParsersAction, name: str, help_text: str) -> argparse._SubParsersAction:
+    """The subcommands of the group ``name`` (``nckemu program ...``), made by whichever area's
+    ``register`` asks first, so that several areas can add commands to one group."""
+    group = subparsers.choices.get(name)
+    if group is None:
+        group = subparsers.add_parser(name, help=help_text, description=help_text)
+        group.set_defaults(func=lambda _args, _group=group: (_group.print_help(), 1)[1])
+    for action in group._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action
+    return group.add_subparsers(dest=f"{name}_command", metavar="COMMAND")

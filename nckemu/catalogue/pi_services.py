@@ -21,6 +21,7 @@ NC_SERVICE_ARGUMENTS: dict[str, int] = {
     "_N_LOGOUT": 1,
     "_N_SELECT": 2,
     "_N_F_DELE": 2,
+    "_N_F_XFER": 2,
     "_N_SETUDT": 1,
     PI_POWER_ON: 1,
     PI_NEW_CONFIG: 2,

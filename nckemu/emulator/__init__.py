@@ -9,11 +9,4 @@
 - At this level, the parts that compose a machine with its faces: ``commands`` (``nckemu serve``),
   ``runner`` (a machine and its S7 face in a thread, for tests and ``trace replay --spawn``) and
   ``fleet`` (many machines, each with its faces, on one event loop).
-
-Modules moved in 0.2 keep answering at their old paths (``nckemu.emulator.core``,
-``nckemu.emulator.nck.model``, ``nckemu.emulator.session``, ...): see :mod:`nckemu.emulator._moved`.
 """
-
-from nckemu.emulator import _moved
-
-_moved.install()

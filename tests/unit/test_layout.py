@@ -73,12 +73,3 @@ def test_the_walk_finds_a_circle() -> None:
     graph.add_import(importer="a.c", imported="a.d")
     assert strongly_connected(graph) == [["a.b", "a.c"]]
 
-
-def test_old_emulator_paths_answer_with_the_moved_module() -> None:
-    from nckemu.emulator.core import Emulator as OldEmulator
-    from nckemu.emulator.nck.model import NckModel as OldModel
-
-    from nckemu.emulator.machine.core import Emulator
-    from nckemu.emulator.machine.nck.model import NckModel
-
-    assert OldEmulator is Emulator and OldModel is NckModel

@@ -185,6 +185,9 @@ class Settings:
     szl_index0_python_snap7: bool = True
     # 840C TC: refuse P0 = 0 with the A flag (the manual only advises against it).
     c840_refuse_p0_at_zero: bool = False
+    # Bytes of part-program text the NCK's program store holds; a transfer that would exceed it is
+    # refused with "store full". Assumed default (3 MiB; no source gives an NCU's figure).
+    program_store_bytes: int = 3 * 1024 * 1024
 
 
 @dataclass(frozen=True)
@@ -466,7 +469,10 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
                                         0x8104),
         szl_index0_python_snap7=_get(settings_table, "szl_index0_python_snap7", bool, "settings.", source, True),
         c840_refuse_p0_at_zero=_get(settings_table, "c840_refuse_p0_at_zero", bool, "settings.", source, False),
+        program_store_bytes=_get(settings_table, "program_store_bytes", int, "settings.", source, 3 * 1024 * 1024),
     )
+    if settings.program_store_bytes < 0:
+        raise NckConfigError("expected a size in bytes >= 0", path=source, field="settings.program_store_bytes")
     for name in ("szl_unknown_id_error", "szl_unknown_index_error", "userdata_not_served_error",
                  "unsupported_function_error"):
         if not 0x0001 <= getattr(settings, name) <= 0xFFFF:

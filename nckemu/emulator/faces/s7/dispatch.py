@@ -13,8 +13,10 @@ import weakref
 from collections.abc import Callable
 
 from nckemu.emulator.faces.s7.datastore import NckDatastore, PlcDatastore
+from nckemu.emulator.faces.s7.nc_transfer import DEFAULT_STORE_BYTES, NcTransfers
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.nck.access import AccessContext
+from nckemu.emulator.machine.nck.programs import Programs
 from nckemu.errors import (
     HeaderError,
     NckAddressOutOfRange,
@@ -139,8 +141,12 @@ class Dispatcher:
                  default_access_level: int = 7,
                  userdata_not_served_error: int = USERDATA_NOT_SERVED,
                  unsupported_function_error: int = HeaderError.NOT_IMPLEMENTED,
-                 drive_transport_size: int = NCK_TRANSPORT_SIZE) -> None:
+                 drive_transport_size: int = NCK_TRANSPORT_SIZE,
+                 programs: Programs | None = None, program_store_bytes: int = DEFAULT_STORE_BYTES) -> None:
         self.nck = nck
+        # The program store NC transfers read and write (None: the NC programming group is not served).
+        self.programs = programs
+        self.program_store_bytes = program_store_bytes
         # The transport size of answers from the drive areas V and H (the machine's [drives]
         # answer_transport_size: 0x09 as all NCK answers, or 0x07 REAL; docs/assumptions.md).
         self.drive_transport_size = drive_transport_size
@@ -173,7 +179,9 @@ class Dispatcher:
                              default_access_level=emulator.default_access_level,
                              userdata_not_served_error=settings.userdata_not_served_error,
                              unsupported_function_error=settings.unsupported_function_error,
-                             drive_transport_size=emulator.machine.drive_settings.answer_transport_size)
+                             drive_transport_size=emulator.machine.drive_settings.answer_transport_size,
+                             programs=emulator.nck.programs,
+                             program_store_bytes=getattr(settings, "program_store_bytes", DEFAULT_STORE_BYTES))
             _BY_MACHINE[emulator] = dispatcher
         return dispatcher
 
@@ -312,6 +320,21 @@ class Dispatcher:
             elif self._persist is not None:
                 self._persist()
         return s7.WriteVarResponse(tuple(codes))
+
+    def retained_changed(self) -> None:
+        """Retained data changed outside a write job (a program transfer ended): save it before the
+        answer leaves, as a write does."""
+        if self.persist_later is not None:
+            self.persist_later()
+        elif self._persist is not None:
+            self._persist()
+
+    def new_nc_transfers(self, peer: str) -> NcTransfers | None:
+        """A connection's NC transfer state (None when this dispatcher has no program store)."""
+        if self.programs is None:
+            return None
+        return NcTransfers(self.programs, store_bytes=self.program_store_bytes, stored=self.retained_changed,
+                           now=self.plc.now, peer=peer)
 
     def pi_service(self, request: pi.PiServiceRequest, ctx: AccessContext) -> bytes:
         service = request.service

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from nckemu.emulator.faces.s7.dispatch import FRAME_PDU_REF_END, Dispatcher
 from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.errors import HeaderError, NckError
-from nckemu.protocol import cotp, s7, szl, tpkt, userdata
+from nckemu.protocol import cotp, ncprog, s7, szl, tpkt, userdata
 from nckemu.protocol.errors import NckProtocolError
 
 # Loggers keep their names from before the 0.2 layout, so logs and users' log filters stay as they were.
@@ -46,8 +46,17 @@ MIN_PDU_SIZE = 240
 # answered with an ACK (ROSCTR 2) that carries only the header error.
 _ACK_DATA_FUNCTIONS = frozenset({s7.Function.READ_VAR, s7.Function.WRITE_VAR, s7.Function.PI_SERVICE,
                                  s7.Function.PLC_STOP, s7.Function.SETUP_COMMUNICATION})
+# The PLC-block upload jobs, which carry an NC file name when a client uploads a program through them.
+_BLOCK_UPLOAD_FUNCTIONS = frozenset({s7.Function.START_UPLOAD, s7.Function.UPLOAD, s7.Function.END_UPLOAD})
 # Where the S7 PDU starts in a frame with one whole PDU in one DT: TPKT (4) + COTP DT (3).
 _PDU_OFFSET = cotp.DATA_FRAME_PDU_OFFSET
+
+
+def _is_nc_push(frame: bytes, offset: int) -> bool:
+    """An NC push (download block, continue upload) at ``offset``: a telegram of a transfer, not a
+    job. It waits for no answer, and the window of them the transfer announced is not the AMQ's."""
+    return len(frame) >= offset + 18 and frame[offset + 1] == s7.Rosctr.USERDATA \
+        and frame[offset + 10:offset + 13] == ncprog.PARAMETER_HEAD and frame[offset + 15] == ncprog.NC_PUSH
 
 
 class SessionState(enum.Enum):
@@ -156,6 +165,9 @@ class ServerSession:
         # (parameter, data) pairs; one long answer at a time, as a client reads them one by one.
         self._userdata_parts: tuple[int, list[tuple[bytes, bytes]]] | None = None
         self._userdata_sequence = 0
+        # NC program transfers of this connection, and the pushes that follow an answer (upload pieces).
+        self._nc = dispatcher.new_nc_transfers(peer)
+        self._pushes: list[bytes] = []
 
     @property
     def has_partial_frame(self) -> bool:
@@ -218,6 +230,13 @@ class ServerSession:
             if frame[4:7] == cotp.DT_HEADER_EOT and len(frame) > _PDU_OFFSET and self.state is SessionState.READY \
                     and not self._fragments:
                 # The common case, a whole S7 PDU in one DT: skip building a DataTpdu for it.
+                if _is_nc_push(frame, _PDU_OFFSET):
+                    answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=False)
+                    if answer is not None:
+                        out.extend(self._data_frames(answer))
+                    if self._pushes:
+                        out.extend(self._flush_pushes())
+                    continue
                 jobs_in_flight += 1
                 over_amq = jobs_in_flight > self.info.amq
                 if not over_amq:
@@ -228,6 +247,8 @@ class ServerSession:
                 answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=over_amq)
                 if answer is not None:
                     out.extend(self._data_frames(answer))
+                if self._pushes:
+                    out.extend(self._flush_pushes())
                 continue
             try:
                 payload = tpkt.parse_tpkt(frame)
@@ -239,10 +260,13 @@ class ServerSession:
                 pdu_bytes = self._reassemble(tpdu)
                 if pdu_bytes is None:
                     continue
-                jobs_in_flight += 1
+                if not _is_nc_push(pdu_bytes, 0):
+                    jobs_in_flight += 1
                 answer = self._handle_pdu(pdu_bytes, over_amq=jobs_in_flight > self.info.amq)
                 if answer is not None:
                     out.extend(self._data_frames(answer))
+                if self._pushes:
+                    out.extend(self._flush_pushes())
             elif isinstance(tpdu, cotp.ConnectRequest):
                 out.extend(self._handle_connect(tpdu))
             elif isinstance(tpdu, cotp.DisconnectRequest):
@@ -346,6 +370,8 @@ class ServerSession:
         refused = self._advance(Event.JOB)
         if refused is not None:
             return self._error_answer(pdu, refused)
+        nc_userdata = pdu.rosctr == s7.Rosctr.USERDATA and self._nc is not None \
+            and ncprog.is_nc_parameter(pdu.parameter)
         if over_amq:
             return self._error_answer(pdu, HeaderError.NO_RESOURCES)
         if len(raw) > self.info.pdu_size:
@@ -355,6 +381,11 @@ class ServerSession:
             if next_part is not None:
                 return next_part
         try:
+            if nc_userdata or (pdu.rosctr == s7.Rosctr.JOB and function in _BLOCK_UPLOAD_FUNCTIONS
+                               and self._nc is not None):
+                handled, nc_answer = self._nc_transfer(pdu)
+                if handled:
+                    return nc_answer
             if pdu.rosctr == s7.Rosctr.USERDATA:
                 answer = self.dispatcher.userdata(pdu, self.access)
             else:
@@ -375,6 +406,27 @@ class ServerSession:
                 return self._userdata_in_parts(answer)
             return self._error_answer(pdu, HeaderError.WRONG_FRAMES)
         return encoded
+
+    def _nc_transfer(self, pdu: s7.S7Pdu) -> tuple[bool, bytes | None]:
+        """Whether ``pdu`` was an NC transfer's, and its answer (None: none, as to a download block;
+        the pushes that follow go to ``_pushes``). A block job about a PLC block is not. Raises as a
+        job does."""
+        assert self._nc is not None
+        if pdu.rosctr == s7.Rosctr.JOB:
+            block_answer = self._nc.block_job(pdu, self.info.pdu_size)
+            return block_answer is not None, None if block_answer is None else s7.build_pdu(block_answer)
+        answers = [s7.build_pdu(answer) for answer in self._nc.userdata(pdu, self.info.pdu_size)]
+        if not answers:
+            return True, None
+        self._pushes.extend(answers[1:])
+        return True, answers[0]
+
+    def _flush_pushes(self) -> list[bytes]:
+        frames = []
+        for push in self._pushes:
+            frames.extend(self._data_frames(push))
+        self._pushes.clear()
+        return frames
 
     def _userdata_in_parts(self, answer: s7.S7Pdu) -> bytes:
         """The first part of a userdata answer longer than the PDU (a long SZL at PDU 240); the client

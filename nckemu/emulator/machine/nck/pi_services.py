@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from nckemu.catalogue.pi_services import NC_SERVICE_ARGUMENTS, PI_LOAD_LEADSCREW, PI_NEW_CONFIG, PI_POWER_ON
 from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.emulator.machine.nck.parts import NckParts
+from nckemu.emulator.machine.nck.programs import directory_path, program_path
 from nckemu.errors import (
     NckConfigError,
     NckNoSuchFile,
@@ -44,7 +45,14 @@ def _select(model: NckParts, arguments: list[str], ctx: AccessContext) -> None:
 
 
 def _delete(model: NckParts, arguments: list[str], ctx: AccessContext) -> None:
-    model.programs.delete(arguments[1])
+    # The path as the control writes it; a name as users write it (TEST.MPF) is taken too.
+    model.programs.delete(program_path(arguments[1]))
+
+
+def _transfer(model: NckParts, arguments: list[str], ctx: AccessContext) -> None:
+    """_N_F_XFER: mark a file or directory for the upload that follows (names its last part)."""
+    path = directory_path(arguments[1]) or program_path(arguments[1])
+    model.programs.mark_for_transfer(path)
 
 
 def _setudt(model: NckParts, arguments: list[str], ctx: AccessContext) -> None:
@@ -89,6 +97,7 @@ HANDLERS: dict[str, Handler] = {
     "_N_LOGOUT": _logout,
     "_N_SELECT": _select,
     "_N_F_DELE": _delete,
+    "_N_F_XFER": _transfer,
     "_N_SETUDT": _setudt,
     PI_POWER_ON: _power_on,
     PI_NEW_CONFIG: _new_config,

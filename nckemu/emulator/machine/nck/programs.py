@@ -9,62 +9,19 @@ cannot be replaced or deleted.
 from __future__ import annotations
 
 import base64
-import re
 from typing import Any
 
-from nckemu.errors import NckNoSuchFile, NckPiBadArguments, NckPiStateError
+from nckemu.catalogue.program_names import (  # noqa: F401 - the names' home before the catalogue held them
+    DIRECTORIES,
+    MAX_NAME_CHARS,
+    TYPE_DIRECTORIES,
+    directory_path,
+    program_path,
+    user_name,
+)
+from nckemu.errors import NckNoSuchFile, NckPiStateError
 
 DEFAULT_PROGRAMS = ("/_N_MPF_DIR/_N_TEST_MPF", "/_N_MPF_DIR/_N_MAIN_MPF")
-
-# File types and the directory a bare name of that type lives in.
-TYPE_DIRECTORIES = {"MPF": "_N_MPF_DIR", "SPF": "_N_SPF_DIR"}
-_CONTROL_NAME = re.compile(r"_N_([A-Z0-9_]+)_(MPF|SPF|DEF|INI|WPD)")
-_USER_NAME = re.compile(r"([A-Z0-9_]+)\.(MPF|SPF|DEF|INI)")
-_DIRECTORY = re.compile(r"_N_[A-Z0-9_]+_(DIR|WPD)")
-MAX_NAME_CHARS = 24
-
-
-def program_path(name: str, *, default_type: str = "MPF") -> str:
-    """The control's path of a program named as a user or the control writes it.
-
-    ``TEST.MPF`` and ``_N_TEST_MPF`` give ``/_N_MPF_DIR/_N_TEST_MPF``; ``/_N_SPF_DIR/_N_X_SPF`` stays
-    as it is; a bare ``TEST`` is of ``default_type``. Names are case-insensitive (kept in upper case).
-    Raises NckPiBadArguments for anything that is not an NC file name (``..``, empty parts, spaces).
-    """
-    text = name.strip().upper()
-    parts = [part for part in text.split("/") if part]
-    if not parts or any(part in (".", "..") for part in parts) or "\\" in text:
-        raise NckPiBadArguments(f"{name!r} is not an NC file name")
-    *directories, leaf = parts
-    control = _CONTROL_NAME.fullmatch(leaf)
-    user = _USER_NAME.fullmatch(leaf)
-    if control:
-        stem, kind = control.group(1), control.group(2)
-    elif user:
-        stem, kind = user.group(1), user.group(2)
-    elif re.fullmatch(r"[A-Z_][A-Z0-9_]*", leaf):
-        stem, kind = leaf, default_type
-    else:
-        raise NckPiBadArguments(f"{name!r} is not an NC file name (letters, digits and _ only)")
-    if len(stem) > MAX_NAME_CHARS:
-        raise NckPiBadArguments(f"{name!r}: a program name has at most {MAX_NAME_CHARS} characters")
-    control_dirs = []
-    for directory in directories:
-        if not directory.startswith("_N_"):
-            directory = "_N_" + directory.replace(".", "_")
-        if not _DIRECTORY.fullmatch(directory):
-            raise NckPiBadArguments(f"{name!r}: {directory} is not an NC directory")
-        control_dirs.append(directory)
-    if not control_dirs:
-        control_dirs = [TYPE_DIRECTORIES.get(kind, "_N_MPF_DIR")]
-    return "/" + "/".join([*control_dirs, f"_N_{stem}_{kind}"])
-
-
-def user_name(path: str) -> str:
-    """``/_N_MPF_DIR/_N_TEST_MPF`` -> ``TEST.MPF`` (the name an HMI shows)."""
-    leaf = path.rsplit("/", 1)[-1]
-    match = _CONTROL_NAME.fullmatch(leaf)
-    return f"{match.group(1)}.{match.group(2)}" if match else leaf
 
 
 class Programs:
@@ -75,6 +32,10 @@ class Programs:
         self.running = ""
         # Program texts by path; a path without a text is an empty program.
         self.texts: dict[str, bytes] = {}
+        # The 16-character time stamps transfers carried (``yyMMddHHmmss`` + 4 spaces), by path.
+        self.stamps: dict[str, str] = {}
+        # Paths PI _N_F_XFER marked for upload, by their last part (an upload names only that).
+        self.marked_for_transfer: dict[str, str] = {}
 
     def add(self, path: str) -> None:
         self.paths.add(path)
@@ -94,6 +55,45 @@ class Programs:
             raise NckPiStateError(f"{path} is running")
         self.texts[path] = bytes(text)
         self.paths.add(path)
+        self.stamps.pop(path, None)
+
+    def stored_bytes(self) -> int:
+        """The bytes the program texts take (what the store's capacity limits)."""
+        return sum(len(text) for text in self.texts.values())
+
+    def mark_for_transfer(self, path: str) -> None:
+        """PI _N_F_XFER: an upload naming ``path``'s last part fetches ``path`` (a file or a directory)."""
+        if path not in self.paths and not self.is_directory(path):
+            raise NckNoSuchFile(f"no file or directory {path}")
+        self.marked_for_transfer[path.rsplit("/", 1)[-1]] = path
+
+    def transfer_path(self, name: str) -> tuple[str, bool]:
+        """The path an upload naming ``name`` fetches, and whether it is a directory: what _N_F_XFER
+        marked under that name, else the directory or program the name gives (``_N_MPF_DIR``,
+        ``_N_PART_WPD``, ``_N_TEST_MPF``, ``TEST.MPF``; case-insensitive). Raises NckPiBadArguments
+        for a name that is neither."""
+        text = name.strip().upper()
+        marked = self.marked_for_transfer.get(text.rsplit("/", 1)[-1])
+        if marked is not None and (not text.startswith("/") or text == marked):
+            return marked, self.is_directory(marked)
+        directory = directory_path(text)
+        if directory is not None:
+            return directory, True
+        return program_path(text), False
+
+    def is_directory(self, path: str) -> bool:
+        """A main directory (``/_N_MPF_DIR``, ``/_N_SPF_DIR``, ``/_N_WKS_DIR``) or one holding a program."""
+        path = path.rstrip("/")
+        if path in DIRECTORIES:
+            return True
+        prefix = path + "/"
+        return bool(path) and any(stored.startswith(prefix) for stored in self.paths)
+
+    def children(self, directory: str) -> list[str]:
+        """Paths of the files and directories directly in ``directory``, sorted."""
+        prefix = directory.rstrip("/") + "/"
+        found = {prefix + path[len(prefix):].split("/", 1)[0] for path in self.paths if path.startswith(prefix)}
+        return sorted(found)
 
     def listing(self, directory: str = "") -> list[str]:
         """Paths in ``directory`` (``/_N_MPF_DIR``), or every path, sorted."""
@@ -103,14 +103,17 @@ class Programs:
     def snapshot(self) -> dict[str, Any]:
         """The program store as retained data: paths, and texts as base64."""
         return {"paths": sorted(self.paths),
-                "texts": {path: base64.b64encode(text).decode("ascii") for path, text in sorted(self.texts.items())}}
+                "texts": {path: base64.b64encode(text).decode("ascii") for path, text in sorted(self.texts.items())},
+                "stamps": dict(sorted(self.stamps.items()))}
 
     def restore(self, snapshot: dict[str, Any]) -> None:
         """The store as ``snapshot`` left it (raises KeyError/TypeError/ValueError when it is damaged)."""
         paths = {str(path) for path in snapshot["paths"]}
         texts = {str(path): base64.b64decode(text, validate=True) for path, text in snapshot["texts"].items()}
+        stamps = {str(path): str(stamp) for path, stamp in snapshot.get("stamps", {}).items()}
         self.paths = paths | set(texts)
         self.texts = texts
+        self.stamps = stamps
 
     def select(self, path: str) -> None:
         if path not in self.paths:
@@ -124,3 +127,4 @@ class Programs:
             raise NckPiStateError(f"{path} is {'running' if path == self.running else 'selected'}")
         self.paths.discard(path)
         self.texts.pop(path, None)
+        self.stamps.pop(path, None)

@@ -1,0 +1,24 @@
+"""Alarm numbers the language raises beyond those of :mod:`..motions` (programs.md §8).
+
+Numbers marked UNCONFIRMED come from no source we hold; they are module constants so a lead or a
+user with the Siemens diagnostics manual can correct them in one place.
+"""
+
+from __future__ import annotations
+
+# UNCONFIRMED (no source at hand; "arithmetic error in part program" as we remember the Siemens list):
+# division by zero, and SQRT(-1), ASIN(2), an overflow to infinity under the same number.
+ALARM_DIVISION_BY_ZERO = 14051
+ALARM_ARITHMETIC = 14051
+# UNCONFIRMED: a value of the wrong type (a STRING in arithmetic, a number into a STRING).
+ALARM_TYPE = 12150
+# UNCONFIRMED: IF without ENDIF, ENDFOR without FOR and the like ("invalid nesting of control structures").
+ALARM_NESTING = 12640
+# UNCONFIRMED: an array index outside the declared size.
+ALARM_INDEX = 17020
+# UNCONFIRMED: a G function the control does not know.
+ALARM_UNKNOWN_G = 12470
+# UNCONFIRMED: subprogram calls nested deeper than the control allows.
+ALARM_CALL_DEPTH = 14000
+# Subprogram levels a program may open below the main program (840D sl: 16 levels in all; UNCONFIRMED).
+MAX_CALL_DEPTH = 15

@@ -1,0 +1,511 @@
+"""A block's tokens compiled into what the interpreter executes.
+
+``compile_block`` turns one line (comment already stripped) into a :class:`Compiled`: a kind (plain
+words, IF, WHILE, FOR, ...) and its items. Address words with constant values stay constants; every
+expression becomes a closure (expressions.py). Names are resolved by category here (R parameter,
+system variable, variable, axis, address letter); whether a variable exists is checked when it is
+read, so a compiled block can be kept and run again in a loop.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from ..motions import ALARM_SYNTAX, ProgramAlarm
+from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, evaluate, is_dynamic
+
+# block kinds
+WORDS, IF, ELSE, ENDIF, WHILE, ENDWHILE, FOR, ENDFOR, REPEAT, UNTIL, LOOP, ENDLOOP = range(12)
+IF_JUMP, CASE, DEF, PROC, EXTERN, NOTHING = range(12, 18)
+
+_KEYWORD_KINDS = {"ELSE": ELSE, "ENDIF": ENDIF, "ENDWHILE": ENDWHILE, "ENDFOR": ENDFOR,
+                  "REPEAT": REPEAT, "LOOP": LOOP, "ENDLOOP": ENDLOOP}
+
+# item codes inside a WORDS block
+(I_ASSIGN, I_G, I_AXIS, I_ADDR, I_CALL, I_MSG, I_JUMP, I_FRAME, I_RET, I_SUPA, I_SETTING,
+ I_MCALL, I_FILL, I_NOOP, I_SPOS, I_SETAL) = range(16)
+
+SINGLE_ADDRESSES = frozenset("FSMTDHLPIJKE")
+WORD_ADDRESSES = frozenset({"CR", "TURN", "AR", "AP", "RP", "PW", "SD", "PL", "LIMS", "OVR", "SPOS", "SPOSA"})
+# Addresses taking an extension as digits before '=' (M1=3: spindle 1, M3)
+EXTENDED = frozenset("MSHTD")
+FRAME_WORDS = frozenset({"TRANS", "ATRANS", "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR"})
+JUMPS = frozenset({"GOTOF", "GOTOB", "GOTO", "GOTOC"})
+# Per-axis settings written as NAME[axis]=value; kept so a program can read them back (ACC[X]).
+AXIS_SETTINGS = frozenset({"ACC", "FA", "FL", "FGREF", "OVRA", "VELOLIM", "JERKLIM", "POS", "POSA"})
+
+# Words that change nothing the emulator models: accepted, logged once (docs/programs-language.md).
+NO_OP_WORDS = frozenset({
+    "STOPRE", "BRISK", "BRISKA", "SOFT", "SOFTA", "DRIVE", "DRIVEA", "FFWON", "FFWOF", "CFC", "CFTCP",
+    "CFIN", "COMPOF", "COMPON", "COMPCAD", "COMPCURV", "COMPSURF", "TRAFOOF", "TRAORI", "ORIWKS",
+    "ORIMKS", "ORIAXES", "ORIVECT", "ORIAXPOS", "ORIEULER", "ORIRPY", "CUT2D", "CUT2DF", "CUT3DC",
+    "CUT3DF", "DIAMOF", "DIAMON", "DIAM90", "UPATH", "SPATH", "FNORM", "FLIN", "FCUB", "DYNNORM",
+    "DYNPOS", "DYNROUGH", "DYNSEMIFIN", "DYNFINISH", "WALIMON", "WALIMOF", "NORM", "KONT", "KONTC",
+    "KONTT", "BNAT", "BTAN", "BAUTO", "ENAT", "ETAN", "EAUTO", "PTP", "CP", "PTPG0", "SPOF", "SPIF1",
+    "SPIF2", "DISPLOF", "DISPLON", "SAVE", "SBLOF", "SBLON", "DRFOF", "ACN", "ACP", "DC", "CDON",
+    "CDOF", "CDOF2", "DISC", "OFFN", "FENDNORM", "TOFFON", "TOFFOF", "G40", "RESET", "WAITMC",
+    "FGROUP", "FTOCON", "FTOCOF", "ORISON", "ORISOF", "PAROT", "PAROTOF", "TOROT", "TOROTOF",
+    "TCARR", "TCOABS", "TCOFR", "SUPD", "CPROTDEF", "LIFTFAST", "SETMS", "PROTA", "PROTS",
+})
+SPLINES = frozenset({"ASPLINE", "BSPLINE", "CSPLINE", "POLY"})
+
+_ADDRESS_WORD = re.compile(r"([A-Z]+?)(\d+)")
+
+
+class Compiled:
+    __slots__ = ("number", "kind", "items", "text", "extra")
+
+    def __init__(self, number: str, kind: int, items: Any, text: str, extra: Any = None) -> None:
+        self.number = number
+        self.kind = kind
+        self.items = items
+        self.text = text
+        self.extra = extra
+
+
+class BlockCompiler:
+    """Compiles blocks for one interpreter (it knows the axes and how names resolve)."""
+
+    def __init__(self, axes: tuple[str, ...], resolver: Any) -> None:
+        self.axes = frozenset(axis.upper() for axis in axes)
+        self.resolver = resolver
+
+    def compile(self, text: str, tokens: list) -> Compiled:
+        parser = Parser(tokens, self.resolver)
+        number = ""
+        if parser.at_op("/"):  # block skip (executed: no skip level is active in the emulator)
+            parser.pos += 1
+            token = parser.peek()
+            if token is not None and token[0] == NUM:
+                parser.pos += 1
+        token = parser.peek()
+        if token is not None and token[0] == NAME and token[2] is None and re.fullmatch(r"N\d+", token[1]):
+            number = token[1]
+            parser.pos += 1
+        elif parser.at_op(":") and parser.pos + 1 < len(tokens) and tokens[parser.pos + 1][0] == NUM:
+            number = ":" + str(tokens[parser.pos + 1][1])
+            parser.pos += 2
+        token = parser.peek()
+        if (token is not None and token[0] == NAME and token[2] is None and parser.pos + 1 < len(tokens)
+                and tokens[parser.pos + 1][0] == OP and tokens[parser.pos + 1][1] == ":"):
+            parser.pos += 2  # a label
+        token = parser.peek()
+        if token is None:
+            return Compiled(number, NOTHING, (), text)
+        if token[0] == NAME and token[2] is None:
+            keyword = token[1]
+            kind = _KEYWORD_KINDS.get(keyword)
+            if kind is not None:
+                parser.pos += 1
+                if not parser.at_end():
+                    raise ProgramAlarm(ALARM_SYNTAX, f"{keyword} stands alone in its block")
+                return Compiled(number, kind, (), text)
+            if keyword in ("IF", "WHILE", "UNTIL"):
+                parser.pos += 1
+                condition = parser.expression()
+                if keyword == "IF" and not parser.at_end():
+                    jump = self._jump(parser)
+                    self._end(parser)
+                    return Compiled(number, IF_JUMP, (condition, jump), text)
+                self._end(parser)
+                return Compiled(number, {"IF": IF, "WHILE": WHILE, "UNTIL": UNTIL}[keyword], condition, text)
+            if keyword == "FOR":
+                parser.pos += 1
+                target = self._lvalue(parser)
+                parser.expect_op("=")
+                start = parser.expression()
+                if not parser.at_name("TO"):
+                    raise ProgramAlarm(ALARM_SYNTAX, "FOR needs TO")
+                parser.pos += 1
+                end = parser.expression()
+                self._end(parser)
+                return Compiled(number, FOR, (target, start, end), text)
+            if keyword == "CASE":
+                return Compiled(number, CASE, self._case(parser), text)
+            if keyword == "DEF":
+                parser.pos += 1
+                return Compiled(number, DEF, self._def(parser), text)
+            if keyword == "PROC":
+                parser.pos += 1
+                return Compiled(number, PROC, self.proc_header(parser), text)
+            if keyword == "EXTERN":
+                return Compiled(number, EXTERN, (), text)
+        return Compiled(number, WORDS, self._words(parser), text)
+
+    # --- pieces ----------------------------------------------------------------------------------
+    def _end(self, parser: Parser) -> None:
+        if not parser.at_end():
+            token = parser.peek()
+            raise ProgramAlarm(ALARM_SYNTAX, f"unexpected {token[1]!r}")  # type: ignore[index]
+
+    def _jump(self, parser: Parser) -> tuple[str, Any]:
+        token = parser.peek()
+        if token is None or token[0] != NAME or token[1] not in JUMPS:
+            raise ProgramAlarm(ALARM_SYNTAX, "GOTOF, GOTOB, GOTO or GOTOC expected")
+        parser.pos += 1
+        return token[1], self._target(parser)
+
+    def _target(self, parser: Parser) -> Any:
+        token = parser.peek()
+        if token is None:
+            raise ProgramAlarm(ALARM_SYNTAX, "jump target expected")
+        parser.pos += 1
+        if token[0] == NAME and token[2] is None:
+            return token[1]
+        if token[0] == NUM and isinstance(token[1], int):
+            return f"N{token[1]}"
+        if token[0] == STR:
+            return token[1].upper()
+        raise ProgramAlarm(ALARM_SYNTAX, "jump target expected")
+
+    def _case(self, parser: Parser) -> tuple[Any, list, Any]:
+        parser.pos += 1
+        parser.expect_op("(")
+        selector = parser.expression()
+        parser.expect_op(")")
+        if not parser.at_name("OF"):
+            raise ProgramAlarm(ALARM_SYNTAX, "CASE needs OF")
+        parser.pos += 1
+        branches: list[tuple[Any, tuple[str, Any]]] = []
+        default = None
+        while not parser.at_end():
+            if parser.at_name("DEFAULT"):
+                parser.pos += 1
+                default = self._jump(parser)
+                continue
+            value = parser.expression()
+            if is_dynamic(value):
+                raise ProgramAlarm(ALARM_SYNTAX, "CASE values are constants")
+            branches.append((value, self._jump(parser)))
+        return selector, branches, default
+
+    def _def(self, parser: Parser) -> list[tuple[str, str, tuple, Any]]:
+        token = parser.peek()
+        if token is not None and token[0] == NAME and token[1] in ("NCK", "CHAN"):
+            parser.pos += 1
+            token = parser.peek()
+        if token is None or token[0] != NAME or token[1] not in ("INT", "REAL", "BOOL", "STRING", "CHAR", "AXIS"):
+            found = token[1] if token else "end of block"
+            raise ProgramAlarm(ALARM_SYNTAX, f"DEF: type expected, found {found!r}")
+        kind = token[1]
+        parser.pos += 1
+        if kind == "STRING":
+            parser.expect_op("[")
+            length = parser.expression()
+            parser.expect_op("]")
+            if is_dynamic(length):
+                raise ProgramAlarm(ALARM_SYNTAX, "DEF STRING[n]: n is a constant")
+        declarations = []
+        while True:
+            token = parser.peek()
+            if token is None or token[0] != NAME or token[2] is not None:
+                raise ProgramAlarm(ALARM_SYNTAX, "DEF: name expected")
+            name = token[1]
+            parser.pos += 1
+            dims: tuple[int, ...] = ()
+            if parser.at_op("["):
+                sizes = parser.indices()
+                if len(sizes) > 3 or any(is_dynamic(size) or not isinstance(size, int) for size in sizes):
+                    raise ProgramAlarm(ALARM_SYNTAX, f"DEF {name}: up to three constant INT sizes")
+                dims = tuple(sizes)
+            init = None
+            if parser.at_op("="):
+                parser.pos += 1
+                init = self._initialiser(parser)
+            declarations.append((name, kind, dims, init))
+            if parser.at_op(","):
+                parser.pos += 1
+                continue
+            self._end(parser)
+            return declarations
+
+    def _initialiser(self, parser: Parser) -> tuple[str, Any]:
+        """("value", expr) or ("SET"/"REP", [exprs])."""
+        if (parser.at_name("SET") or parser.at_name("REP")) and parser.pos + 1 < len(parser.tokens) \
+                and parser.tokens[parser.pos + 1][1] == "(":
+            which = parser.peek()[1]  # type: ignore[index]
+            parser.pos += 1
+            args = parser.arguments()
+            if not args or any(arg is None for arg in args) or (which == "REP" and len(args) != 1):
+                raise ProgramAlarm(ALARM_SYNTAX, f"{which}(...) needs values")
+            return which, args
+        if parser.at_op("("):
+            # DEF AXIS A1 = (X)
+            pass
+        return "value", parser.expression()
+
+    def proc_header(self, parser: Parser) -> tuple[str, list[tuple[str, str, bool, tuple]]]:
+        token = parser.peek()
+        if token is None or token[0] != NAME:
+            raise ProgramAlarm(ALARM_SYNTAX, "PROC: name expected")
+        name = token[1]
+        parser.pos += 1
+        params: list[tuple[str, str, bool, tuple]] = []
+        if parser.at_op("("):
+            parser.pos += 1
+            while not parser.at_op(")"):
+                by_reference = False
+                if parser.at_name("VAR"):
+                    by_reference = True
+                    parser.pos += 1
+                token = parser.peek()
+                if token is None or token[0] != NAME or token[1] not in ("INT", "REAL", "BOOL", "STRING",
+                                                                         "CHAR", "AXIS"):
+                    raise ProgramAlarm(ALARM_SYNTAX, "PROC: parameter type expected")
+                kind = token[1]
+                parser.pos += 1
+                if kind == "STRING":
+                    parser.expect_op("[")
+                    parser.expression()
+                    parser.expect_op("]")
+                token = parser.peek()
+                if token is None or token[0] != NAME:
+                    raise ProgramAlarm(ALARM_SYNTAX, "PROC: parameter name expected")
+                parser.pos += 1
+                dims: tuple = ()
+                if parser.at_op("["):
+                    sizes = parser.indices()
+                    dims = tuple(sizes)
+                params.append((token[1], kind, by_reference, dims))
+                if parser.at_op(","):
+                    parser.pos += 1
+                elif not parser.at_op(")"):
+                    raise ProgramAlarm(ALARM_SYNTAX, "PROC: ',' or ')' expected")
+            parser.pos += 1
+        return name, params
+
+    def _lvalue(self, parser: Parser) -> tuple[str, str, list]:
+        """("R", index-expr, []) | ("VAR", name, [index exprs]) | ("SYS", name, [index exprs])."""
+        token = parser.peek()
+        if token is None or token[0] != NAME or token[2] is not None:
+            raise ProgramAlarm(ALARM_SYNTAX, "variable expected")
+        parser.pos += 1
+        name = token[1]
+        match = re.fullmatch(r"\$?R(\d+)", name)
+        if match:
+            return "R", int(match.group(1)), []
+        indices = parser.indices() if parser.at_op("[") else []
+        if name in ("R", "$R") and indices:
+            return "R", indices[0], []
+        if name.startswith("$"):
+            return "SYS", name, indices
+        return "VAR", name, indices
+
+    def _value_after(self, parser: Parser, name: str, frac: str | None) -> Any:
+        """The value of an address word: ``=expr``, a signed constant, or nothing (None)."""
+        if frac is not None:
+            return float(frac) if frac != "." else 0.0
+        if parser.at_op("="):
+            parser.pos += 1
+            return parser.expression()
+        token = parser.peek()
+        if token is None:
+            return None
+        if token[0] == NUM:
+            parser.pos += 1
+            return token[1]
+        if token[0] == OP and token[1] in ("-", "+") and parser.pos + 1 < len(parser.tokens) \
+                and parser.tokens[parser.pos + 1][0] == NUM:
+            parser.pos += 2
+            value = parser.tokens[parser.pos - 1][1]
+            return -value if token[1] == "-" else value
+        return None
+
+    def _axis_value(self, parser: Parser, frac: str | None) -> tuple[Any, str | None]:
+        """An axis value and its dimension mode (None, "IC", "AC")."""
+        if frac is None and parser.at_op("="):
+            token = parser.tokens[parser.pos + 1] if parser.pos + 1 < len(parser.tokens) else None
+            if token is not None and token[0] == NAME and token[1] in ("IC", "AC") and \
+                    parser.pos + 2 < len(parser.tokens) and parser.tokens[parser.pos + 2][1] == "(":
+                parser.pos += 2
+                args = parser.arguments()
+                if len(args) != 1 or args[0] is None:
+                    raise ProgramAlarm(ALARM_SYNTAX, f"{token[1]}(...) takes one value")
+                return args[0], token[1]
+        value = self._value_after(parser, "", frac)
+        if value is None:
+            raise ProgramAlarm(ALARM_SYNTAX, "axis value expected")
+        return value, None
+
+    def _words(self, parser: Parser) -> list[tuple]:
+        items: list[tuple] = []
+        tokens = parser.tokens
+        axes = self.axes
+        while not parser.at_end():
+            kind, value, frac = tokens[parser.pos]
+            if kind != NAME:
+                raise ProgramAlarm(ALARM_SYNTAX, f"unexpected {value!r}")
+            parser.pos += 1
+            name: str = value  # type: ignore[assignment]
+            following = tokens[parser.pos] if parser.pos < len(tokens) else None
+            is_assign = following is not None and following[0] == OP and following[1] == "="
+            # axis words: X10, X=expr, X=IC(5), X-5
+            if name in axes:
+                axis_value, mode = self._axis_value(parser, frac)
+                items.append((I_AXIS, name, axis_value, mode))
+                continue
+            if frac is None and following is not None and following[0] == OP and following[1] == "(" \
+                    and name not in ("MSG", "SETAL") and name not in FUNCTIONS:
+                if name in ("IC", "AC"):
+                    raise ProgramAlarm(ALARM_SYNTAX, f"{name}() stands after an address and '='")
+                args = parser.arguments()
+                repeat = self._repeat(parser)
+                items.append((I_CALL, name, args, repeat))
+                continue
+            split = _ADDRESS_WORD.fullmatch(name)
+            if split and not is_assign:
+                letters, digits = split.group(1), split.group(2)
+                if letters in axes:
+                    number_value = float(digits + frac) if frac else int(digits)
+                    items.append((I_AXIS, letters, number_value, None))
+                    continue
+                if letters in SINGLE_ADDRESSES or letters == "G" or letters == "N":
+                    items.append(self._address(letters, digits, frac))
+                    continue
+            if split and is_assign and split.group(1) in EXTENDED:
+                parser.pos += 1
+                items.append((I_ADDR, split.group(1), parser.expression(), int(split.group(2))))
+                continue
+            if split and is_assign and split.group(1) == "R":
+                parser.pos += 1
+                items.append((I_ASSIGN, ("R", int(split.group(2)), []), parser.expression()))
+                continue
+            if name == "G" and not is_assign:
+                raise ProgramAlarm(ALARM_SYNTAX, "G needs a number")
+            if name in ("I", "J", "K"):
+                centre_value, mode = self._axis_value(parser, frac)
+                items.append((I_ADDR, name, centre_value, mode))
+                continue
+            if name in SINGLE_ADDRESSES or name in WORD_ADDRESSES:
+                address_value = self._value_after(parser, name, frac)
+                if address_value is None:
+                    if name in ("L",):
+                        raise ProgramAlarm(ALARM_SYNTAX, "L needs a number")
+                    # a lone letter: a subprogram of that name, or nothing
+                    items.append((I_CALL, name, None, None))
+                    continue
+                if name in ("SPOS", "SPOSA"):
+                    items.append((I_SPOS, 1, address_value, None))
+                    continue
+                items.append((I_ADDR, name, address_value, 0))
+                continue
+            if frac is not None:
+                raise ProgramAlarm(ALARM_SYNTAX, f"unexpected {name}{frac}")
+            if name in JUMPS:
+                items.append((I_JUMP, name, self._target(parser), None))
+                continue
+            if name == "MSG":
+                args = parser.arguments()
+                if len(args) > 2:
+                    raise ProgramAlarm(ALARM_SYNTAX, "MSG takes a text")
+                items.append((I_MSG, args[0] if args else "", None, None))
+                continue
+            if name == "SETAL":
+                args = parser.arguments()
+                if not args or args[0] is None:
+                    raise ProgramAlarm(ALARM_SYNTAX, "SETAL needs an alarm number")
+                items.append((I_SETAL, args[0], None, None))
+                continue
+            if name in FRAME_WORDS:
+                items.append((I_FRAME, name, self._frame_axes(parser), None))
+                continue
+            if name in ("SUPA", "G153"):
+                items.append((I_SUPA, name, None, None))
+                continue
+            if name in ("RET",):
+                items.append((I_RET, name, None, None))
+                continue
+            if name == "MCALL":
+                token = parser.peek()
+                if token is None:
+                    items.append((I_MCALL, None, None, None))
+                    continue
+                parser.pos += 1
+                args = parser.arguments() if parser.at_op("(") else None
+                items.append((I_MCALL, token[1], args, None))
+                continue
+            if name == "CALL":
+                target = parser.expression()
+                items.append((I_CALL, target, None, None))
+                continue
+            if name in SPLINES:
+                items.append((I_G, 1, name, None))
+                continue
+            if name in NO_OP_WORDS:
+                if parser.at_op("("):
+                    parser.arguments()
+                elif parser.at_op("="):
+                    parser.pos += 1
+                    parser.expression()
+                items.append((I_NOOP, name, None, None))
+                continue
+            if name in AXIS_SETTINGS and following is not None and following[1] == "[":
+                indices = parser.indices()
+                parser.expect_op("=")
+                items.append((I_SETTING, name, indices, parser.expression()))
+                continue
+            if is_assign or (following is not None and following[0] == OP and following[1] == "["):
+                parser.pos -= 1
+                target = self._lvalue(parser)
+                parser.expect_op("=")
+                if (parser.at_name("SET") or parser.at_name("REP")) and parser.pos + 1 < len(tokens) \
+                        and tokens[parser.pos + 1][1] == "(":
+                    which, args = self._initialiser(parser)
+                    items.append((I_FILL, target, which, args))
+                else:
+                    items.append((I_ASSIGN, target, parser.expression()))
+                continue
+            # a bare name: a subprogram without parameters (or a name the program never defined)
+            items.append((I_CALL, name, None, self._repeat(parser)))
+        return items
+
+    def _repeat(self, parser: Parser) -> Any:
+        token = parser.peek()
+        if token is not None and token[0] == NAME and re.fullmatch(r"P\d+", token[1]):
+            parser.pos += 1
+            return int(token[1][1:])
+        if parser.at_name("P") and parser.pos + 1 < len(parser.tokens) and parser.tokens[parser.pos + 1][1] == "=":
+            parser.pos += 2
+            return parser.expression()
+        return None
+
+    def _address(self, letters: str, digits: str, frac: str | None) -> tuple:
+        if letters == "G":
+            if frac:
+                raise ProgramAlarm(ALARM_SYNTAX, f"G{digits}{frac} is not a G function")
+            return (I_G, int(digits), None, None)
+        if letters == "N":
+            return (I_NOOP, "N", None, None)
+        value: float | int = float(digits + frac) if frac else int(digits)
+        return (I_ADDR, letters, value, 0)
+
+    def _frame_axes(self, parser: Parser) -> list[tuple[str, Any]]:
+        pairs = []
+        while not parser.at_end():
+            token = parser.peek()
+            assert token is not None
+            if token[0] != NAME:
+                break
+            name, frac = token[1], token[2]
+            split = _ADDRESS_WORD.fullmatch(name)
+            if name in self.axes:
+                parser.pos += 1
+                value = self._value_after(parser, name, frac)
+                if value is None:
+                    raise ProgramAlarm(ALARM_SYNTAX, f"{name}: value expected")
+                pairs.append((name, value))
+            elif split and split.group(1) in self.axes:
+                parser.pos += 1
+                pairs.append((split.group(1), float(split.group(2) + frac) if frac else int(split.group(2))))
+            elif name == "RPL":
+                parser.pos += 1
+                value = self._value_after(parser, name, frac)
+                pairs.append(("RPL", value))
+            else:
+                break
+        return pairs
+
+
+def constant_value(expr: Any, ev: Any) -> Any:
+    return evaluate(expr, ev)

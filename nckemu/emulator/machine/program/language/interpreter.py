@@ -1,0 +1,920 @@
+"""The SINUMERIK part-program interpreter: walks a program's blocks and emits canonical events.
+
+Lazy and without look-ahead: :meth:`Interpreter.events` is a generator, and the block after an event
+is only prepared when the caller asks for the next event, so ``$AA_IM[X]`` in a block sees where the
+previous motion ended (the caller moves the machine in between). Every error is a
+:class:`~..motions.ProgramAlarm` naming program, line and block; nothing else escapes.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from collections.abc import Iterator
+from typing import Any
+
+from ..environment import ProgramEnvironment, UndefinedName
+from ..motions import (
+    ALARM_CIRCLE_END_POINT,
+    ALARM_FEED_ZERO,
+    ALARM_JUMP_TARGET,
+    ALARM_NAME_NOT_DEFINED,
+    ALARM_PROGRAM_NOT_FOUND,
+    ALARM_SYNTAX,
+    Arc,
+    Block,
+    Dwell,
+    Event,
+    Message,
+    MFunction,
+    Move,
+    ProgramAlarm,
+    ProgramEnd,
+    SpindleCommand,
+    ToolSelect,
+)
+from . import blocks as b
+from .alarms import ALARM_CALL_DEPTH, ALARM_NESTING, ALARM_UNKNOWN_G, MAX_CALL_DEPTH
+from .blocks import BlockCompiler, Compiled
+from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
+from .lexer import strip_comment, tokenize
+from .source import ProgramSource
+from .variables import Variable
+
+log = logging.getLogger(__name__)
+
+INCH_MM = 25.4
+MAX_CACHED_BLOCKS = 50_000
+# The circle end-point tolerance: MD21000 CIRCLE_ERROR_CONST (mm) and MD21010 CIRCLE_ERROR_FACTOR
+# (share of the radius); the larger applies. Defaults as we remember them, UNCONFIRMED.
+CIRCLE_ERROR_CONST_MM = 0.01
+CIRCLE_ERROR_FACTOR = 0.001
+
+_PLANES = {"G17": ("X", "Y", "Z"), "G18": ("Z", "X", "Y"), "G19": ("Y", "Z", "X")}
+_CENTRE_WORD = {"X": "I", "Y": "J", "Z": "K"}
+_SETTLED_G = frozenset({
+    601, 602, 603, 40, 41, 42, 97, 96, 25, 26, 450, 451, 340, 341, 140, 141, 142, 143, 147, 148, 247, 248,
+    347, 348, 620, 621, 460, 461, 462, 810, 811, 812, 820, 821, 822, 931, 942, 952, 962, 971, 973, 290, 291,
+})
+_STANDARD_CYCLE = re.compile(r"(CYCLE\d+[A-Z]?|POCKET\d+|SLOT\d+|LONGHOLE|HOLES\d|WORKPIECE|[EF]_[A-Z0-9_]+)")
+_END_CODES = frozenset({0, 1, 2, 17, 30})
+
+
+class _Frame:
+    """One program level: the main program (depth 0) or a subprogram call."""
+
+    __slots__ = ("source", "pos", "line", "depth", "vars", "for_state", "back_refs", "saved_modal",
+                 "repeat_left", "call_args")
+
+    def __init__(self, source: ProgramSource, pos: int, line: int, depth: int) -> None:
+        self.source = source
+        self.pos = pos
+        self.line = line
+        self.depth = depth
+        self.vars: dict[str, Variable] = {}
+        self.for_state: dict[int, tuple[Any, Any]] = {}
+        self.back_refs: list[tuple[Any, str]] = []
+        self.saved_modal: dict[str, Any] | None = None
+        self.repeat_left = 0
+        self.call_args: tuple[Any, ...] = ()
+
+
+class Interpreter:
+    """Runs the program ``text`` at NC path ``path`` against ``env`` (see the package docstring)."""
+
+    def __init__(self, env: ProgramEnvironment, path: str, text: str) -> None:
+        self.env = env
+        self.path = path
+        self._main = ProgramSource(path, text)
+        self._sources: dict[str, ProgramSource] = {path: self._main}
+        self._caches: dict[int, dict[int, Compiled]] = {}
+        self._axes = tuple(axis.upper() for axis in env.axes)
+        self._compiler = BlockCompiler(self._axes, self._resolve)
+        self._globals: dict[str, Variable] = {}
+        self._settings: dict[tuple[str, str], Any] = {}
+        self._logged: set[str] = set()
+        self._stack: list[_Frame] = []
+        self._frame: _Frame | None = None
+        self._modal_call: tuple[Any, Any] | None = None
+        self._reset_modal()
+
+    # --- modal state ------------------------------------------------------------------------------
+    def _reset_modal(self) -> None:
+        env = self.env
+        self.motion = int(getattr(env, "reset_motion", 0))
+        self.plane = "G17"
+        self.absolute = True
+        self.inch_geometry = bool(getattr(env, "reset_inch", False))
+        self.inch_feed = False
+        self.feed_mode = "G94"
+        self.exact_stop = True
+        self.feed_mm = 0.0
+        self.spindle_speed: dict[int, float] = {}
+        self.frame_name = "G500"
+        self.settable: dict[str, float] = {}
+        self.trans: dict[str, float] = {}
+        self.tool: int | str | None = None
+        self.edge: int | None = None
+        self.preselected: int | str | None = None
+        self.tool_length_mm = 0.0
+        self.shift: dict[str, float] = {}
+        self.work_pos: dict[str, float] = {}
+        for axis in self._axes:
+            try:
+                self.work_pos[axis] = float(env.machine_position_mm(axis))
+            except Exception:
+                self.work_pos[axis] = 0.0
+        self._load_settable("G500")
+
+    _MODAL_FIELDS = ("motion", "plane", "absolute", "inch_geometry", "inch_feed", "feed_mode", "exact_stop",
+                     "frame_name", "settable", "trans", "shift")
+
+    def _snapshot_modal(self) -> dict[str, Any]:
+        return {name: (dict(value) if isinstance(value, dict) else value)
+                for name in self._MODAL_FIELDS for value in (getattr(self, name),)}
+
+    def _restore_modal(self, saved: dict[str, Any]) -> None:
+        for name, value in saved.items():
+            setattr(self, name, value)
+
+    def _load_settable(self, name: str) -> None:
+        self.frame_name = name
+        settable: dict[str, float] = {}
+        for axis in self._axes:
+            try:
+                offset = float(self.env.work_offset_mm(name, axis))
+            except Exception:
+                offset = 0.0
+            if offset:
+                settable[axis] = offset
+        self.settable = settable
+        self._update_shift()
+
+    def _update_shift(self) -> None:
+        shift: dict[str, float] = {}
+        for axis, offset in self.settable.items():
+            shift[axis] = shift.get(axis, 0.0) + offset
+        for axis, offset in self.trans.items():
+            shift[axis] = shift.get(axis, 0.0) + offset
+        if self.tool_length_mm:
+            infeed = _PLANES[self.plane][2]
+            shift[infeed] = shift.get(infeed, 0.0) + self.tool_length_mm
+        self.shift = shift
+
+    def _update_tool_length(self) -> None:
+        length = 0.0
+        if self.edge:
+            try:
+                length = float(self.env.tool_length_mm(self.tool, self.edge))
+            except Exception:
+                length = 0.0
+        self.tool_length_mm = length
+        self._update_shift()
+
+    def _is_rotary(self, axis: str) -> bool:
+        check = getattr(self.env, "axis_is_rotary", None)
+        if check is not None:
+            try:
+                return bool(check(axis))
+            except Exception:
+                return False
+        return axis in ("A", "B", "C")
+
+    # --- running ----------------------------------------------------------------------------------
+    def events(self) -> Iterator[Event]:
+        """The program's events in execution order (a Block before each executed block)."""
+        try:
+            yield from self._run()
+        except ProgramAlarm:
+            raise
+        except Exception as exc:  # a fault of ours must still reach the user as an alarm
+            log.exception("interpreter fault")
+            frame = self._frame
+            raise ProgramAlarm(ALARM_SYNTAX, f"cannot interpret the block ({type(exc).__name__})",
+                               program=frame.source.path if frame else self.path,
+                               line=max(frame.line - 1, 1) if frame else 0) from None
+
+    def _run(self) -> Iterator[Event]:
+        frame = _Frame(self._main, 0, 1, 0)
+        self._stack = [frame]
+        self._frame = frame
+        while True:
+            frame = self._frame
+            source = frame.source
+            text = source.text
+            pos = frame.pos
+            if pos >= len(text):
+                if frame.depth == 0:
+                    yield ProgramEnd(0)
+                    return
+                self._return()
+                continue
+            end = text.find("\n", pos)
+            if end < 0:
+                end = len(text)
+            line = frame.line
+            frame.pos = end + 1
+            frame.line = line + 1
+            cache = self._caches.get(id(source))
+            compiled = cache.get(pos) if cache is not None else None
+            if compiled is None:
+                raw = text[pos:end]
+                try:
+                    compiled = self._compile(raw)
+                except ProgramAlarm as alarm:
+                    raise self._located(alarm, source, line, raw) from None
+                if compiled is None:
+                    continue
+                if source.subprogram or source.has_jumps or source.in_loop(pos):
+                    if cache is None:
+                        cache = self._caches[id(source)] = {}
+                    if len(cache) >= MAX_CACHED_BLOCKS:
+                        cache.clear()
+                    cache[pos] = compiled
+            yield Block(source.path, line, compiled.number, compiled.text, frame.depth)
+            try:
+                events = self._execute(compiled, frame, pos)
+            except ProgramAlarm as alarm:
+                raise self._located(alarm, source, line, compiled.text) from None
+            if events:
+                yield from events
+                if events[-1].__class__ is ProgramEnd:
+                    return
+
+    def _located(self, alarm: ProgramAlarm, source: ProgramSource, line: int, block: str) -> ProgramAlarm:
+        if alarm.program:
+            return alarm
+        return ProgramAlarm(alarm.number, alarm.args[0], program=source.path, line=line, block=block.strip())
+
+    def _compile(self, raw: str) -> Compiled | None:
+        text = strip_comment(raw).strip()
+        if not text or text[0] == "%":
+            return None
+        return self._compiler.compile(text, tokenize(text))
+
+    # --- names ------------------------------------------------------------------------------------
+    def _resolve(self, parser: Parser, name: str) -> Any:
+        """A name in an expression as a closure (called by the expression parser)."""
+        r_match = re.fullmatch(r"\$?R(\d+)", name)
+        if r_match:
+            index = int(r_match.group(1))
+            fn = lambda ev: ev._read_r(index)  # noqa: E731
+            fn.lvalue = ("R", index, [])  # type: ignore[attr-defined]
+            return fn
+        if parser.at_op("["):
+            indices = parser.indices()
+            if name in ("R", "$R"):
+                index_expr = indices[0]
+                return lambda ev: ev._read_r(evaluate(index_expr, ev))
+            if name.startswith("$"):
+                return lambda ev: ev._read_system(name, tuple(evaluate(i, ev) for i in indices))
+            if name in b.AXIS_SETTINGS:
+                return lambda ev: ev._read_setting(name, tuple(evaluate(i, ev) for i in indices))
+            fn = lambda ev: ev._read_var(name, tuple(evaluate(i, ev) for i in indices))  # noqa: E731
+            fn.lvalue = ("VAR", name, indices)  # type: ignore[attr-defined]
+            return fn
+        if name.startswith("$"):
+            return lambda ev: ev._read_system(name, ())
+        if parser.at_op("("):
+            raise undefined(name)
+        fn = lambda ev: ev._read_var(name, ())  # noqa: E731
+        fn.lvalue = ("VAR", name, [])  # type: ignore[attr-defined]
+        return fn
+
+    def _variable(self, name: str) -> Variable | None:
+        variable = self._frame.vars.get(name) if self._frame is not None else None  # type: ignore[union-attr]
+        if variable is None:
+            variable = self._globals.get(name)
+        return variable
+
+    def _read_var(self, name: str, indices: tuple) -> Any:
+        variable = self._frame.vars.get(name)  # type: ignore[union-attr]
+        if variable is None:
+            variable = self._globals.get(name)
+            if variable is None:
+                raise undefined(name)
+        if not indices:
+            if variable.dims:
+                return variable.get(())
+            return variable.value
+        return variable.get(indices)
+
+    def name_or_value(self, name: str) -> Any:
+        """An index written as a bare name: a variable's value, else the name itself (an axis)."""
+        variable = self._variable(name)
+        if variable is not None and not variable.dims:
+            return variable.value
+        return name
+
+    def _r_index(self, index: Any) -> int:
+        position = number(index)
+        if position.__class__ is float:
+            position = int(position)
+        if not 0 <= position < self.env.r_count:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name R{position} not defined")
+        return position
+
+    def _read_r(self, index: Any) -> float:
+        return self.env.r_parameter(self._r_index(index))
+
+    def _axis_name(self, value: Any) -> str:
+        if value.__class__ is str:
+            axis = value.upper()
+        else:
+            position = int(number(value))
+            if not 1 <= position <= len(self._axes):
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"no axis with index {position}")
+            axis = self._axes[position - 1]
+        if axis not in self._axes:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {axis} not defined (no such axis)")
+        return axis
+
+    def _read_system(self, name: str, indices: tuple) -> Any:
+        try:
+            value = self.env.system_variable(name, indices)
+        except UndefinedName:
+            value = self._builtin_system(name, indices)
+        except Exception as exc:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined ({exc})") from None
+        if isinstance(value, bool | int | float | str):
+            return value
+        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined")
+
+    def _builtin_system(self, name: str, indices: tuple) -> Any:
+        """System variables the interpreter itself knows when the environment does not."""
+        if name == "$R" and len(indices) == 1:
+            return self._read_r(indices[0])
+        if name in ("$AA_IM", "$AA_IW", "$P_EP", "$AA_IB") and len(indices) == 1:
+            axis = self._axis_name(indices[0])
+            if name == "$P_EP":
+                return self.work_pos[axis]
+            machine = float(self.env.machine_position_mm(axis))
+            return machine - self.shift.get(axis, 0.0) if name == "$AA_IW" else machine
+        if not indices:
+            if name == "$P_F":
+                return self.feed_mm
+            if name == "$P_TOOLNO":
+                return self.tool if self.tool is not None else 0
+            if name == "$P_TOOL":
+                return self.edge or 0
+            if name == "$P_S":
+                return self.spindle_speed.get(1, 0.0)
+        raise undefined(name)
+
+    def _read_setting(self, name: str, indices: tuple) -> Any:
+        if len(indices) != 1:
+            raise ProgramAlarm(ALARM_SYNTAX, f"{name}[axis]")
+        axis = self._axis_name(indices[0])
+        return self._settings.get((name, axis), 100 if name == "ACC" else 0)
+
+    def _assign(self, target: tuple, value: Any) -> None:
+        kind, name, indices = target
+        if kind == "R":
+            self.env.set_r_parameter(self._r_index(evaluate(name, self)), float(number(value)))
+            return
+        if kind == "SYS":
+            evaluated = tuple(evaluate(i, self) for i in indices)
+            if name == "$R" and len(evaluated) == 1:
+                self.env.set_r_parameter(self._r_index(evaluated[0]), float(number(value)))
+                return
+            try:
+                self.env.set_system_variable(name, evaluated, value)
+            except UndefinedName:
+                raise undefined(name) from None
+            except ProgramAlarm:
+                raise
+            except Exception as exc:
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} cannot be written ({exc})") from None
+            return
+        variable = self._variable(name)
+        if variable is None:
+            raise undefined(name)
+        variable.set(tuple(evaluate(i, self) for i in indices), value)
+
+    def _log_once(self, what: str, message: str) -> None:
+        if what not in self._logged:
+            self._logged.add(what)
+            log.info("%s: %s", self.path, message)
+
+    # --- control flow -----------------------------------------------------------------------------
+    def _go_after(self, frame: _Frame, offset: int) -> None:
+        """Continue with the line after the line starting at ``offset``."""
+        text = frame.source.text
+        end = text.find("\n", offset)
+        frame.pos = len(text) if end < 0 else end + 1
+        frame.line = frame.source.line_number(offset) + 1
+
+    def _go_to(self, frame: _Frame, offset: int) -> None:
+        frame.pos = offset
+        frame.line = frame.source.line_number(offset)
+
+    def _partner(self, frame: _Frame, pos: int, what: str) -> int:
+        partner = frame.source.partner.get(pos)
+        if partner is None or partner < 0 or pos in frame.source.bad_nesting:
+            raise ProgramAlarm(ALARM_NESTING, f"{what}: control structure not closed or nested wrongly")
+        return partner
+
+    def _jump(self, frame: _Frame, kind: str, target: str, pos: int) -> None:
+        direction = {"GOTOF": "F", "GOTOB": "B"}.get(kind, "")
+        offset = frame.source.find_target(target, pos, direction)
+        if offset is None:
+            variable = self._variable(target)
+            if variable is not None and variable.value.__class__ is str and variable.value:
+                offset = frame.source.find_target(variable.value.upper(), pos, direction)
+        if offset is None:
+            if kind == "GOTOC":
+                return
+            raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {target} not found")
+        self._go_to(frame, offset)
+
+    def _execute(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
+        kind = compiled.kind
+        if kind == b.WORDS:
+            return self._words(compiled.items, frame, pos)
+        if kind == b.NOTHING or kind == b.EXTERN:
+            return None
+        source = frame.source
+        if kind == b.IF:
+            if pos in source.bad_nesting or pos not in source.partner:
+                raise ProgramAlarm(ALARM_NESTING, "IF without ENDIF")
+            if not truth(evaluate(compiled.items, self)):
+                else_at = source.else_of.get(pos)
+                self._go_after(frame, else_at if else_at is not None else source.partner[pos])
+        elif kind == b.ELSE:
+            self._go_after(frame, self._partner(frame, pos, "ELSE"))
+        elif kind == b.WHILE:
+            if not truth(evaluate(compiled.items, self)):
+                self._go_after(frame, self._partner(frame, pos, "WHILE"))
+            elif pos in source.bad_nesting:
+                raise ProgramAlarm(ALARM_NESTING, "WHILE without ENDWHILE")
+        elif kind == b.ENDWHILE:
+            self._go_to(frame, self._partner(frame, pos, "ENDWHILE"))
+        elif kind == b.FOR:
+            target, start, end = compiled.items
+            closer = self._partner(frame, pos, "FOR")
+            start_value = evaluate(start, self)
+            end_value = number(evaluate(end, self))
+            self._assign(target, start_value)
+            frame.for_state[pos] = (target, end_value)
+            if number(self._read_target(target)) > end_value:
+                self._go_after(frame, closer)
+        elif kind == b.ENDFOR:
+            opener = self._partner(frame, pos, "ENDFOR")
+            state = frame.for_state.get(opener)
+            if state is None:
+                raise ProgramAlarm(ALARM_NESTING, "ENDFOR without its FOR having run")
+            target, end_value = state
+            value = number(self._read_target(target)) + 1
+            self._assign(target, value)
+            if number(self._read_target(target)) <= end_value:
+                self._go_after(frame, opener)
+        elif kind == b.REPEAT or kind == b.LOOP:
+            if pos in source.bad_nesting or pos not in source.partner:
+                raise ProgramAlarm(ALARM_NESTING, "REPEAT/LOOP not closed")
+        elif kind == b.UNTIL:
+            opener = self._partner(frame, pos, "UNTIL")
+            if not truth(evaluate(compiled.items, self)):
+                self._go_after(frame, opener)
+        elif kind == b.ENDLOOP:
+            self._go_after(frame, self._partner(frame, pos, "ENDLOOP"))
+        elif kind == b.ENDIF:
+            if pos in source.bad_nesting:
+                raise ProgramAlarm(ALARM_NESTING, "ENDIF without IF")
+        elif kind == b.IF_JUMP:
+            condition, (jump_kind, target) = compiled.items
+            if truth(evaluate(condition, self)):
+                self._jump(frame, jump_kind, target, pos)
+        elif kind == b.CASE:
+            selector, branches, default = compiled.items
+            value = evaluate(selector, self)
+            for candidate, (jump_kind, target) in branches:
+                if (candidate.__class__ is str) == (value.__class__ is str) and candidate == value:
+                    self._jump(frame, jump_kind, target, pos)
+                    break
+            else:
+                if default is not None:
+                    self._jump(frame, default[0], default[1], pos)
+        elif kind == b.DEF:
+            self._define(compiled.items, frame)
+        elif kind == b.PROC:
+            if frame.depth == 0 and frame.source is self._main:
+                return None
+        return None
+
+    def _read_target(self, target: tuple) -> Any:
+        kind, name, indices = target
+        if kind == "R":
+            return self._read_r(evaluate(name, self))
+        if kind == "SYS":
+            return self._read_system(name, tuple(evaluate(i, self) for i in indices))
+        return self._read_var(name, tuple(evaluate(i, self) for i in indices))
+
+    def _define(self, declarations: list, frame: _Frame) -> None:
+        for name, kind, dims, init in declarations:
+            if name in self._axes or re.fullmatch(r"R\d+", name):
+                raise ProgramAlarm(ALARM_SYNTAX, f"DEF {name}: the name is taken by the control")
+            variable = Variable(name, kind, dims)
+            if init is not None:
+                which, value = init
+                if which == "value":
+                    evaluated = evaluate(value, self)
+                    if dims:
+                        variable.fill((), [evaluated], repeat=True)
+                    else:
+                        variable.set((), evaluated)
+                else:
+                    variable.fill((), [evaluate(item, self) for item in value], repeat=which == "REP")
+            frame.vars[name] = variable
+
+    # --- subprograms ------------------------------------------------------------------------------
+    def _call(self, name_expr: Any, args: list | None, repeat: Any, frame: _Frame) -> list[Event] | None:
+        name = evaluate(name_expr, self)
+        if name.__class__ is not str or not name:
+            raise ProgramAlarm(ALARM_SYNTAX, "CALL needs a program name")
+        name = name.upper()
+        try:
+            found = self.env.find_program(name, frame.source.path)
+        except Exception:
+            found = None
+        if found is None:
+            if _STANDARD_CYCLE.fullmatch(name):
+                self._log_once(name, f"{name}: a standard cycle, not emulated (no motion)")
+                return None
+            if args is None:
+                raise undefined(name)
+            raise ProgramAlarm(ALARM_PROGRAM_NOT_FOUND, f"program {name} not existing")
+        path, text = found
+        if frame.depth + 1 > MAX_CALL_DEPTH:
+            raise ProgramAlarm(ALARM_CALL_DEPTH, f"{name}: subprograms nested deeper than {MAX_CALL_DEPTH} levels")
+        source = self._sources.get(path)
+        if source is None or source.text != text.replace("\r\n", "\n"):
+            source = ProgramSource(path, text, subprogram=True)
+            self._sources[path] = source
+            self._caches.pop(id(source), None)
+        values = tuple(None if arg is None else evaluate(arg, self) for arg in (args or ()))
+        refs = tuple(getattr(arg, "lvalue", None) for arg in (args or ()))
+        count = 1 if repeat is None else int(number(evaluate(repeat, self)))
+        if count < 1:
+            return None
+        self._enter(source, values, refs, count - 1)
+        return None
+
+    def _enter(self, source: ProgramSource, values: tuple, refs: tuple, repeat_left: int) -> None:
+        depth = self._frame.depth + 1  # type: ignore[union-attr]
+        frame = _Frame(source, 0, 1, depth)
+        params: list = []
+        save = False
+        if source.proc_offset >= 0:
+            end = source.text.find("\n", source.proc_offset)
+            header = source.text[source.proc_offset: len(source.text) if end < 0 else end]
+            body = strip_comment(header).strip()
+            tokens = tokenize(body)
+            parser = Parser(tokens, self._resolve)
+            while not parser.at_name("PROC"):
+                parser.pos += 1
+            parser.pos += 1
+            _, params = self._compiler.proc_header(parser)
+            save = any(token[0] == NAME and token[1] == "SAVE" for token in tokens[parser.pos:])
+            frame.pos = len(source.text) if end < 0 else end + 1
+            frame.line = source.line_number(source.proc_offset) + 1
+        if len(values) > len(params):
+            raise ProgramAlarm(ALARM_SYNTAX, f"{len(values)} parameters given, the program takes {len(params)}")
+        for index, (param, kind, by_reference, dims) in enumerate(params):
+            variable = Variable(param, kind, tuple(d for d in dims if isinstance(d, int)))
+            value = values[index] if index < len(values) else None
+            if value is not None:
+                if variable.dims:
+                    raise ProgramAlarm(ALARM_SYNTAX, f"{param}: arrays are passed with VAR")
+                variable.set((), value)
+            frame.vars[param] = variable
+            if by_reference and index < len(refs) and refs[index] is not None:
+                frame.back_refs.append((refs[index], param))
+        frame.saved_modal = self._snapshot_modal() if save else None
+        frame.repeat_left = repeat_left
+        frame.call_args = (values, refs)
+        self._stack.append(frame)
+        self._frame = frame
+
+    def _return(self) -> None:
+        frame = self._stack.pop()
+        self._frame = self._stack[-1]
+        for ref, param in frame.back_refs:
+            self._assign(ref, frame.vars[param].get(()))
+        if frame.saved_modal is not None:
+            self._restore_modal(frame.saved_modal)
+        if frame.repeat_left > 0:
+            values, refs = frame.call_args
+            self._enter(frame.source, values, refs, frame.repeat_left - 1)
+
+    # --- the words of a block ---------------------------------------------------------------------
+    def _g(self, code: int, flags: dict) -> None:
+        if code <= 3:
+            self.motion = code
+        elif code == 4:
+            flags["dwell"] = True
+        elif code == 9:
+            flags["g9"] = True
+        elif code in (90, 91):
+            self.absolute = code == 90
+        elif code in (17, 18, 19):
+            self.plane = f"G{code}"
+            if self.tool_length_mm:
+                self._update_shift()
+        elif code in (94, 95, 93):
+            self.feed_mode = f"G{code}"
+        elif code in (70, 71):
+            self.inch_geometry = code == 70
+            self.inch_feed = False
+        elif code in (700, 710):
+            self.inch_geometry = self.inch_feed = code == 700
+        elif code == 60:
+            self.exact_stop = True
+        elif code == 64 or 641 <= code <= 645:
+            self.exact_stop = False
+        elif code in (53, 153):
+            flags["supa"] = True
+        elif code == 500 or 54 <= code <= 57 or 505 <= code <= 599:
+            self._load_settable(f"G{code}")
+        elif code in (25, 26):
+            flags["limit"] = True
+        elif code in _SETTLED_G:
+            self._log_once(f"G{code}", f"G{code} accepted, not modelled")
+        else:
+            raise ProgramAlarm(ALARM_UNKNOWN_G, f"G function G{code} unknown")
+
+    def _words(self, items: list, frame: _Frame, pos: int) -> list[Event] | None:
+        flags: dict[str, Any] = {}
+        axis_words: list[tuple[str, Any, Any]] = []
+        address: dict[str, Any] = {}
+        m_codes: list[tuple[int, int]] = []
+        message: Any = None
+        jump = call = None
+        ret = False
+        spos: list[int] = []
+        for item in items:
+            code = item[0]
+            if code == b.I_AXIS:
+                value = item[2]
+                axis_words.append((item[1], value(self) if value.__class__ is _FUNCTION else value, item[3]))
+            elif code == b.I_G:
+                self._g(item[1], flags)
+                if item[2] is not None:
+                    self._log_once(item[2], f"{item[2]}: runs as straight moves through its points")
+            elif code == b.I_ADDR:
+                letter = item[1]
+                value = item[2]
+                if value.__class__ is _FUNCTION:
+                    value = value(self)
+                if letter == "M":
+                    m_codes.append((item[3], _m_code(value)))
+                elif letter in ("I", "J", "K"):
+                    address[letter] = (value, item[3] or None)
+                elif letter == "S":
+                    address[f"S{item[3] or 1}"] = value
+                elif letter == "L":
+                    call = (f"L{int(number(value))}", [], None)
+                elif letter == "E":
+                    raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "name E not defined (no axis E)")
+                else:
+                    address[letter] = value
+            elif code == b.I_ASSIGN:
+                value = item[2]
+                self._assign(item[1], value(self) if value.__class__ is _FUNCTION else value)
+            elif code == b.I_SUPA:
+                flags["supa"] = True
+            elif code == b.I_MSG:
+                message = to_text(evaluate(item[1], self))
+            elif code == b.I_JUMP:
+                jump = (item[1], item[2])
+            elif code == b.I_CALL:
+                call = (item[1], item[2], item[3])
+            elif code == b.I_RET:
+                ret = True
+            elif code == b.I_FRAME:
+                self._frame_instruction(item[1], item[2])
+            elif code == b.I_SETTING:
+                indices = tuple(evaluate(i, self) for i in item[2])
+                if len(indices) != 1:
+                    raise ProgramAlarm(ALARM_SYNTAX, f"{item[1]}[axis]=value")
+                self._settings[(item[1], self._axis_name(indices[0]))] = evaluate(item[3], self)
+            elif code == b.I_FILL:
+                kind, name, indices = item[1]
+                variable = self._variable(name) if kind == "VAR" else None
+                if variable is None:
+                    raise undefined(name if isinstance(name, str) else "R")
+                variable.fill(tuple(evaluate(i, self) for i in indices),
+                              [evaluate(v, self) for v in item[3]], repeat=item[2] == "REP")
+            elif code == b.I_MCALL:
+                self._modal_call = None if item[1] is None else (item[1], item[2])
+            elif code == b.I_SPOS:
+                spos.append(item[1])
+            elif code == b.I_SETAL:
+                self._setal(evaluate(item[1], self))
+            elif code == b.I_NOOP:
+                if item[1] != "N":
+                    self._log_once(item[1], f"{item[1]} accepted, not modelled")
+        events: list[Event] = []
+        if message is not None:
+            events.append(Message(message))
+        self._tool_words(address, m_codes, events)
+        self._spindle_words(address, m_codes, spos, flags, events)
+        if "F" in address and not flags.get("dwell"):
+            feed = float(number(address["F"]))
+            self.feed_mm = feed * INCH_MM if (self.inch_feed and self.feed_mode != "G93") else feed
+        for extension, m_code in m_codes:
+            if m_code not in (3, 4, 5) and m_code not in _END_CODES:
+                events.append(MFunction(m_code, extension))
+        moved = False
+        if flags.get("dwell"):
+            if axis_words:
+                raise ProgramAlarm(ALARM_SYNTAX, "G4 stands in a block of its own")
+            if "F" in address:
+                events.append(Dwell(seconds=float(number(address["F"]))))
+            elif "S1" in address:
+                events.append(Dwell(spindle_revolutions=float(number(address["S1"]))))
+            else:
+                raise ProgramAlarm(ALARM_SYNTAX, "G4 needs F (seconds) or S (revolutions)")
+        elif axis_words or "I" in address or "J" in address or "K" in address or "CR" in address:
+            events.append(self._motion(axis_words, address, flags))
+            moved = True
+        end_code = None
+        for extension, m_code in m_codes:
+            if m_code in _END_CODES:
+                events.append(MFunction(m_code, extension))
+                if m_code in (2, 30, 17):
+                    end_code = m_code
+        if moved and self._modal_call is not None and call is None:
+            call = (self._modal_call[0], self._modal_call[1], None)
+        if end_code is not None or ret:
+            if frame.depth == 0:
+                events.append(ProgramEnd(end_code if end_code is not None else 0))
+                return events
+            self._return()
+            return events
+        if call is not None:
+            self._call(call[0], call[1], call[2], frame)
+        if jump is not None:
+            self._jump(frame, jump[0], jump[1], pos)
+        return events
+
+    def _setal(self, value: Any) -> None:
+        number_value = int(number(value))
+        if 60000 <= number_value <= 64999:
+            raise ProgramAlarm(number_value, f"cycle alarm {number_value} (SETAL)")
+        self._log_once(f"SETAL{number_value}", f"SETAL({number_value}): alarm shown, program continues")
+
+    def _tool_words(self, address: dict, m_codes: list, events: list) -> None:
+        has_t = "T" in address
+        has_d = "D" in address
+        change = any(m_code == 6 for _, m_code in m_codes)
+        if not (has_t or has_d or change):
+            return
+        tool: int | str | None = None
+        if has_t:
+            value = address["T"]
+            tool = value.upper() if value.__class__ is str else int(number(value))
+            self.preselected = tool
+        direct = getattr(self.env, "tool_change_mode", 1) == 0
+        if change or (has_t and direct):
+            self.tool = self.preselected
+            tool = self.tool
+            change = True
+            self.edge = 1
+        edge = None
+        if has_d:
+            edge = int(number(address["D"]))
+            self.edge = edge
+        elif change:
+            edge = self.edge
+        if change or has_d:
+            self._update_tool_length()
+        events.append(ToolSelect(tool=tool, edge=edge, change=change))
+
+    def _spindle_words(self, address: dict, m_codes: list, spos: list, flags: dict, events: list) -> None:
+        directions: dict[int, str] = {}
+        for extension, m_code in m_codes:
+            if m_code in (3, 4, 5):
+                directions[extension or 1] = f"M{m_code}"
+        for spindle in spos:
+            directions[spindle] = "M5"
+        speeds: dict[int, float] = {}
+        if not flags.get("dwell") and not flags.get("limit"):
+            for key, value in address.items():
+                if key[0] == "S" and key[1:].isdigit():
+                    speed = float(number(value))
+                    speeds[int(key[1:])] = speed
+                    self.spindle_speed[int(key[1:])] = speed
+        for spindle in sorted(set(directions) | set(speeds)):
+            events.append(SpindleCommand(spindle=spindle, speed_rpm=speeds.get(spindle),
+                                         direction=directions.get(spindle)))  # type: ignore[arg-type]
+
+    def _frame_instruction(self, word: str, pairs: list) -> None:
+        if word in ("ROT", "SCALE", "MIRROR", "AROT", "ASCALE", "AMIRROR") and pairs:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{word} with values is not supported by the emulator")
+        if word in ("TRANS", "ROT", "SCALE", "MIRROR"):
+            self.trans = {}
+        for axis, raw in pairs:
+            value = float(number(evaluate(raw, self)))
+            if not self._is_rotary(axis) and self.inch_geometry:
+                value *= INCH_MM
+            self.trans[axis] = self.trans.get(axis, 0.0) + value
+        self._update_shift()
+
+    def _motion(self, axis_words: list, address: dict, flags: dict) -> Event:
+        suppress = bool(flags.get("supa"))
+        shift = self.shift
+        work_pos = self.work_pos
+        inch = self.inch_geometry
+        absolute = self.absolute
+        targets: dict[str, float] = {}
+        programmed: dict[str, float] = {}
+        start_machine = {axis: work_pos[axis] + shift.get(axis, 0.0) for axis in _PLANES[self.plane][:2]
+                         if axis in work_pos}
+        for axis, raw, mode in axis_words:
+            value = raw if raw.__class__ is float else float(number(raw))
+            unit = INCH_MM if inch and not self._is_rotary(axis) else 1.0
+            incremental = mode == "IC" or (mode is None and not absolute)
+            offset = shift.get(axis, 0.0)
+            if suppress:
+                machine = (work_pos[axis] + offset + value * unit) if incremental else value * unit
+                work = machine - offset
+                programmed[axis] = machine / unit
+            else:
+                work = (work_pos[axis] + value * unit) if incremental else value * unit
+                machine = work + offset
+                programmed[axis] = work / unit
+            work_pos[axis] = work
+            targets[axis] = machine
+        exact_stop = self.exact_stop or bool(flags.get("g9"))
+        motion = self.motion
+        if motion == 0:
+            return Move(targets, None, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
+        if self.feed_mm <= 0:
+            raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
+        if motion == 1:
+            return Move(targets, self.feed_mm, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
+        return self._arc(targets, programmed, start_machine, address, flags, exact_stop)
+
+    def _arc(self, targets: dict, programmed: dict, start: dict, address: dict, flags: dict,
+             exact_stop: bool) -> Arc:
+        first, second, _ = _PLANES[self.plane]
+        if first not in start or second not in start:
+            raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"{self.plane}: the plane's axes are not in this channel")
+        inch = INCH_MM if self.inch_geometry else 1.0
+        end = {axis: targets.get(axis, start[axis]) for axis in (first, second)}
+        base = {axis: (0.0 if flags.get("supa") else self.shift.get(axis, 0.0)) for axis in (first, second)}
+        clockwise = self.motion == 2
+        if "CR" in address:
+            radius = float(number(address["CR"])) * inch
+            centre = _centre_from_radius(start, end, radius, clockwise, first, second)
+        else:
+            words = [_CENTRE_WORD.get(first), _CENTRE_WORD.get(second)]
+            if not any(word in address for word in words if word):
+                raise ProgramAlarm(ALARM_CIRCLE_END_POINT, "circle without centre (I, J, K) or radius (CR=)")
+            centre = {}
+            for axis, word in zip((first, second), words, strict=True):
+                value, mode = address.get(word, (0.0, None)) if word else (0.0, None)
+                value = float(number(value)) * inch
+                centre[axis] = value + base[axis] if mode == "AC" else start[axis] + value
+            radius_start = math.dist((start[first], start[second]), (centre[first], centre[second]))
+            radius_end = math.dist((end[first], end[second]), (centre[first], centre[second]))
+            tolerance = max(CIRCLE_ERROR_CONST_MM, CIRCLE_ERROR_FACTOR * max(radius_start, radius_end))
+            if abs(radius_start - radius_end) > tolerance:
+                raise ProgramAlarm(ALARM_CIRCLE_END_POINT,
+                                   f"error in end point of circle (radii {radius_start:.4f} and {radius_end:.4f} mm)")
+        turns = int(number(address.get("TURN", 0)))
+        if "AR" in address or "AP" in address or "RP" in address:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "AR/AP/RP circles are not supported by the emulator")
+        return Arc(targets, centre, clockwise, self.plane, self.feed_mm, self.feed_mode,  # type: ignore[arg-type]
+                   turns, exact_stop, programmed)
+
+
+def _centre_from_radius(start: dict, end: dict, radius: float, clockwise: bool, first: str,
+                        second: str) -> dict[str, float]:
+    dx = end[first] - start[first]
+    dy = end[second] - start[second]
+    chord = math.hypot(dx, dy)
+    size = abs(radius)
+    if chord == 0 or size == 0 or chord > 2 * size + CIRCLE_ERROR_CONST_MM:
+        raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"error in end point of circle (CR={radius / 1:.4f} mm)")
+    height = math.sqrt(max(size * size - chord * chord / 4, 0.0))
+    # counter-clockwise with the short arc (CR > 0): centre on the left of the chord
+    side = 1.0 if (not clockwise) == (radius > 0) else -1.0
+    return {first: start[first] + dx / 2 - side * height * dy / chord,
+            second: start[second] + dy / 2 + side * height * dx / chord}
+
+
+def _m_code(value: Any) -> int:
+    code = number(value)
+    if code.__class__ is float:
+        if code != int(code):
+            raise ProgramAlarm(ALARM_SYNTAX, f"M{code} is not an M function")
+        code = int(code)
+    if code < 0:
+        raise ProgramAlarm(ALARM_SYNTAX, f"M{code} is not an M function")
+    return code
+
+
+_FUNCTION = type(lambda: None)
+__all__ = ["Interpreter"]
