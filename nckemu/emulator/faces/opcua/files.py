@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
 
+from nckemu.catalogue.program_names import program_path as nc_program_path
 from nckemu.emulator.faces.opcua import request
 from nckemu.emulator.faces.opcua.settings import may
-from nckemu.emulator.machine.nck import programs as program_store
 from nckemu.errors import NckNoSuchFile, NckPiBadArguments, NckPiStateError
 
 if TYPE_CHECKING:
@@ -34,7 +34,7 @@ def program_path(text: str) -> str | None:
         if match:
             return f"/_N_MPF_DIR/_N_{match['name'].upper()}_MPF"
     try:  # the names the control and users write
-        return program_store.program_path(text)
+        return nc_program_path(text)
     except NckPiBadArguments:
         return None
 
