@@ -203,6 +203,20 @@ async def _subscribe_transitions(client: Client, handler: Any) -> None:
         await subscription.subscribe_events(client.nodes.server, event_type)
 
 
+async def _ids(client: Client, machine: str) -> dict[str, Any]:
+    """The state and transition nodes CurrentState/Id and LastTransition/Id name: their browse names, and
+    whether the Number beside each is that node's StateNumber / TransitionNumber."""
+    found = {}
+    for key, variable, number_name in (("state", "CurrentState", "StateNumber"),
+                                       ("transition", "LastTransition", "TransitionNumber")):
+        node = client.get_node(await _instance(client, f"{machine}/{variable}/Id"))
+        number = await _instance(client, f"{machine}/{variable}/Number")
+        numbers = [await child.read_value() for child in await node.get_properties()
+                   if (await child.read_browse_name()).Name == number_name]
+        found[key] = ((await node.read_browse_name()).Name, numbers == [number])
+    return found
+
+
 # CncChannelProgramStatus as the SINUMERIK progStatus says it (1 interrupted, 2 stopped, 3 running, 4 waiting)
 CNC_OF_PROG_STATUS = {1: 3, 2: 0, 3: 1, 4: 2}
 
@@ -298,12 +312,15 @@ def test_a_channel_that_does_not_tell_is_followed(faces: tuple[EmulatorThread, O
                 _on_loop(emulator, action)
                 states.append((await _until(client, wanted, 5.0))["program"])
             await asyncio.sleep(0.5)
+            ids.update(await _ids(client, f"{ACTIVE}/State"))
             return states
         finally:
             await client.disconnect()
 
+    ids: dict[str, Any] = {}
     states = asyncio.run(go())
     assert states[1:] == ["Running", "Interrupted", "Aborted"]
+    assert ids == {"state": ("Aborted", True), "transition": ("InterruptedToAborted", True)}
     program = [(_text(event.Transition), _text(event.FromState), _text(event.ToState), event.Name)
                for event in events if hasattr(event, "JobIdentifier")]
     assert program == [("InitializingToRunning", "Initializing", "Running", ""),
