@@ -1,8 +1,10 @@
 """umati Production: the ActiveProgram's and the job's state machines over the life of a program.
 
 ``ProgramTracker`` follows channel 1's program: the channel tells it each step (``on_change``: selected,
-started, interrupted, resumed, ended, aborted, unselected), or, for a channel that does not tell, it looks
-at the channel's state every sample and works the steps out (``program_states.events_between``). It
+started, interrupted, resumed, ended, aborted, unselected); a change of the channel's state it did not
+tell as a step (a recording runs the channel without a program) is worked out from how the channel looks
+(``program_states.events_between``), at each change (``state_listeners``) or, for a channel that tells
+nothing, every half sample interval. It
 moves the two state machines of ``program_states.py`` at once, under a lock, so a read right after the
 channel acted sees the new state; the transition events go out afterwards, in order, from one task on
 the face's loop.
@@ -145,6 +147,11 @@ class ProgramTracker:
         self._lock = threading.Lock()
         self.listeners: list[Callable[[list[Step], list[Step]], None]] = []
         self.tells = isinstance(getattr(self.channel, "on_change", None), list)
+        # A channel that tells its program's steps may still change its state without a step (a
+        # recording runs it without a program): its state listeners catch those changes.
+        listeners = getattr(self.channel, "state_listeners", None)
+        self._state_listeners: list[Any] | None = listeners if isinstance(listeners, list) else None
+        self._told = False  # a step told since the last look
         self._look = self.look()
         self._poller: asyncio.Task[None] | None = None
 
@@ -152,12 +159,16 @@ class ProgramTracker:
         """Listen to the channel, or look at it every ``interval_s`` when it does not tell."""
         if self.tells:
             self.channel.on_change.append(self.tell)
+            if self._state_listeners is not None:
+                self._state_listeners.append(self._state_changed)
         else:
             self._poller = asyncio.get_running_loop().create_task(self._poll_forever(interval_s))
 
     async def stop(self) -> None:
         if self.tells and self.tell in self.channel.on_change:
             self.channel.on_change.remove(self.tell)
+        if self._state_listeners is not None and self._state_changed in self._state_listeners:
+            self._state_listeners.remove(self._state_changed)
         if self._poller is not None:
             self._poller.cancel()
             try:
@@ -181,11 +192,26 @@ class ProgramTracker:
 
     def look(self) -> ChannelLook:
         state = self.channel.state
-        return ChannelLook(int(state.program_status), str(self.emulator.nck.programs.selected),
-                           float(getattr(state, "total_parts", 0.0)))
+        selected = getattr(self.channel, "selected", None)
+        if not isinstance(selected, str):
+            selected = self.emulator.nck.programs.selected
+        return ChannelLook(int(state.program_status), str(selected), float(getattr(state, "total_parts", 0.0)))
 
     def tell(self, event: str) -> None:
         """The channel did ``event`` (any thread)."""
+        self._told = True
+        self._step(event)
+
+    def _state_changed(self, _channel: Any) -> None:
+        """The channel's state changed: steps it did not tell are worked out from how it looks."""
+        look = self.look()
+        before, self._look = self._look, look
+        told, self._told = self._told, False
+        if not told:
+            for event in events_between(before, look):
+                self._step(event)
+
+    def _step(self, event: str) -> None:
         with self._lock:
             program_steps = self.program.on(event)
             job_steps: list[Step] = []
@@ -208,7 +234,7 @@ class ProgramTracker:
         look = self.look()
         before, self._look = self._look, look
         for event in events_between(before, look):
-            self.tell(event)
+            self._step(event)
 
     def program_moment(self) -> Moment:
         with self._lock:
