@@ -323,6 +323,7 @@ def test_subscriptions_follow_the_machine(faces: tuple[EmulatorThread, OpcUaFace
             await asyncio.sleep(0.5)
             model = emulator.emulator.nck
             model.add_program("/_N_MPF_DIR/_N_UMATI_MPF")
+            model.programs.write("/_N_MPF_DIR/_N_UMATI_MPF", b"G4 F60\nM30\n")  # runs until the reset
             with NckClient("127.0.0.1", emulator.port) as nck:
                 nck.pi_service("_N_SELECT", "201", "/_N_MPF_DIR/_N_UMATI_MPF")  # sampled: no write
                 nck.put({"NCKEMU_CHAN_COMMAND[C1]": 1})   # start: active, running
