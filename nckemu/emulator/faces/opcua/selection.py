@@ -79,7 +79,8 @@ def unselect(face: OpcUaFace, channel_number: Any) -> int:
     if channel is None:
         return NO_CHANNEL
     programs = face.emulator.nck.programs
-    if not programs.selected:
+    selected = getattr(channel, "selected", programs.selected)  # each channel its own, where it keeps one
+    if not selected:
         return NOTHING_SELECTED
     if channel.state.status == CHAN_ACTIVE:
         return RUNNING
