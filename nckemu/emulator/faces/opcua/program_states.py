@@ -118,9 +118,10 @@ class JobStates(_StateMachine):
         return steps
 
 
-# progStatus (BTSS): 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted
-_PAUSED = (1, 2, 4)
-_RUNNING_STATUS = 3
+# progStatus (BTSS): 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted. A program waiting (a
+# dwell, a wait mark) still runs: umati has no waiting state, CNC shows it (ActProgramStatus Waiting).
+_PAUSED = (1, 2)
+_RUNNING = (3, 4)
 _ABORTED_STATUS = 5
 
 
@@ -142,10 +143,10 @@ def events_between(before: ChannelLook, after: ChannelLook) -> list[str]:
         events.append("selected" if after.selected else "unselected")
     was, now = before.program_status, after.program_status
     counted = after.total_parts > before.total_parts
-    if now == _RUNNING_STATUS and was != _RUNNING_STATUS:
+    if now in _RUNNING and was not in _RUNNING:
         events.append("resumed" if was in _PAUSED else "started")
     elif now in _PAUSED and was not in _PAUSED:
-        if was != _RUNNING_STATUS:
+        if was not in _RUNNING:
             events.append("started")
         events.append("interrupted")
     elif now == _ABORTED_STATUS and was != _ABORTED_STATUS:
