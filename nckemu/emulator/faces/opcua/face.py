@@ -34,7 +34,7 @@ from asyncua.crypto.permission_rules import User as UaUser
 from asyncua.server.address_space import AttributeService, AttributeValue, NodeData
 
 from nckemu.catalogue.node_ids import NcNodeName, NodeName, PlcNodeName, node_paths, parse_node_id
-from nckemu.emulator.faces.opcua import files, request, security, transport, users
+from nckemu.emulator.faces.opcua import files, request, security, selection, transport, users
 from nckemu.emulator.faces.opcua import shelf as address_cache
 from nckemu.emulator.faces.opcua.alarms import ALARM_RIGHTS, AlarmEvents
 from nckemu.emulator.faces.opcua.models import Models
@@ -148,6 +148,7 @@ class OpcUaFace:
         await self.models.start(server)
         methods = await files.add_methods(self, server)
         await users.add_methods(self, server, methods, self.users)
+        await selection.add_methods(self, server, methods)
         await self.alarm_events.start(server)
         transport.install(server)  # hostile input answered with OPC UA errors, half-open connections closed
         # A port in use reaches the caller as OSError (serve says so in one line); asyncua would also

@@ -1,7 +1,9 @@
 """Methods under ``Sinumerik/Methods``: GetMyAccessRights, CopyFileToServer, CopyFileFromServer.
 
 Part programs live in the emulator's program store, the ``_N_MPF_DIR`` the PI services select from:
-``Sinumerik/FileSystem/Part Program/PART1.MPF`` is ``/_N_MPF_DIR/_N_PART1_MPF``.
+``Sinumerik/FileSystem/Part Program/PART1.MPF`` is ``/_N_MPF_DIR/_N_PART1_MPF``; the names the control
+and users write (``/_N_SPF_DIR/_N_CYCLE_SPF``, ``CYCLE.SPF``) are taken too. A program is written and read
+whole through the store (``Programs.write``/``read``); the program a channel runs is not replaced.
 """
 
 from __future__ import annotations
@@ -12,8 +14,10 @@ from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
 
+from nckemu.catalogue.program_names import program_path as nc_program_path
 from nckemu.emulator.faces.opcua import request
 from nckemu.emulator.faces.opcua.settings import may
+from nckemu.errors import NckNoSuchFile, NckPiBadArguments, NckPiStateError
 
 if TYPE_CHECKING:
     from nckemu.emulator.faces.opcua.face import OpcUaFace
@@ -29,7 +33,10 @@ def program_path(text: str) -> str | None:
         match = pattern.match(text.strip())
         if match:
             return f"/_N_MPF_DIR/_N_{match['name'].upper()}_MPF"
-    return None
+    try:  # the names the control and users write
+        return nc_program_path(text)
+    except NckPiBadArguments:
+        return None
 
 
 def _plain(argument: Any) -> Any:
@@ -69,8 +76,10 @@ async def add_methods(face: OpcUaFace, server: Server) -> Any:
             return _bad("BadInvalidArgument")
         if target in programs.paths and not overwrite:
             return _bad("BadInvalidState")
-        programs.add(target)
-        programs.texts[target] = bytes(data)
+        try:
+            programs.write(target, bytes(data))
+        except NckPiStateError:  # the program a channel is running
+            return _bad("BadInvalidState")
         face.emulator.saves.request()  # the program store is retained data (serve --state)
         await face.emulator.saves.durable()
         return []
@@ -83,9 +92,11 @@ async def add_methods(face: OpcUaFace, server: Server) -> Any:
         target = program_path(path) if isinstance(path, str) else None
         if target is None:
             return _bad("BadInvalidArgument")
-        if target not in programs.paths:
+        try:
+            text = programs.read(target)
+        except NckNoSuchFile:
             return _bad("BadNotFound")
-        return [ua.Variant(programs.texts.get(target, b""), ua.VariantType.ByteString)]
+        return [ua.Variant(text, ua.VariantType.ByteString)]
 
     def argument(name: str, kind: ua.VariantType) -> ua.Argument:
         return ua.Argument(Name=name, DataType=ua.NodeId(kind.value), ValueRank=-1, ArrayDimensions=[],

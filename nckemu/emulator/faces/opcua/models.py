@@ -27,6 +27,7 @@ from asyncua.server.address_space import AttributeValue
 from nckemu.emulator.faces.opcua import cnc, nodesets, request, umati
 from nckemu.emulator.faces.opcua.feeds import FedMonitored, Feed
 from nckemu.emulator.faces.opcua.instances import Instantiator, Types
+from nckemu.emulator.faces.opcua.production import ProgramTracker
 from nckemu.emulator.faces.opcua.settings import may
 from nckemu.emulator.faces.opcua.values import UaStatus
 
@@ -61,6 +62,7 @@ class Models:
         self.instance_namespace = 0
         self.parts: list[Any] = []
         self.nodes_made = 0
+        self.trackers: dict[int, ProgramTracker] = {}  # the program life of each channel shown (production.py)
 
     @property
     def on(self) -> bool:
@@ -108,12 +110,23 @@ class Models:
         if "CNC" in self.wanted:
             self.parts.append(cnc.CncInterfaceInstance(self, maker).build())
         self.nodes_made = maker.made
+        for tracker in self.trackers.values():
+            await tracker.start(self.face.settings.sample_interval_ms / 1000.0 / 2)
         for part in self.parts:
             await part.start(server)
 
     async def stop(self) -> None:
         for part in self.parts:
             await part.stop()
+        for tracker in self.trackers.values():
+            await tracker.stop()
+
+    def tracker(self, channel: int) -> ProgramTracker:
+        """Channel ``channel``'s program life, one per face for every model that shows it."""
+        found = self.trackers.get(channel)
+        if found is None:
+            found = self.trackers[channel] = ProgramTracker(self.face.emulator, channel)
+        return found
 
     def ns(self, uri: str) -> int:
         return self.namespaces[uri]
