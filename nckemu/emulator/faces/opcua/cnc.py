@@ -24,7 +24,7 @@ from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Inst
 from nckemu.emulator.faces.opcua.values import raw_reader
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.models import Models
+    from nckemu.emulator.faces.opcua.parts import ModelValues
 
 # SINUMERIK codes -> OPC 40502 enumerations (ours, docs/assumptions.md)
 OPERATION_MODE = {0: 0, 1: 1, 2: 2}          # opMode JOG/MDA/AUTO -> CncOperationMode Manual/MDA/Automatic
@@ -54,7 +54,7 @@ def _first(kind: ua.VariantType, mapping: dict[int, int] | None = None) -> Calla
 
 
 class CncInterfaceInstance:
-    def __init__(self, models: Models, maker: Instantiator) -> None:
+    def __init__(self, models: ModelValues, maker: Instantiator) -> None:
         self.models, self.maker = models, maker
         self.face = models.face
         self.emulator = models.face.emulator

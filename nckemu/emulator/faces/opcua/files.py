@@ -16,7 +16,7 @@ from nckemu.emulator.faces.opcua import request
 from nckemu.emulator.faces.opcua.settings import may
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.face import OpcUaFace
+    from nckemu.emulator.faces.opcua.parts import MethodHost
 
 MAX_PROGRAM_BYTES = 16 * 1024 * 1024
 _UA_PATH = re.compile(r"^/?sinumerik/filesystem/part program/(?P<name>[A-Za-z0-9_]{1,24})\.mpf$", re.IGNORECASE)
@@ -41,7 +41,7 @@ def _bad(name: str) -> ua.StatusCode:
     return ua.StatusCode(getattr(ua.StatusCodes, name))
 
 
-async def add_methods(face: OpcUaFace, server: Server) -> Any:
+async def add_methods(face: MethodHost, server: Server) -> Any:
     ns = face.namespace
     root = await server.nodes.objects.get_child([f"{ns}:Sinumerik"])
     methods = await root.add_object(ua.NodeId("/Methods", ns), ua.QualifiedName("Methods", ns))

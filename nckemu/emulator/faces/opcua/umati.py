@@ -43,7 +43,7 @@ from nckemu.emulator.machine.nck.alarms import AlarmEvent
 from nckemu.protocol.addresses import S7Area
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.models import Models
+    from nckemu.emulator.faces.opcua.parts import ModelValues
 
 log = logging.getLogger("nckemu.emulator.opcua.umati")
 
@@ -83,7 +83,7 @@ def _uint32(raw: object) -> ua.Variant:
 class MachineToolInstance:
     """The MachineTool instance of one face, built from the types in its address space."""
 
-    def __init__(self, models: Models, maker: Instantiator) -> None:
+    def __init__(self, models: ModelValues, maker: Instantiator) -> None:
         self.models = models
         self.maker = maker
         self.face = models.face

@@ -23,7 +23,7 @@ from nckemu.emulator.faces.opcua import request
 from nckemu.emulator.faces.opcua.settings import RIGHTS, OpcUaSettings
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.face import OpcUaFace
+    from nckemu.emulator.faces.opcua.parts import MethodHost
 
 MAX_USERS = 20
 MAX_TEXT = 128
@@ -162,7 +162,7 @@ class UserRegistry:
         self.accounts = accounts
 
 
-async def add_methods(face: OpcUaFace, server: Server, methods: Any, registry: UserRegistry) -> None:
+async def add_methods(face: MethodHost, server: Server, methods: Any, registry: UserRegistry) -> None:
     """The user-management methods on the ``Methods`` object (``methods``, made by ``files.add_methods``)."""
     ns = face.namespace
     text, texts = ua.VariantType.String, ua.VariantType.String
