@@ -21,6 +21,15 @@ from nckemu import __version__
 from nckemu.emulator.faces.opcua import nodesets
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
+from nckemu.emulator.faces.opcua.units import (
+    DEGREE,
+    KILOWATT,
+    MILLIMETRE,
+    MILLIMETRE_PER_MINUTE,
+    NEWTON_METRE,
+    PERCENT,
+    REVOLUTIONS_PER_MINUTE,
+)
 from nckemu.emulator.faces.opcua.values import raw_reader
 
 if TYPE_CHECKING:
@@ -32,10 +41,6 @@ CHANNEL_STATUS = {0: 2, 1: 0, 2: 1}          # chanStatus reset/active/interrupt
 # progStatus 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted -> CncChannelProgramStatus
 PROGRAM_STATUS = {1: 3, 2: 0, 3: 1, 4: 2, 5: 4}
 TURN_DIRECTION = {0: 2, 1: 0, 2: 1}          # turnState stopped/M3/M4 -> CncSpindleTurnDirection None/CW/CCW
-MILLIMETRE = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=5066068,
-                              DisplayName=ua.LocalizedText("mm"), Description=ua.LocalizedText("millimetre"))
-DEGREE = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=17476,
-                          DisplayName=ua.LocalizedText("°"), Description=ua.LocalizedText("degree"))
 
 
 def _first(kind: ua.VariantType, mapping: dict[int, int] | None = None) -> Callable[[object], ua.Variant]:
@@ -190,17 +195,16 @@ class CncInterfaceInstance:
         pass
 
 
-_UNITS = {  # UNECE codes (OPC UA's units): mm/min, %, rpm, kW, N·m
-    "Feedrate": ("mm/min", 4337453), "DryRunFeed": ("mm/min", 4337453), "Override": ("%", 20529),
-    "Speed": ("1/min", 4362574), "Power": ("kW", 4937544), "Torque": ("N·m", 5129559), "Load": ("%", 20529),
+_UNITS = {  # by the variable's name: UNECE common codes (units.py)
+    "Feedrate": MILLIMETRE_PER_MINUTE, "DryRunFeed": MILLIMETRE_PER_MINUTE, "Override": PERCENT,
+    "Speed": REVOLUTIONS_PER_MINUTE, "Power": KILOWATT, "Torque": NEWTON_METRE, "Load": PERCENT,
 }
 
 
 def _unit_of(path: str) -> ua.EUInformation:
-    for suffix, (text, code) in _UNITS.items():
+    for suffix, unit in _UNITS.items():
         if path.endswith(suffix):
-            return ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=code,
-                                    DisplayName=ua.LocalizedText(text), Description=ua.LocalizedText(text))
+            return unit
     return MILLIMETRE
 
 

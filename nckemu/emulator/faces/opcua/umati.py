@@ -38,6 +38,7 @@ from nckemu.emulator.faces.opcua.alarms import AlarmEventQueue, severity_of
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
 from nckemu.emulator.faces.opcua.settings import SIGNAL_COLORS
+from nckemu.emulator.faces.opcua.units import PERCENT
 from nckemu.emulator.faces.opcua.values import PLC_AREAS, raw_reader, read_value
 from nckemu.emulator.machine.nck.alarms import AlarmEvent
 from nckemu.protocol.addresses import S7Area
@@ -57,8 +58,6 @@ CHANNEL_MODE = {0: 2, 1: 1, 2: 0}
 CHANNEL_STATE = {0: 2, 1: 0, 2: 1}
 # progStatus 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted -> program and job states
 PROGRAM_STATE = {1: "Interrupted", 2: "Interrupted", 3: "Running", 4: "Interrupted", 5: "Aborted"}
-PERCENT = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=20529,
-                           DisplayName=ua.LocalizedText("%"), Description=ua.LocalizedText("percent"))
 
 
 def _int(kind: ua.VariantType, mapping: dict[int, int] | None = None, default: int = 0) -> Callable[[object], ua.Variant]:
