@@ -111,3 +111,106 @@ def test_every_engineering_unit_is_a_unece_common_code_with_its_unit_id(faces: t
     by_name = {path.rsplit("/", 2)[-2]: code for path, (code, _s, _n) in units.items()}
     assert by_name["ActPower"] == "KWT" and by_name["ActTorque"] == "NU" and by_name["ActSpeed"] == "RPM"
     assert by_name["ActFeedrate"] == "H81" and by_name["DryRunFeed"] == "H81" and by_name["ActLoad"] == "P1"
+
+
+# One writable variable of each realm that has variables, and read-only ones (no one writes them).
+WRITABLE = {"State": "/Channel/Parameter/R[u1,3]", "Frame": "/Nckemu/Channel/linShift",
+            "Sea": "/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]", "Tea": "/NC/_N_AX_TEA_ACX/$MA_TEMP_COMP_TYPE",
+            "Tool": "/Tool/Compensation/cuttEdgeParam", "Drive": "/DriveVsa/Drive/p0604", "Plc": "/Plc/MB10"}
+READ_ONLY = ["/Nckemu/Channel/actToolBasePos", "/DriveVsa/Drive/r0021", "/Channel/Configuration/numUserFrames",
+             "/NC/_N_NC_TEA_ACX/$MN_AXCONF_MACHAX_NAME_TAB"]
+RW = ua.AccessLevel.CurrentRead.mask | ua.AccessLevel.CurrentWrite.mask
+READ = ua.AccessLevel.CurrentRead.mask
+NS_URI = "SinumerikVarProvider"
+
+
+def _machine_with_users(tmp_path: Any) -> Any:
+    from importlib import resources
+
+    text = resources.files("nckemu.emulator.machine").joinpath("machines/default.toml").read_text("utf-8")
+    users = ['[opcua.users.reader]\npassword = "r"\nrights = ["SinuReadAll"]\n',
+             '[opcua.users.stateonly]\npassword = "s"\nrights = ["StateRead"]\n']
+    users += [f'[opcua.users.{realm.lower()}writer]\npassword = "w"\nrights = ["{realm}Write"]\n' for realm in WRITABLE]
+    machine = tmp_path / "users.toml"
+    machine.write_text(text + "\n" + "\n".join(users), encoding="utf-8")
+    return machine
+
+
+def _expected_level(rights: set[str], realm: str, access: int) -> int:
+    read = bool({"SinuReadAll", "SinuWriteAll", f"{realm}Read", f"{realm}Write"} & rights)
+    write = bool({"SinuWriteAll", f"{realm}Write"} & rights)
+    return access & ((READ if read else 0) | (ua.AccessLevel.CurrentWrite.mask if write else 0))
+
+
+def test_user_access_level_and_user_executable_follow_the_sessions_rights(tmp_path: Any) -> None:
+    sessions: dict[str, tuple[str | None, str | None, set[str]]] = {
+        "anonymous": (None, None, {"SinuReadAll"}), "reader": ("reader", "r", {"SinuReadAll"}),
+        "stateonly": ("stateonly", "s", {"StateRead"}), "writer": ("nckemu", "SUNRISE", {"SinuReadAll", "SinuWriteAll"}),
+    }
+    sessions |= {f"{realm.lower()}writer": (f"{realm.lower()}writer", "w", {f"{realm}Write"}) for realm in WRITABLE}
+    with two_faces(_machine_with_users(tmp_path)) as (_emulator, face):
+        async def session(user: str | None, password: str | None) -> dict[str, Any]:
+            client = await connect(face, user, password)
+            try:
+                ns = await client.get_namespace_index(NS_URI)
+                seen: dict[str, Any] = {}
+                for path in [*WRITABLE.values(), *READ_ONLY]:
+                    node = client.get_node(ua.NodeId(path, ns))
+                    access, user_access = await node.read_attributes(
+                        [ua.AttributeIds.AccessLevel, ua.AttributeIds.UserAccessLevel])
+                    seen[path] = (access.Value.Value, user_access.Value.Value)
+                methods = client.get_node(ua.NodeId("/Methods", ns))
+                for method in await methods.get_children():
+                    name = (await method.read_browse_name()).Name
+                    seen[name] = (await method.read_attribute(ua.AttributeIds.UserExecutable)).Value.Value
+                return seen
+            finally:
+                await client.disconnect()
+
+        for who, (user, password, rights) in sessions.items():
+            seen = run(session(user, password))
+            for realm, path in WRITABLE.items():
+                assert seen[path] == (RW, _expected_level(rights, realm, RW)), (who, path)
+            for path in READ_ONLY:
+                access, user_access = seen[path]
+                assert access == READ and user_access in (0, READ), (who, path)
+            logged_in = user is not None
+            assert seen["GetMyAccessRights"] is logged_in, who
+            assert seen["CopyFileFromServer"] is (logged_in and bool({"SinuReadAll", "FSRead"} & rights)), who
+            assert seen["AddUser"] is (user == "nckemu"), who
+            assert seen["AddCertificateUser"] is False
+
+
+def test_a_node_no_one_may_write_answers_bad_not_writable_to_everyone(faces: tuple[EmulatorThread, OpcUaFace]
+                                                                      ) -> None:
+    from .opcua_tools import write_status
+
+    face = faces[1]
+    for user, password in ((None, ""), ("nckemu", "SUNRISE")):
+        for path in READ_ONLY[:2]:
+            assert run(write_status(face, path, ua.Variant(1.0, ua.VariantType.Double), user, password)) \
+                == "BadNotWritable", (user, path)
+    # a writable variable and anonymous (read rights only): a rights question
+    assert run(write_status(face, WRITABLE["Sea"], ua.Variant(1.0, ua.VariantType.Double), None)) \
+        == "BadUserAccessDenied"
+
+    async def standard_and_model_nodes() -> list[str]:
+        client = await connect(face, "nckemu", "SUNRISE")
+        try:
+            statuses = []
+            nodes = [client.get_node(ua.NodeId(ua.ObjectIds.Server_ServerStatus_BuildInfo_ProductName))]
+            if face.models.on:
+                namespaces = await client.get_namespace_array()
+                cnc = await client.nodes.objects.get_child(f"{namespaces.index(nodesets.CNC)}:CncInterface")
+                nodes.append(await cnc.get_child(f"{namespaces.index(nodesets.CNC)}:VendorName"))
+            for node in nodes:
+                try:
+                    await node.write_value(ua.Variant("x", ua.VariantType.String))
+                    statuses.append("Good")
+                except ua.UaStatusCodeError as exc:
+                    statuses.append(type(exc).__name__)
+            return statuses
+        finally:
+            await client.disconnect()
+
+    assert set(run(standard_and_model_nodes())) == {"BadNotWritable"}

@@ -98,7 +98,15 @@ async def add_methods(face: MethodHost, server: Server) -> Any:
          [argument("path", text), argument("data", blob), argument("overwrite", flag)], []),
         ("CopyFileFromServer", copy_from_server, [argument("path", text)], [argument("data", blob)]),
     ]
+    # Who may call each (UserExecutable as the session reads it): as the handlers above decide.
+    executable: dict[str, Callable[[str, frozenset[str]], bool]] = {
+        "GetMyAccessRights": lambda user, _rights: bool(user),
+        "CopyFileToServer": lambda user, rights: bool(user) and may(rights, "FS", True),
+        "CopyFileFromServer": lambda user, rights: bool(user) and may(rights, "FS", False),
+    }
     for name, method, inputs, outputs in table:
-        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
-                                 request.with_arguments(method, len(inputs)), inputs, outputs)
+        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                        request.with_arguments(method, len(inputs)), inputs, outputs)
+        server.set_attribute_value_callback(node.nodeid, request.user_executable(executable[name]),
+                                            ua.AttributeIds.UserExecutable)
     return methods

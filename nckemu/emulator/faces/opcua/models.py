@@ -143,6 +143,10 @@ class Models:
         assert self.server is not None
         self.feeds[nodeid] = feed
         self.server.set_attribute_value_callback(nodeid, self._reader(feed))
+        access = self.server.iserver.aspace[nodeid].attributes[ua.AttributeIds.AccessLevel].value
+        level = access.Value.Value if access is not None and access.Value is not None else 0
+        self.server.set_attribute_value_callback(  # readable by the sessions that may read its realm
+            nodeid, request.user_access_level(int(level or 0), feed.realm), ua.AttributeIds.UserAccessLevel)
 
     def set(self, nodeid: ua.NodeId, variant: ua.Variant) -> None:
         """A value that does not change while the face runs (identification)."""

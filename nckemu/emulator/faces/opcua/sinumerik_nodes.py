@@ -40,6 +40,11 @@ def data_value(variant: ua.Variant) -> ua.DataValue:
     return ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
 
 
+def writable(name: NodeName) -> bool:
+    """Whether anyone may write the variable (the realm rights then decide who)."""
+    return not (isinstance(name, NcNodeName) and name.spec.read_only)
+
+
 class SinumerikNodes:
     """The face's SINUMERIK namespace (``namespace`` is its index once ``install`` ran)."""
 
@@ -75,8 +80,7 @@ class SinumerikNodes:
         node = NodeData(nodeid)
         text = str(nodeid.Identifier)
         kind = variant_type(name)
-        writable = not (isinstance(name, NcNodeName) and name.spec.read_only)
-        access = _ACCESS_RW if writable else ua.AccessLevel.CurrentRead.mask
+        access = _ACCESS_RW if writable(name) else ua.AccessLevel.CurrentRead.mask
         attributes = {
             ua.AttributeIds.NodeId: ua.Variant(nodeid, ua.VariantType.NodeId),
             ua.AttributeIds.NodeClass: ua.Variant(ua.NodeClass.Variable, ua.VariantType.Int32),
@@ -90,7 +94,6 @@ class SinumerikNodes:
             ua.AttributeIds.ValueRank: ua.Variant(1 if name.array else -1, ua.VariantType.Int32),
             ua.AttributeIds.ArrayDimensions: ua.Variant([name.count] if name.array else [], ua.VariantType.UInt32),
             ua.AttributeIds.AccessLevel: ua.Variant(access, ua.VariantType.Byte),
-            ua.AttributeIds.UserAccessLevel: ua.Variant(access, ua.VariantType.Byte),
             ua.AttributeIds.MinimumSamplingInterval: ua.Variant(float(ALLOWED_INTERVALS_MS[0]), ua.VariantType.Double),
             ua.AttributeIds.Historizing: ua.Variant(False, ua.VariantType.Boolean),
         }
@@ -99,6 +102,9 @@ class SinumerikNodes:
         value = AttributeValue(None)  # type: ignore[arg-type]
         value.value_callback = self._reader(name)
         node.attributes[ua.AttributeIds.Value] = value
+        user_access = AttributeValue(None)  # type: ignore[arg-type]
+        user_access.value_callback = request.user_access_level(access, name.realm)  # the session's rights
+        node.attributes[ua.AttributeIds.UserAccessLevel] = user_access
         return node
 
     def _reader(self, name: NodeName) -> Callable[[ua.NodeId, ua.AttributeIds], ua.DataValue]:
@@ -226,6 +232,19 @@ class _SinumerikAttributes(AttributeService):
             return status_value(exc.ua_status)
         return None
 
+    def _anyone_writes(self, nodeid: ua.NodeId, attribute: ua.AttributeIds) -> bool:
+        """Whether a client could write this attribute of a standard or companion-model node at all (an
+        unknown node is asyncua's to answer). Their UserAccessLevel is the same for every user."""
+        if nodeid not in self.nodes:
+            return True
+        if attribute != ua.AttributeIds.Value:
+            return False
+        write = ua.AccessLevel.CurrentWrite.mask
+        levels = [self.nodes.read_attribute_value(nodeid, level)
+                  for level in (ua.AttributeIds.AccessLevel, ua.AttributeIds.UserAccessLevel)]
+        return all(level.Value is not None and isinstance(level.Value.Value, int) and level.Value.Value & write
+                   for level in levels)
+
     async def write(self, params: ua.WriteParameters, user: UaUser = _ADMIN) -> list[ua.StatusCode]:
         face = self._face
         results: list[ua.StatusCode] = []
@@ -234,6 +253,9 @@ class _SinumerikAttributes(AttributeService):
             nodeid = item.NodeId
             ours = nodeid.NamespaceIndex == face.namespace and isinstance(nodeid.Identifier, str)
             if not ours:
+                if user.role != UserRole.Admin and not self._anyone_writes(nodeid, item.AttributeId):
+                    results.append(ua.StatusCode(ua.StatusCodes.BadNotWritable))  # not a rights question
+                    continue
                 results.extend(await super().write(ua.WriteParameters(NodesToWrite=[item]), user))
                 continue
             unknown = self._unknown(nodeid)
@@ -245,8 +267,8 @@ class _SinumerikAttributes(AttributeService):
             except NckNodeIdError:
                 results.append(ua.StatusCode(ua.StatusCodes.BadNotWritable))  # a folder
                 continue
-            if item.AttributeId != ua.AttributeIds.Value:
-                results.append(ua.StatusCode(ua.StatusCodes.BadNotWritable))
+            if item.AttributeId != ua.AttributeIds.Value or not writable(name):
+                results.append(ua.StatusCode(ua.StatusCodes.BadNotWritable))  # whatever the user
                 continue
             if not may(face.rights_of(getattr(user, "name", None)), name.realm, write=True):
                 results.append(ua.StatusCode(ua.StatusCodes.BadUserAccessDenied))
