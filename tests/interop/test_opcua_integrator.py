@@ -214,3 +214,65 @@ def test_a_node_no_one_may_write_answers_bad_not_writable_to_everyone(faces: tup
             await client.disconnect()
 
     assert set(run(standard_and_model_nodes())) == {"BadNotWritable"}
+
+
+async def _child(client: Client, node: Any, name: str) -> Any:
+    """A child by browse name, whichever namespace the model gives it."""
+    for description in await node.get_children_descriptions():
+        if description.BrowseName.Name == name:
+            return client.get_node(description.NodeId)
+    raise KeyError(name)
+
+
+@needs_models
+@pytest.mark.slow  # 20 faces start (about 0.3 s each from the models' cache)
+async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> None:
+    """Each machine of a fleet has its own name, serial number (equal to MD18030 over S7), ProductInstanceUri
+    and ApplicationUri; an asset registry keyed by ProductInstanceUri finds 20."""
+    from importlib import resources
+
+    import nckemu
+    from nckemu.clients import AsyncNckClient
+    from nckemu.emulator.fleet import Fleet, FleetMachine, FleetSpec
+
+    text = resources.files("nckemu.emulator.machine").joinpath("machines/default.toml").read_text("utf-8")
+    machine = tmp_path / "plain.toml"  # no certificates to make: the test is about identity
+    machine.write_text(text.replace("[opcua]\n", '[opcua]\nsecurity = ["None"]\n', 1), encoding="utf-8")
+    names = [f"cell{index:02d}" for index in range(1, 21)]
+    spec = FleetSpec("test", tuple(FleetMachine(name, "127.0.0.1", 0, machine=str(machine), opcua=0)
+                                   for name in names))
+    fleet = await Fleet(spec).start()
+    assets: dict[str, dict[str, str]] = {}
+    try:
+        for running in fleet.machines:
+            async with AsyncNckClient("127.0.0.1", running.port) as s7:
+                md18030, md18040 = await s7.get("MD18030", "MD18040[u1,1]")
+            async with Client(running.ready()["opcua"], timeout=10) as client:
+                namespaces = await client.get_namespace_array()
+                machines = await client.nodes.objects.get_child(f"{namespaces.index(nodesets.MACHINERY)}:Machines")
+                (tool,) = await machines.get_children()
+                identification = await _child(client, tool, "Identification")
+
+                async def read(name: str, identification: Any = identification, client: Client = client) -> Any:
+                    return await (await _child(client, identification, name)).read_value()
+
+                build = await client.get_node(ua.NodeId(ua.ObjectIds.Server_ServerStatus_BuildInfo)).read_value()
+                endpoints = await client.get_endpoints()
+                uri = await read("ProductInstanceUri")
+                assets[uri] = {
+                    "name": (await tool.read_browse_name()).Name, "serial": await read("SerialNumber"),
+                    "software": await read("SoftwareRevision"), "md18030": str(md18030).rstrip(),
+                    "md18040": str(md18040).rstrip(), "application": endpoints[0].Server.ApplicationUri,
+                    "product": f"{build.ProductName} {build.SoftwareVersion} {build.ProductUri}",
+                }
+    finally:
+        await fleet.stop()
+    assert len(assets) == 20
+    assert sorted(asset["name"] for asset in assets.values()) == names
+    assert len({asset["serial"] for asset in assets.values()}) == 20
+    assert len({asset["application"] for asset in assets.values()}) == 20
+    for uri, asset in assets.items():
+        assert asset["serial"] == asset["md18030"] and asset["software"] == asset["md18040"], asset
+        assert uri.startswith("urn:nckemu:") and asset["name"] in uri and asset["serial"] in uri and "-:" not in uri
+        assert asset["application"] == f"urn:nckemu:{asset['name']}"
+        assert asset["product"] == f"nckemu {nckemu.__version__} urn:nckemu"

@@ -20,10 +20,13 @@ Where asyncua offers no public hook, the parts go through ``asyncua_internals`` 
 from __future__ import annotations
 
 import logging
+from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any
 
 from asyncua import Server
 
+import nckemu
 from nckemu.catalogue.node_ids import NodeName
 from nckemu.emulator.faces.opcua import asyncua_internals, files, security, transport, users
 from nckemu.emulator.faces.opcua import shelf as address_cache
@@ -39,6 +42,8 @@ from nckemu.emulator.machine.core import Emulator
 
 # Loggers keep their names from before the 0.2 layout, so logs and users' log filters stay as they were.
 log = logging.getLogger("nckemu.emulator.opcua.face")
+
+PRODUCT_URI = "urn:nckemu"  # the product: BuildInfo and the endpoints' application description
 
 
 class OpcUaFace:
@@ -95,7 +100,7 @@ class OpcUaFace:
         await self._init_server()
         server = self.server
         server.set_endpoint(f"opc.tcp://{self.host}:{self.port}/")
-        server.set_server_name(f"nckemu {self.emulator.machine.name}")
+        await self._describe(server)
         await security.apply(server, self.emulator, self.settings, RealmRules())
         self.sinumerik.install(server, await server.register_namespace(self.settings.namespace_uri))
         self.monitoring.install(server)
@@ -144,6 +149,15 @@ class OpcUaFace:
         await self.server.init(building)
         if building is not None:
             address_cache.publish(building)
+
+    async def _describe(self, server: Server) -> None:
+        """The server names nckemu and its version (BuildInfo, the endpoints' ProductUri) and the machine
+        (its name among others)."""
+        server.product_uri = PRODUCT_URI
+        server.manufacturer_name = "nckemu"
+        server.set_server_name(f"nckemu {self.emulator.name}")
+        built = datetime.fromtimestamp(Path(nckemu.__file__).stat().st_mtime, UTC)
+        await server.set_build_info(PRODUCT_URI, "nckemu", "nckemu", nckemu.__version__, nckemu.__version__, built)
 
     def bound_port(self) -> int:
         return asyncua_internals.bound_port(self.server)

@@ -60,6 +60,13 @@ CHANNEL_STATE = {0: 2, 1: 0, 2: 1}
 PROGRAM_STATE = {1: "Interrupted", 2: "Interrupted", 3: "Running", 4: "Interrupted", 5: "Aborted"}
 
 
+def product_instance_uri(name: str, serial: str) -> str:
+    """The default ProductInstanceUri: nckemu's, the machine's own name (a fleet's machine's), its serial
+    number; globally unique as long as serial numbers are (a fleet numbers them)."""
+    parts = [re.sub(r"[^A-Za-z0-9._~-]+", "-", part).strip("-") or "machine" for part in (name, serial)]
+    return f"urn:nckemu:{parts[0]}:{parts[1]}"
+
+
 def _int(kind: ua.VariantType, mapping: dict[int, int] | None = None, default: int = 0) -> Callable[[object], ua.Variant]:
     def convert(raw: object) -> ua.Variant:
         value = int(raw[0])  # type: ignore[index]
@@ -125,9 +132,8 @@ class MachineToolInstance:
         models, types = self.models, self.maker.types
         mt, machinery = models.ns(nodesets.MACHINE_TOOL), models.ns(nodesets.MACHINERY)
         machines = _machines_folder(types, machinery)
-        machine = self.emulator.machine
-        self.made = made = self.maker.make(
-            machines, types.find(mt, "MachineToolType"), machine.name, root="MachineTool", reference=ORGANIZES,
+        self.made = made = self.maker.make(  # named as the machine is among others (a fleet's own name)
+            machines, types.find(mt, "MachineToolType"), self.emulator.name, root="MachineTool", reference=ORGANIZES,
             optional=("Identification/Model", "Identification/SoftwareRevision", "Identification/Location",
                       "Identification/YearOfConstruction", "Identification/ProductCode",
                       "Monitoring/MachineTool/FeedOverride", "Monitoring/MachineTool/PowerOnDuration",
@@ -148,11 +154,12 @@ class MachineToolInstance:
         machine = self.emulator.machine
         manufacturer = str(table.get("manufacturer", "nckemu"))
         model = str(table.get("model", machine.name))
-        serial = str(table.get("serial_number", self.value_of("/NC/_N_NC_TEA_ACX/$MN_HW_SERIAL_NUMBER", "0")))
+        # The serial number and software revision the S7 face serves (MD18030, MD18040 line 1), without
+        # the padding of the fixed-length field.
+        serial = str(table.get("serial_number", self.emulator.serial_number))
         software = str(table.get("software_revision",
-                                 self.value_of("/NC/_N_NC_TEA_ACX/$MN_VERSION_INFO[u1,1]", "")))
-        uri = str(table.get("product_instance_uri", "urn:" + "/".join(
-            re.sub(r"[^A-Za-z0-9._-]+", "-", part) for part in ("nckemu", manufacturer, model, serial))))
+                                 str(self.value_of("/NC/_N_NC_TEA_ACX/$MN_VERSION_INFO[u1,1]", "")).rstrip()))
+        uri = str(table.get("product_instance_uri", product_instance_uri(self.emulator.name, serial)))
         strings = {"Identification/SerialNumber": serial, "Identification/SoftwareRevision": software,
                    "Identification/ProductInstanceUri": uri,
                    "Identification/Location": str(table.get("location", "")),
