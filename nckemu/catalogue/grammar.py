@@ -182,7 +182,7 @@ def node_paths(spec: VariableSpec) -> list[str]:
         paths += ["/Channel/Parameter/R", "/Channel/Parameter/rpa"]  # rpa: the BTSS name
     if not paths:
         paths.append(f"/Nckemu/{_AREA_FOLDER.get(area, 'Nck')}/{spec.name}")
-    return paths
+    return paths + list(spec.aliases)
 
 
 def btss_base(spec: VariableSpec) -> str:

@@ -19,6 +19,7 @@ from .opcua_tools import connect, two_faces
 pytestmark = [pytest.mark.timeout(300)]
 needs_models = pytest.mark.skipif(nodesets.find() is None, reason=nodesets.how_to_get())
 
+NS_URI = "SinumerikVarProvider"
 UNECE = "http://www.opcfoundation.org/UA/units/un/cefact"
 # UNECE Recommendation 20 common codes the instances may use: code -> (symbol, name)
 RECOMMENDATION_20 = {
@@ -121,7 +122,6 @@ READ_ONLY = ["/Nckemu/Channel/actToolBasePos", "/DriveVsa/Drive/r0021", "/Channe
              "/NC/_N_NC_TEA_ACX/$MN_AXCONF_MACHAX_NAME_TAB"]
 RW = ua.AccessLevel.CurrentRead.mask | ua.AccessLevel.CurrentWrite.mask
 READ = ua.AccessLevel.CurrentRead.mask
-NS_URI = "SinumerikVarProvider"
 
 
 def _machine_with_users(tmp_path: Any) -> Any:
@@ -276,3 +276,84 @@ async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> No
         assert uri.startswith("urn:nckemu:") and asset["name"] in uri and asset["serial"] in uri and "-:" not in uri
         assert asset["application"] == f"urn:nckemu:{asset['name']}"
         assert asset["product"] == f"nckemu {nckemu.__version__} urn:nckemu"
+
+
+@needs_models
+def test_cnc_drive_values_equal_the_drive_parameters_over_s7_and_btss(faces: tuple[EmulatorThread, OpcUaFace]
+                                                                      ) -> None:
+    """At 8000 rpm the spindle's CNC ActPower, ActTorque and ActLoad are its drive's r0032, r0080 and r0081,
+    as S7 and the BTSS node read them at the same moment; a feed axis's too."""
+    from nckemu.clients import NckClient
+
+    emulator, face = faces
+    nck = emulator.emulator.nck
+    spindle_drive = nck.drives.drive_of_axis(3).number  # SP1 is machine axis 3 on the default machine
+    x_drive = nck.drives.drive_of_axis(1).number
+    parameters = ("r0032", "r0080", "r0081")
+
+    async def read_ua() -> dict[str, float]:
+        client = await connect(face)
+        try:
+            namespaces = await client.get_namespace_array()
+            ns, cnc = namespaces.index(NS_URI), namespaces.index(nodesets.CNC)
+            interface = await client.nodes.objects.get_child(f"{cnc}:CncInterface")
+            values: dict[str, float] = {}
+            for listing, item, drive in (("CncSpindleList", "SP1", spindle_drive), ("CncAxisList", "X1", x_drive)):
+                entry = await _child(client, await _child(client, interface, listing), item)
+                for path in ("ActPower", "ActTorque", "ActLoad"):
+                    values[f"{item}/{path}"] = await (await _child(client, entry, path)).read_value()
+                for parameter in parameters:
+                    node = client.get_node(ua.NodeId(f"/DriveVsa/Drive/{parameter}[u{drive}]", ns))
+                    values[f"{item}/{parameter}"] = await node.read_value()
+            return values
+        finally:
+            await client.disconnect()
+
+    emulator.call(lambda: nck.set_spindle_speed(1, 8000.0))
+    try:
+        with NckClient("127.0.0.1", emulator.port) as s7:
+            over_s7 = dict(zip([f"SP1/{p}" for p in parameters] + [f"X1/{p}" for p in parameters],
+                               s7.get(*[f"/DriveVsa/Drive/{p}[u{spindle_drive}]" for p in parameters],
+                                      *[f"/DriveVsa/Drive/{p}[u{x_drive}]" for p in parameters]), strict=True))
+        over_ua = run(read_ua())
+    finally:
+        emulator.call(lambda: nck.set_spindle_speed(1, None))
+    assert over_s7["SP1/r0032"] > 1.0 and over_s7["SP1/r0080"] > 0.1 and over_s7["SP1/r0081"] > 10.0
+    for item in ("SP1", "X1"):
+        for path, parameter in (("ActPower", "r0032"), ("ActTorque", "r0080"), ("ActLoad", "r0081")):
+            expected = over_s7[f"{item}/{parameter}"]
+            assert over_ua[f"{item}/{parameter}"] == pytest.approx(expected, rel=1e-6), (item, parameter)
+            assert over_ua[f"{item}/{path}"] == pytest.approx(expected, rel=1e-6), (item, path)
+
+
+def test_the_siemens_machine_axis_path_reads_the_extension_row(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """``/Channel/MachineAxis/actToolBasePos[u1,n]`` (the controller's MachineAxis area) is the row nckemu
+    first served as ``/Nckemu/Channel/actToolBasePos``: the same value over S7 and OPC UA, every axis."""
+    from nckemu.clients import NckClient
+
+    emulator, face = faces
+    axes = emulator.emulator.nck.axes
+    emulator.call(lambda: axes.set_position(4, -12.5))  # Z1 moves
+    with NckClient("127.0.0.1", emulator.port) as s7:
+        try:
+            lines = range(1, 5)
+            siemens = s7.get(*[f"/Channel/MachineAxis/actToolBasePos[u1,{n}]" for n in lines])
+            extension = s7.get(*[f"/Nckemu/Channel/actToolBasePos[u1,{n}]" for n in lines])
+
+            async def read_ua() -> tuple[list[Any], list[Any]]:
+                client = await connect(face)
+                try:
+                    ns = await client.get_namespace_index(NS_URI)
+                    both = []
+                    for root in ("/Channel/MachineAxis", "/Nckemu/Channel"):
+                        both.append([await client.get_node(ua.NodeId(f"{root}/actToolBasePos[u1,{n}]", ns))
+                                     .read_value() for n in lines])
+                    return both[0], both[1]
+                finally:
+                    await client.disconnect()
+
+            ua_siemens, ua_extension = run(read_ua())
+        finally:
+            emulator.call(lambda: axes.set_position(4, 0.0))
+    assert siemens == extension == ua_siemens == ua_extension
+    assert siemens[3] == pytest.approx(-12.5)

@@ -167,6 +167,7 @@ class CncInterfaceInstance:
         self._position(made, "PosDirect", f"/Nckemu/Axis/NCKEMU_ACTUAL_POS[u{a}]",
                        f"/Nckemu/Axis/NCKEMU_COMMANDED_POS[u{a}]", f"/Nckemu/Channel/remainingDistance[u1,{a}]", unit)
         self._position(made, "PosIndirect", f"/Nckemu/Channel/workPosition[u1,{a}]", None, None, unit)
+        self._drive(made, axis)
         for path in ("ActLoad", "ActPower", "ActTorque", "CmdTorque"):
             self._units(made, path, _unit_of(path), 0.0, 1.0e6)
 
@@ -183,10 +184,21 @@ class CncInterfaceInstance:
         self._bind(made, "ActStatus", f"/Channel/Spindle/actSpeed{where}",
                    lambda raw: ua.Variant(1 if float(raw[0]) else 0, ua.VariantType.Int32))  # type: ignore[index]
         self._position(made, "AnglePos", None, None, None, DEGREE)
+        self._drive(made, axis)
         for path in ("ActSpeed", "CmdSpeed", "ActOverride", "CmdOverride", "ActLoad", "ActPower", "ActTorque",
                      "CmdTorque"):
             low, high = (0.0, 200.0) if "Override" in path else (0.0, 1.0e6)
             self._units(made, path, _unit_of(path), low, high)
+
+    def _drive(self, made: Made, axis: Any) -> None:
+        """ActLoad, ActPower, ActTorque of an axis or spindle: its drive's r0081, r0032, r0080 (the drive
+        model, the values S7 and the BTSS node read); an axis without a drive keeps zero."""
+        drive = self.emulator.nck.drives.drive_of_axis(axis.number)
+        if drive is None:
+            return
+        for path, parameter in (("ActLoad", "r0081"), ("ActPower", "r0032"), ("ActTorque", "r0080")):
+            if made.get(path) is not None:
+                self._bind(made, path, f"/DriveVsa/Drive/{parameter}[u{drive.number}]", _first(ua.VariantType.Double))
 
     async def start(self, server: Server) -> None:
         pass
