@@ -20,7 +20,7 @@ from nckemu.emulator.faces.opcua.settings import may
 from nckemu.errors import NckNoSuchFile, NckPiBadArguments, NckPiStateError
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.face import OpcUaFace
+    from nckemu.emulator.faces.opcua.parts import MethodHost
 
 MAX_PROGRAM_BYTES = 16 * 1024 * 1024
 _UA_PATH = re.compile(r"^/?sinumerik/filesystem/part program/(?P<name>[A-Za-z0-9_]{1,24})\.mpf$", re.IGNORECASE)
@@ -48,7 +48,7 @@ def _bad(name: str) -> ua.StatusCode:
     return ua.StatusCode(getattr(ua.StatusCodes, name))
 
 
-async def add_methods(face: OpcUaFace, server: Server) -> Any:
+async def add_methods(face: MethodHost, server: Server) -> Any:
     ns = face.namespace
     root = await server.nodes.objects.get_child([f"{ns}:Sinumerik"])
     methods = await root.add_object(ua.NodeId("/Methods", ns), ua.QualifiedName("Methods", ns))
@@ -109,7 +109,15 @@ async def add_methods(face: OpcUaFace, server: Server) -> Any:
          [argument("path", text), argument("data", blob), argument("overwrite", flag)], []),
         ("CopyFileFromServer", copy_from_server, [argument("path", text)], [argument("data", blob)]),
     ]
+    # Who may call each (UserExecutable as the session reads it): as the handlers above decide.
+    executable: dict[str, Callable[[str, frozenset[str]], bool]] = {
+        "GetMyAccessRights": lambda user, _rights: bool(user),
+        "CopyFileToServer": lambda user, rights: bool(user) and may(rights, "FS", True),
+        "CopyFileFromServer": lambda user, rights: bool(user) and may(rights, "FS", False),
+    }
     for name, method, inputs, outputs in table:
-        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
-                                 request.with_arguments(method, len(inputs)), inputs, outputs)
+        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                        request.with_arguments(method, len(inputs)), inputs, outputs)
+        server.set_attribute_value_callback(node.nodeid, request.user_executable(executable[name]),
+                                            ua.AttributeIds.UserExecutable)
     return methods

@@ -29,7 +29,7 @@ from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE, CHAN_RESET
 from nckemu.errors import NckError, NckNoSuchFile, NckPiStateError
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.face import OpcUaFace
+    from nckemu.emulator.faces.opcua.parts import MethodHost
 
 SELECTED, NO_CHANNEL, NO_PROGRAM, NOT_IN_RESET, REJECTED = 0, 1, 2, 3, 4
 NOTHING_SELECTED, RUNNING = 2, 5
@@ -45,7 +45,7 @@ def selected_path(text: Any) -> str | None:
     return files.program_path(text)
 
 
-def select(face: OpcUaFace, file: Any, channel_number: Any) -> int:
+def select(face: MethodHost, file: Any, channel_number: Any) -> int:
     """Select ``file`` in channel ``channel_number``; the status number."""
     channel = _channel(face, channel_number)
     if channel is None:
@@ -73,7 +73,7 @@ def select(face: OpcUaFace, file: Any, channel_number: Any) -> int:
     return SELECTED
 
 
-def unselect(face: OpcUaFace, channel_number: Any) -> int:
+def unselect(face: MethodHost, channel_number: Any) -> int:
     """Unselect channel ``channel_number``'s program; the status number."""
     channel = _channel(face, channel_number)
     if channel is None:
@@ -99,7 +99,7 @@ def unselect(face: OpcUaFace, channel_number: Any) -> int:
     return SELECTED
 
 
-def _channel(face: OpcUaFace, number: Any) -> Any:
+def _channel(face: MethodHost, number: Any) -> Any:
     if isinstance(number, bool) or not isinstance(number, int):
         return None
     return face.emulator.nck.channels.get(number)
@@ -118,7 +118,7 @@ def refused() -> ua.StatusCode | None:
     return None
 
 
-async def add_methods(face: OpcUaFace, server: Server, methods: Any) -> None:
+async def add_methods(face: MethodHost, server: Server, methods: Any) -> None:
     """Select and Unselect below ``methods`` (``Sinumerik/Methods``)."""
     ns = face.namespace
 

@@ -38,12 +38,13 @@ from nckemu.emulator.faces.opcua.alarms import AlarmEventQueue, severity_of
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
 from nckemu.emulator.faces.opcua.settings import SIGNAL_COLORS
+from nckemu.emulator.faces.opcua.units import PERCENT
 from nckemu.emulator.faces.opcua.values import PLC_AREAS, raw_reader, read_value
 from nckemu.emulator.machine.nck.alarms import AlarmEvent
 from nckemu.protocol.addresses import S7Area
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.models import Models
+    from nckemu.emulator.faces.opcua.parts import ModelValues
 
 log = logging.getLogger("nckemu.emulator.opcua.umati")
 
@@ -55,8 +56,13 @@ OPERATION_MODE = {0: 0, 1: 0, 2: 1}
 CHANNEL_MODE = {0: 2, 1: 1, 2: 0}
 # chanStatus 0 reset, 1 active, 2 interrupted -> ChannelState (0 Active, 1 Interrupted, 2 Reset)
 CHANNEL_STATE = {0: 2, 1: 0, 2: 1}
-PERCENT = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=20529,
-                           DisplayName=ua.LocalizedText("%"), Description=ua.LocalizedText("percent"))
+
+
+def product_instance_uri(name: str, serial: str) -> str:
+    """The default ProductInstanceUri: nckemu's, the machine's own name (a fleet's machine's), its serial
+    number; globally unique as long as serial numbers are (a fleet numbers them)."""
+    parts = [re.sub(r"[^A-Za-z0-9._~-]+", "-", part).strip("-") or "machine" for part in (name, serial)]
+    return f"urn:nckemu:{parts[0]}:{parts[1]}"
 
 
 def _int(kind: ua.VariantType, mapping: dict[int, int] | None = None, default: int = 0) -> Callable[[object], ua.Variant]:
@@ -81,7 +87,7 @@ def _uint32(raw: object) -> ua.Variant:
 class MachineToolInstance:
     """The MachineTool instance of one face, built from the types in its address space."""
 
-    def __init__(self, models: Models, maker: Instantiator) -> None:
+    def __init__(self, models: ModelValues, maker: Instantiator) -> None:
         self.models = models
         self.maker = maker
         self.face = models.face
@@ -125,9 +131,8 @@ class MachineToolInstance:
         models, types = self.models, self.maker.types
         mt, machinery = models.ns(nodesets.MACHINE_TOOL), models.ns(nodesets.MACHINERY)
         machines = _machines_folder(types, machinery)
-        machine = self.emulator.machine
-        self.made = made = self.maker.make(
-            machines, types.find(mt, "MachineToolType"), machine.name, root="MachineTool", reference=ORGANIZES,
+        self.made = made = self.maker.make(  # named as the machine is among others (a fleet's own name)
+            machines, types.find(mt, "MachineToolType"), self.emulator.name, root="MachineTool", reference=ORGANIZES,
             optional=("Identification/Model", "Identification/SoftwareRevision", "Identification/Location",
                       "Identification/YearOfConstruction", "Identification/ProductCode",
                       "Monitoring/MachineTool/FeedOverride", "Monitoring/MachineTool/PowerOnDuration",
@@ -149,11 +154,12 @@ class MachineToolInstance:
         machine = self.emulator.machine
         manufacturer = str(table.get("manufacturer", "nckemu"))
         model = str(table.get("model", machine.name))
-        serial = str(table.get("serial_number", self.value_of("/NC/_N_NC_TEA_ACX/$MN_HW_SERIAL_NUMBER", "0")))
+        # The serial number and software revision the S7 face serves (MD18030, MD18040 line 1), without
+        # the padding of the fixed-length field.
+        serial = str(table.get("serial_number", self.emulator.serial_number))
         software = str(table.get("software_revision",
-                                 self.value_of("/NC/_N_NC_TEA_ACX/$MN_VERSION_INFO[u1,1]", "")))
-        uri = str(table.get("product_instance_uri", "urn:" + "/".join(
-            re.sub(r"[^A-Za-z0-9._-]+", "-", part) for part in ("nckemu", manufacturer, model, serial))))
+                                 str(self.value_of("/NC/_N_NC_TEA_ACX/$MN_VERSION_INFO[u1,1]", "")).rstrip()))
+        uri = str(table.get("product_instance_uri", product_instance_uri(self.emulator.name, serial)))
         strings = {"Identification/SerialNumber": serial, "Identification/SoftwareRevision": software,
                    "Identification/ProductInstanceUri": uri,
                    "Identification/Location": str(table.get("location", "")),
