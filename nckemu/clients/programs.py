@@ -31,7 +31,7 @@ from nckemu.errors import (
     NckTimeoutError,
     service_error_for,
 )
-from nckemu.protocol import ncprog, s7
+from nckemu.protocol import blocks, ncprog, s7
 from nckemu.protocol.codes import HEADER_ERROR_TEXTS
 from nckemu.protocol.ncprog import NcData, NcParameter, NcSubfunction
 
@@ -214,6 +214,26 @@ async def get_program(nck: AsyncNckClient, name: str) -> bytes:
     return (await get_file(nck, name)).text
 
 
+async def get_file_by_blocks(nck: AsyncNckClient, name: str) -> bytes:
+    """libnodave's ``daveGetNCProgram``: start upload (0x1D) naming the NC file, upload (0x1E) until
+    the answer's status says no more, end upload (0x1F); the bytes as the NC sent them (nckemu sends
+    the transfer content, header included; what a real NC sends is unconfirmed)."""
+    path = program_path(name)
+    leaf = path.rsplit("/", 1)[-1]
+    start = await nck.exchange(blocks.build_block_control(blocks.BlockControl(blocks.START_UPLOAD, 0, 0, 0, leaf)))
+    upload_id = blocks.parse_block_control(start.parameter).session
+    received, more = [], True
+    try:
+        while more:
+            answer = await nck.exchange(blocks.build_block_control(
+                blocks.BlockControl(blocks.UPLOAD, 0, 0, upload_id, None)))
+            more = len(answer.parameter) > 1 and bool(answer.parameter[1] & 0x01)
+            received.append(ncprog.parse_upload_data(answer.data).content)
+    finally:
+        await nck.exchange(blocks.build_block_control(blocks.BlockControl(blocks.END_UPLOAD, 0, 0, upload_id, None)))
+    return b"".join(received)
+
+
 def parse_listing(content: ncprog.TransferContent) -> Listing:
     """A directory upload's lines ``<name> <size>`` (nckemu's format; a name alone where no size)."""
     entries: list[tuple[str, int | None]] = []
@@ -276,6 +296,10 @@ def put_program_sync(nck: NckClient, name: str, text: bytes) -> str:
 
 def get_file_sync(nck: NckClient, name: str, *, mark: bool = True) -> ncprog.TransferContent:
     return _run(nck, get_file(nck.async_client, name, mark=mark))
+
+
+def get_file_by_blocks_sync(nck: NckClient, name: str) -> bytes:
+    return _run(nck, get_file_by_blocks(nck.async_client, name))
 
 
 def get_program_sync(nck: NckClient, name: str) -> bytes:

@@ -181,6 +181,9 @@ def test_plc_block_upload_of_an_nc_file(emu: EmulatorThread) -> None:
         assert ncprog.parse_transfer_content(received).text == text
     finally:
         client.disconnect()
+    with NckClient("127.0.0.1", emu.port) as nck:  # our client's daveGetNCProgram, at PDU 480
+        assert ncprog.parse_transfer_content(P.get_file_by_blocks_sync(nck, "TEST.MPF")).text == text
+        assert nck.get("R5") == [0.0]
 
 
 def test_a_download_cut_off_leaves_the_old_program_whole_and_others_are_served(emu: EmulatorThread) -> None:
