@@ -155,11 +155,14 @@ async def put_program(nck: AsyncNckClient, name: str, text: bytes, *, now: datet
                 ncprog.build_nc_data(NcData(ncprog.build_chunk(piece))))
             unacknowledged += 1
             if not last and unacknowledged == window:
-                push, _ = await wire.receive(what)
+                push, push_data = await wire.receive(what)
                 if push.type != ncprog.NC_PUSH or push.subfunction != NcSubfunction.CONTINUE_DOWNLOAD:
                     raise NckProtocolError(f"{what}: expected continue download, got {ncprog.describe(push)}")
                 unacknowledged = 0
-                window = DOWNLOAD_WINDOW_AFTER_FIRST
+                # libnodave goes on with 8 whatever the push says; the count it carries is taken
+                # here, which is the same with an NC that announces 8 (nckemu's default).
+                window = max(1, ncprog.parse_window(push_data.payload).count) if len(push_data.payload) == 2 \
+                    else DOWNLOAD_WINDOW_AFTER_FIRST
         await wire.send(ncprog.build_nc_parameter(NcParameter(ncprog.NC_REQUEST, NcSubfunction.DOWNLOAD_ENDED,
                                                               sequence)),
                         ncprog.build_nc_data(NcData(b"\x00\x00")))

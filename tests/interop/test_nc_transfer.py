@@ -72,6 +72,16 @@ def test_a_big_program_crosses_many_blocks_and_windows_both_ways(pdu_size: int) 
         assert len(text) // (min(pdu_size, 480) - 28) > 2 * ncprog.UPLOAD_WINDOW  # python-snap7 asks for 480
 
 
+@pytest.mark.parametrize("window", [1, 3, 20])
+def test_the_download_window_is_a_setting(window: int) -> None:
+    machine = load_machine(None)
+    machine = dataclasses.replace(machine, settings=dataclasses.replace(machine.settings, nc_download_window=window))
+    text = _program(300)
+    with EmulatorThread(machine) as emu, NckClient("127.0.0.1", emu.port) as nck:
+        P.put_program_sync(nck, "WINDOW.MPF", text)
+        assert P.get_program_sync(nck, "WINDOW.MPF") == text
+
+
 def _snap7(port: int) -> snap7.Client:
     client = snap7.Client()
     client.connect("127.0.0.1", 0, 4, port)
