@@ -16,7 +16,7 @@ last part) -> the first piece in the answer, the others as NC pushes; after ever
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any, TypeVar
@@ -289,8 +289,13 @@ async def pulse(nck: AsyncNckClient, signal: str, channel: int = 1) -> str:
 
 
 # ---------------------------------------------------------------- sync twins
-def _run(nck: NckClient, coroutine: Awaitable[T]) -> T:
-    return nck._call(coroutine)  # type: ignore[arg-type]
+# A transfer's telegrams each wait at most the client's timeout; the whole may take long (megabytes
+# over a slow link), so the sync twins wait for it this long rather than the client's job bound.
+SYNC_TRANSFER_WAIT_S = 3600.0
+
+
+def _run(nck: NckClient, coroutine: Coroutine[Any, Any, T]) -> T:
+    return nck.submit(coroutine).result(SYNC_TRANSFER_WAIT_S)
 
 
 def put_program_sync(nck: NckClient, name: str, text: bytes) -> str:
