@@ -128,7 +128,7 @@ class NcTransfers:
             return self._continue_upload(pdu.pdu_ref, parameter)
         if parameter.type == ncprog.NC_REQUEST:
             return [self._answer(pdu.pdu_ref, sub, parameter.sequence, error=ERROR_SEQUENCE)]
-        log.info("NC programming %s from %s ignored", ncprog.describe(parameter), self.peer)
+        log.debug("NC programming %s from %s ignored", ncprog.describe(parameter), self.peer)
         return []
 
     @staticmethod
