@@ -264,6 +264,21 @@ def test_subprogram_locals_are_their_own_and_m17_returns() -> None:
     assert r_after(text, 1, 2, env=env) == [15.0, 1.0]
 
 
+def test_an_empty_subprogram_repeated_ends() -> None:
+    env = DictEnvironment(programs={"EMPTY.SPF": "PROC EMPTY\n; nothing\n"})
+    result = run("EMPTY P999999999\nM30", env)
+    assert result.alarm is None and result.events[-1] == ProgramEnd(30)
+
+
+def test_events_again_starts_over() -> None:
+    env = DictEnvironment()
+    interpreter = Interpreter(env, MAIN, "G91 G0 X1\nM30")
+    first = [event for event in interpreter.events() if isinstance(event, Move)]
+    env._position_mm["X"] = 0.0
+    second = [event for event in interpreter.events() if isinstance(event, Move)]
+    assert first == second == [Move({"X": 1.0}, None, "G94", True, {"X": 1.0})]
+
+
 def test_missing_subprogram_alarms_14011() -> None:
     result = run("G0 X0\nNO_SUCH_SUB(1, 2)\nM30")
     assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_PROGRAM_NOT_FOUND, 2)
@@ -429,3 +444,36 @@ def test_named_axes_from_the_environment() -> None:
     env = DictEnvironment(axes=("X", "Y", "Z", "B", "SP1", "U"))
     moves = run("G0 B90 U=5 SP1=3\nM30", env).moves
     assert moves[0].target_mm == {"B": 90.0, "U": 5.0, "SP1": 3.0}
+
+
+# --- big programs ------------------------------------------------------------------------------------
+
+def ten_mb_program() -> str:
+    line = "N{} G1 X{:.3f} Y{:.3f} Z-1.500 F2000 ; cut\n"
+    thousand = "".join(line.format(i, i % 500 * 0.1, i % 300 * 0.2) for i in range(1000))
+    return "G90 G94\n" + thousand * 250 + "M30\n"
+
+
+def test_a_10_mb_program_loads_without_copies_per_line() -> None:
+    import tracemalloc
+
+    text = ten_mb_program()
+    assert len(text) > 10_000_000
+    tracemalloc.start()
+    try:
+        interpreter = Interpreter(DictEnvironment(), MAIN, text)
+        events = interpreter.events()
+        for _ in range(2_000):
+            next(events)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 2_000_000  # bytes beyond the text itself: nothing per line is kept
+    events.close()
+
+
+@pytest.mark.slow
+def test_a_10_mb_program_runs_to_its_end() -> None:
+    result = run(ten_mb_program(), limit=10_000_000)
+    assert result.alarm is None and result.events[-1] == ProgramEnd(30)
+    assert len(result.moves) == 250_000

@@ -106,6 +106,7 @@ class Interpreter:
         self._stack: list[_Frame] = []
         self._frame: _Frame | None = None
         self._modal_call: tuple[Any, Any] | None = None
+        self._r_count = int(getattr(env, "r_count", 100))
         self._reset_modal()
 
     # --- modal state ------------------------------------------------------------------------------
@@ -202,6 +203,10 @@ class Interpreter:
                                line=max(frame.line - 1, 1) if frame else 0) from None
 
     def _run(self) -> Iterator[Event]:
+        if self._stack:  # events() called again: the program from its start, the modal state reset
+            self._reset_modal()
+            self._settings.clear()
+            self._modal_call = None
         frame = _Frame(self._main, 0, 1, 0)
         self._stack = [frame]
         self._frame = frame
@@ -327,7 +332,7 @@ class Interpreter:
         position = number(index)
         if position.__class__ is float:
             position = int(position)
-        if not 0 <= position < self.env.r_count:
+        if not 0 <= position < self._r_count:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name R{position} not defined")
         return position
 
@@ -350,7 +355,14 @@ class Interpreter:
         try:
             value = self.env.system_variable(name, indices)
         except UndefinedName:
-            value = self._builtin_system(name, indices)
+            try:
+                value = self._builtin_system(name, indices)
+            except ProgramAlarm:
+                raise
+            except Exception as exc:
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined ({exc})") from None
+        except ProgramAlarm:
+            raise
         except Exception as exc:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined ({exc})") from None
         if isinstance(value, bool | int | float | str):
@@ -654,7 +666,7 @@ class Interpreter:
             self._assign(ref, frame.vars[param].get(()))
         if frame.saved_modal is not None:
             self._restore_modal(frame.saved_modal)
-        if frame.repeat_left > 0:
+        if frame.repeat_left > 0 and frame.source.has_blocks:  # repeating an empty one would never yield
             values, refs = frame.call_args
             self._enter(frame.source, values, refs, frame.repeat_left - 1)
 

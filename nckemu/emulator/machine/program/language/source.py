@@ -40,6 +40,12 @@ class ProgramSource:
         self.has_jumps = _JUMP_IN_LINE.search(text) is not None
         self._scan()
         self.proc_offset = self._find_proc()
+        body_from = 0
+        if self.proc_offset >= 0:
+            end = text.find("\n", self.proc_offset)
+            body_from = len(text) if end < 0 else end + 1
+        # a line that is a block (not blank, not only a comment, not a % header)
+        self.has_blocks = re.compile(r"^[ \t]*[^ \t;%\n]", re.MULTILINE).search(text, body_from) is not None
 
     def _scan(self) -> None:
         text = self.text
