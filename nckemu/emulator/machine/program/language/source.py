@@ -37,9 +37,16 @@ class ProgramSource:
         self.loop_spans: list[tuple[int, int]] = []
         self.jump_cache: dict[tuple[int, str, str], int | None] = {}
         self.line_of: dict[int, int] = {0: 1}
-        self.has_jumps = _JUMP_IN_LINE.search(text) is not None
-        self._scan()
-        self.proc_offset = self._find_proc()
+        # Plain substring tests on an upper-case copy (freed at once) decide which regex scans are
+        # needed: a CAM program without control structures costs a few passes at C speed.
+        upper = text.upper()
+        self.has_jumps = "GOTO" in upper
+        structures = any(word in upper for word in ("IF", "ELSE", "WHILE", "FOR", "REPEAT", "UNTIL", "LOOP"))
+        has_proc = "PROC" in upper
+        del upper
+        if structures:
+            self._scan()
+        self.proc_offset = self._find_proc() if has_proc else -1
         body_from = 0
         if self.proc_offset >= 0:
             end = text.find("\n", self.proc_offset)
