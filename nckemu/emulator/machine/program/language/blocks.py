@@ -13,7 +13,7 @@ import re
 from typing import Any
 
 from ..motions import ALARM_SYNTAX, ProgramAlarm
-from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, evaluate, is_dynamic
+from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, is_dynamic
 
 # block kinds
 WORDS, IF, ELSE, ENDIF, WHILE, ENDWHILE, FOR, ENDFOR, REPEAT, UNTIL, LOOP, ENDLOOP = range(12)
@@ -300,9 +300,6 @@ class BlockCompiler:
             if not args or any(arg is None for arg in args) or (which == "REP" and len(args) != 1):
                 raise ProgramAlarm(ALARM_SYNTAX, f"{which}(...) needs values")
             return which, args
-        if parser.at_op("("):
-            # DEF AXIS A1 = (X)
-            pass
         return "value", parser.expression()
 
     def proc_header(self, parser: Parser) -> tuple[str, list[tuple[str, str, bool, tuple]]]:
@@ -576,6 +573,3 @@ class BlockCompiler:
                 break
         return pairs
 
-
-def constant_value(expr: Any, ev: Any) -> Any:
-    return evaluate(expr, ev)
