@@ -327,6 +327,12 @@ def test_ic_and_ac_override_the_mode_per_axis() -> None:
     assert [move.target_mm for move in result.moves][1:] == [{"X": 1.0, "Y": 7.0}, {"X": 4.0, "Y": 1.0}]
 
 
+def test_rotary_positioning_modes_are_absolute_positions() -> None:
+    result = run("G0 C10\nG91 C=DC(90)\nC=ACP(180) B=ACN(5)\nC=CIC(10)\nM30")
+    assert [move.target_mm for move in result.moves] == [{"C": 10.0}, {"C": 90.0}, {"C": 180.0, "B": 5.0},
+                                                         {"C": 190.0}]
+
+
 def test_inch_geometry_and_feed() -> None:
     result = run("G70 G1 X1 F10\nG700 X2 F10\nG71 X25.4\nG710 X0\nM30")
     moves = result.moves

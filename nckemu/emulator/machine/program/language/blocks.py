@@ -53,6 +53,9 @@ NO_OP_WORDS = frozenset({
 })
 SPLINES = frozenset({"ASPLINE", "BSPLINE", "CSPLINE", "POLY"})
 
+# X=IC(..) incremental, AC absolute; for rotary axes DC/ACP/ACN (shortest way, positive, negative
+# direction) and CIC are absolute/incremental positions here (the direction is not modelled)
+_DIMENSION_MODES = {"IC": "IC", "AC": "AC", "DC": "AC", "ACP": "AC", "ACN": "AC", "CIC": "IC"}
 _ADDRESS_WORD = re.compile(r"([A-Z]+?)(\d+)")
 
 
@@ -383,13 +386,13 @@ class BlockCompiler:
         """An axis value and its dimension mode (None, "IC", "AC")."""
         if frac is None and parser.at_op("="):
             token = parser.tokens[parser.pos + 1] if parser.pos + 1 < len(parser.tokens) else None
-            if token is not None and token[0] == NAME and token[1] in ("IC", "AC") and \
+            if token is not None and token[0] == NAME and token[1] in _DIMENSION_MODES and \
                     parser.pos + 2 < len(parser.tokens) and parser.tokens[parser.pos + 2][1] == "(":
                 parser.pos += 2
                 args = parser.arguments()
                 if len(args) != 1 or args[0] is None:
                     raise ProgramAlarm(ALARM_SYNTAX, f"{token[1]}(...) takes one value")
-                return args[0], token[1]
+                return args[0], _DIMENSION_MODES[token[1]]
         value = self._value_after(parser, "", frac)
         if value is None:
             raise ProgramAlarm(ALARM_SYNTAX, "axis value expected")
