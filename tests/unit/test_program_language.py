@@ -440,6 +440,11 @@ def test_program_end_without_m30_and_comments_header_lines() -> None:
     assert result.blocks[0].line == 5
 
 
+def test_program_text_as_bytes_from_the_store() -> None:
+    events = list(Interpreter(DictEnvironment(), MAIN, b"G0 X1 ; \xb0C\nM30").events())
+    assert events[1] == Move({"X": 1.0}, None, "G94", True, {"X": 1.0})
+
+
 def test_crlf_and_block_skip_and_labels_with_numbers() -> None:
     result = run("N5 START: G0 X1\r\n/ G0 X2\r\nN10 M30\r\n")
     assert [move.target_mm for move in result.moves] == [{"X": 1.0}, {"X": 2.0}]

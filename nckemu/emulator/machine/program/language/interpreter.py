@@ -92,10 +92,10 @@ class _Frame:
 class Interpreter:
     """Runs the program ``text`` at NC path ``path`` against ``env`` (see the package docstring)."""
 
-    def __init__(self, env: ProgramEnvironment, path: str, text: str) -> None:
+    def __init__(self, env: ProgramEnvironment, path: str, text: str | bytes) -> None:
         self.env = env
         self.path = path
-        self._main = ProgramSource(path, text)
+        self._main = ProgramSource(path, _as_text(text))
         self._sources: dict[str, ProgramSource] = {path: self._main}
         self._caches: dict[int, dict[int, Compiled]] = {}
         self._axes = tuple(axis.upper() for axis in env.axes)
@@ -607,7 +607,7 @@ class Interpreter:
             if args is None:
                 raise undefined(name)
             raise ProgramAlarm(ALARM_PROGRAM_NOT_FOUND, f"program {name} not existing")
-        path, text = found
+        path, text = found[0], _as_text(found[1])
         if frame.depth + 1 > MAX_CALL_DEPTH:
             raise ProgramAlarm(ALARM_CALL_DEPTH, f"{name}: subprograms nested deeper than {MAX_CALL_DEPTH} levels")
         source = self._sources.get(path)
@@ -970,6 +970,13 @@ def _centre_from_radius(start: dict, end: dict, radius: float, clockwise: bool, 
     side = 1.0 if (not clockwise) == (radius > 0) else -1.0
     return {first: start[first] + dx / 2 - side * height * dy / chord,
             second: start[second] + dy / 2 + side * height * dx / chord}
+
+
+def _as_text(text: str | bytes) -> str:
+    """A program's text; bytes (as the program store keeps them) are read as UTF-8, bad bytes replaced."""
+    if isinstance(text, bytes | bytearray):
+        return bytes(text).decode("utf-8", errors="replace")
+    return text
 
 
 def _m_code(value: Any) -> int:
