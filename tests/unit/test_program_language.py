@@ -279,6 +279,13 @@ def test_events_again_starts_over() -> None:
     assert first == second == [Move({"X": 1.0}, None, "G94", True, {"X": 1.0})]
 
 
+def test_def_nck_is_global_to_subprograms() -> None:
+    env = DictEnvironment(programs={"USE.SPF": "PROC USE\nCOUNTER = COUNTER + 1\nRET"})
+    assert r_after("DEF NCK INT COUNTER = 4\nUSE\nUSE\nR1 = COUNTER\nM30", 1, env=env) == [6.0]
+    result = run("DEF INT COUNTER = 4\nUSE\nM30", env)
+    assert result.alarm is not None and result.alarm.number == ALARM_NAME_NOT_DEFINED
+
+
 def test_missing_subprogram_alarms_14011() -> None:
     result = run("G0 X0\nNO_SUCH_SUB(1, 2)\nM30")
     assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_PROGRAM_NOT_FOUND, 2)
@@ -303,6 +310,19 @@ def test_settings_without_a_model_are_accepted() -> None:
     result = run(text)
     assert result.alarm is None and len(result.moves) == 1
     assert run("NO_SUCH_WORD\nM30").alarm.number == ALARM_NAME_NOT_DEFINED  # type: ignore[union-attr]
+
+
+def test_modal_call_of_a_program_runs_after_each_motion_block() -> None:
+    env = DictEnvironment(programs={"DRILL.SPF": "PROC DRILL(REAL _DEPTH)\nR1 = R1 + 1\nR2 = _DEPTH\nRET"})
+    result = run("MCALL DRILL(-5)\nG0 X1\nX2\nR3 = 1\nMCALL\nX3\nM30", env)
+    assert result.alarm is None
+    assert (env.r_parameter(1), env.r_parameter(2)) == (2.0, -5.0)
+
+
+def test_proc_save_restores_the_callers_modal_state() -> None:
+    env = DictEnvironment(programs={"INCH.SPF": "PROC INCH SAVE\nG70 G91 G1 X1 F10\nRET"})
+    result = run("G0 X0\nINCH\nG0 X1\nM30", env)
+    assert [move.target_mm for move in result.moves] == [{"X": 0.0}, {"X": 25.4}, {"X": 1.0}]
 
 
 def test_setal_cycle_alarm() -> None:

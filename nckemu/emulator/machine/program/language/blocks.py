@@ -253,10 +253,12 @@ class BlockCompiler:
             branches.append((value, self._jump(parser)))
         return selector, branches, default
 
-    def _def(self, parser: Parser) -> list[tuple[str, str, tuple, Any]]:
+    def _def(self, parser: Parser) -> list[tuple[str, str, tuple, Any, bool]]:
         token = parser.peek()
+        shared = False  # DEF NCK/CHAN: a global variable (GUD), seen by every program of the run
         if token is not None and token[0] == NAME and token[1] in ("NCK", "CHAN"):
             parser.pos += 1
+            shared = True
             token = parser.peek()
         if token is None or token[0] != NAME or token[1] not in ("INT", "REAL", "BOOL", "STRING", "CHAR", "AXIS"):
             found = token[1] if token else "end of block"
@@ -286,7 +288,7 @@ class BlockCompiler:
             if parser.at_op("="):
                 parser.pos += 1
                 init = self._initialiser(parser)
-            declarations.append((name, kind, dims, init))
+            declarations.append((name, kind, dims, init, shared))
             if parser.at_op(","):
                 parser.pos += 1
                 continue

@@ -574,7 +574,7 @@ class Interpreter:
         return self._read_var(name, tuple(evaluate(i, self) for i in indices))
 
     def _define(self, declarations: list, frame: _Frame) -> None:
-        for name, kind, dims, init in declarations:
+        for name, kind, dims, init, shared in declarations:
             if name in self._axes or len(name) == 1 or re.fullmatch(r"R\d+", name) or name in b.WORD_ADDRESSES:
                 raise ProgramAlarm(ALARM_SYNTAX, f"DEF {name}: the name is taken by the control")
             variable = Variable(name, kind, dims)
@@ -588,7 +588,7 @@ class Interpreter:
                         variable.set((), evaluated)
                 else:
                     variable.fill((), [evaluate(item, self) for item in value], repeat=which == "REP")
-            frame.vars[name] = variable
+            (self._globals if shared else frame.vars)[name] = variable
 
     # --- subprograms ------------------------------------------------------------------------------
     def _call(self, name_expr: Any, args: list | None, repeat: Any, frame: _Frame) -> list[Event] | None:
