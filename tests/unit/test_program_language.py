@@ -219,6 +219,11 @@ def test_missing_jump_target_alarms_when_the_jump_runs_and_gotoc_continues() -> 
     assert result.alarm is not None and result.alarm.number == ALARM_JUMP_TARGET
 
 
+def test_a_label_named_like_a_keyword_is_a_label() -> None:
+    text = "WHILE R1 < 2\nR1 = R1 + 1\nENDWHILE\nGOTOF LOOP\nR2 = 9\nLOOP: R3 = 1\nM30"
+    assert r_after(text, 1, 2, 3) == [2.0, 0.0, 1.0]
+
+
 def test_case() -> None:
     text = """DEF INT SEL = 2
 CASE(SEL) OF 1 GOTOF ONE 2 GOTOF TWO DEFAULT GOTOF OTHER
