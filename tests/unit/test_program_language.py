@@ -291,6 +291,16 @@ def test_def_nck_is_global_to_subprograms() -> None:
     assert result.alarm is not None and result.alarm.number == ALARM_NAME_NOT_DEFINED
 
 
+def test_m30_in_a_subprogram_returns_or_ends_as_set() -> None:
+    env = DictEnvironment(programs={"SUB.SPF": "PROC SUB\nR1 = 1\nM30"})
+    result = run("SUB\nR2 = 2\nM2", env)
+    assert result.events[-1] == ProgramEnd(2) and env.r_parameter(2) == 2.0
+    env = DictEnvironment(programs={"SUB.SPF": "PROC SUB\nR1 = 1\nM30"})
+    env.subprogram_end_returns = False
+    result = run("SUB\nR2 = 2\nM2", env)
+    assert result.events[-1] == ProgramEnd(30) and env.r_parameter(2) == 0.0
+
+
 def test_missing_subprogram_alarms_14011() -> None:
     result = run("G0 X0\nNO_SUCH_SUB(1, 2)\nM30")
     assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_PROGRAM_NOT_FOUND, 2)

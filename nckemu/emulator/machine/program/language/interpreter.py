@@ -810,7 +810,7 @@ class Interpreter:
         if moved and self._modal_call is not None and call is None:
             call = (self._modal_call[0], self._modal_call[1], None)
         if end_code is not None or ret:
-            if frame.depth == 0:
+            if frame.depth == 0 or (end_code in (2, 30) and not self.env.subprogram_end_returns):
                 events.append(ProgramEnd(end_code if end_code is not None else 0))
                 return events
             self._return()
