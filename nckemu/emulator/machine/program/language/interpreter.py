@@ -113,7 +113,7 @@ class Interpreter:
     def _reset_modal(self) -> None:
         env = self.env
         self.motion = 1 if env.reset_motion == 1 else 0
-        self.plane = "G17"
+        self.plane = env.reset_plane if env.reset_plane in _PLANES else "G17"
         self.absolute = True
         self.inch_geometry = bool(env.reset_inch)
         self.inch_feed = False
