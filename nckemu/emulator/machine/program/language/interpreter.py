@@ -925,51 +925,60 @@ class Interpreter:
 
     def _arc(self, targets: dict, programmed: dict, start: dict, address: dict, flags: dict,
              exact_stop: bool) -> Arc:
+        if "AR" in address or "AP" in address or "RP" in address:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "AR/AP/RP circles are not supported by the emulator")
         first, second, _ = _PLANES[self.plane]
         if first not in start or second not in start:
             raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"{self.plane}: the plane's axes are not in this channel")
-        inch = INCH_MM if self.inch_geometry else 1.0
-        end = {axis: targets.get(axis, start[axis]) for axis in (first, second)}
-        base = {axis: (0.0 if flags.get("supa") else self.shift.get(axis, 0.0)) for axis in (first, second)}
+        unit = INCH_MM if self.inch_geometry else 1.0
+        start_first, start_second = start[first], start[second]
+        end_first, end_second = targets.get(first, start_first), targets.get(second, start_second)
         clockwise = self.motion == 2
         if "CR" in address:
-            radius = float(number(address["CR"])) * inch
-            centre = _centre_from_radius(start, end, radius, clockwise, first, second)
+            radius = float(number(address["CR"])) * unit
+            centre = _centre_from_radius(start_first, start_second, end_first, end_second, radius, clockwise)
         else:
-            words = [_CENTRE_WORD.get(first), _CENTRE_WORD.get(second)]
-            if not any(word in address for word in words if word):
+            first_word = address.get(_CENTRE_WORD.get(first, ""))
+            second_word = address.get(_CENTRE_WORD.get(second, ""))
+            if first_word is None and second_word is None:
                 raise ProgramAlarm(ALARM_CIRCLE_END_POINT, "circle without centre (I, J, K) or radius (CR=)")
-            centre = {}
-            for axis, word in zip((first, second), words, strict=True):
-                value, mode = address.get(word, (0.0, None)) if word else (0.0, None)
-                value = float(number(value)) * inch
-                centre[axis] = value + base[axis] if mode == "AC" else start[axis] + value
-            radius_start = math.dist((start[first], start[second]), (centre[first], centre[second]))
-            radius_end = math.dist((end[first], end[second]), (centre[first], centre[second]))
+            supa = bool(flags.get("supa"))
+            centre = (self._centre(first_word, first, start_first, unit, supa),
+                      self._centre(second_word, second, start_second, unit, supa))
+            radius_start = math.hypot(start_first - centre[0], start_second - centre[1])
+            radius_end = math.hypot(end_first - centre[0], end_second - centre[1])
             tolerance = max(CIRCLE_ERROR_CONST_MM, CIRCLE_ERROR_FACTOR * max(radius_start, radius_end))
             if abs(radius_start - radius_end) > tolerance:
                 raise ProgramAlarm(ALARM_CIRCLE_END_POINT,
                                    f"error in end point of circle (radii {radius_start:.4f} and {radius_end:.4f} mm)")
-        turns = int(number(address.get("TURN", 0)))
-        if "AR" in address or "AP" in address or "RP" in address:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "AR/AP/RP circles are not supported by the emulator")
-        return Arc(targets, centre, clockwise, self.plane, self.feed_mm, self.feed_mode,  # type: ignore[arg-type]
-                   turns, exact_stop, programmed)
+        turns = int(number(address["TURN"])) if "TURN" in address else 0
+        return Arc(targets, {first: centre[0], second: centre[1]}, clockwise, self.plane,  # type: ignore[arg-type]
+                   self.feed_mm, self.feed_mode, turns, exact_stop, programmed)  # type: ignore[arg-type]
+
+    def _centre(self, word: tuple | None, axis: str, start: float, unit: float, supa: bool) -> float:
+        """One centre coordinate (machine mm) from I/J/K: incremental from the start, or =AC(...)."""
+        if word is None:
+            return start
+        value, mode = word
+        offset = (value if value.__class__ is float else float(number(value))) * unit
+        if mode == "AC":
+            return offset + (0.0 if supa else self.shift.get(axis, 0.0))
+        return start + offset
 
 
-def _centre_from_radius(start: dict, end: dict, radius: float, clockwise: bool, first: str,
-                        second: str) -> dict[str, float]:
-    dx = end[first] - start[first]
-    dy = end[second] - start[second]
+def _centre_from_radius(start_first: float, start_second: float, end_first: float, end_second: float,
+                        radius: float, clockwise: bool) -> tuple[float, float]:
+    dx = end_first - start_first
+    dy = end_second - start_second
     chord = math.hypot(dx, dy)
     size = abs(radius)
     if chord == 0 or size == 0 or chord > 2 * size + CIRCLE_ERROR_CONST_MM:
-        raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"error in end point of circle (CR={radius / 1:.4f} mm)")
+        raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"error in end point of circle (CR={radius:.4f} mm)")
     height = math.sqrt(max(size * size - chord * chord / 4, 0.0))
     # counter-clockwise with the short arc (CR > 0): centre on the left of the chord
     side = 1.0 if (not clockwise) == (radius > 0) else -1.0
-    return {first: start[first] + dx / 2 - side * height * dy / chord,
-            second: start[second] + dy / 2 + side * height * dx / chord}
+    return (start_first + dx / 2 - side * height * dy / chord,
+            start_second + dy / 2 + side * height * dx / chord)
 
 
 def _as_text(text: str | bytes) -> str:
