@@ -301,6 +301,15 @@ def test_m30_in_a_subprogram_returns_or_ends_as_set() -> None:
     assert result.events[-1] == ProgramEnd(30) and env.r_parameter(2) == 0.0
 
 
+def test_a_subprogram_sent_again_between_calls_runs_as_sent() -> None:
+    env = DictEnvironment(programs={"SUB.SPF": "PROC SUB\nR1 = R1 + 1\nRET"})
+    events = Interpreter(env, MAIN, "SUB\nSUB\nM30").events()
+    for event in events:
+        if isinstance(event, Block) and event.line == 2 and event.depth == 0:
+            env.programs["/_N_SPF_DIR/_N_SUB_SPF"] = "PROC SUB\nR1 = R1 + 10\nRET"
+    assert env.r_parameter(1) == 11.0
+
+
 def test_missing_subprogram_alarms_14011() -> None:
     result = run("G0 X0\nNO_SUCH_SUB(1, 2)\nM30")
     assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_PROGRAM_NOT_FOUND, 2)

@@ -97,7 +97,6 @@ class Interpreter:
         self.path = path
         self._main = ProgramSource(path, _as_text(text))
         self._sources: dict[str, ProgramSource] = {path: self._main}
-        self._caches: dict[int, dict[int, Compiled]] = {}
         self._axes = tuple(axis.upper() for axis in env.axes)
         self._compiler = BlockCompiler(self._axes, self._resolve)
         self._globals: dict[str, Variable] = {}
@@ -227,8 +226,8 @@ class Interpreter:
             line = frame.line
             frame.pos = end + 1
             frame.line = line + 1
-            cache = self._caches.get(id(source))
-            compiled = cache.get(pos) if cache is not None else None
+            cache = source.compiled
+            compiled = cache.get(pos)
             if compiled is None:
                 raw = text[pos:end]
                 try:
@@ -245,8 +244,6 @@ class Interpreter:
                 if compiled is None:
                     continue
                 if source.subprogram or source.has_jumps or source.in_loop(pos):
-                    if cache is None:
-                        cache = self._caches[id(source)] = {}
                     if len(cache) >= MAX_CACHED_BLOCKS:
                         cache.clear()
                     cache[pos] = compiled
@@ -614,7 +611,6 @@ class Interpreter:
         if source is None or source.text != text.replace("\r\n", "\n"):
             source = ProgramSource(path, text, subprogram=True)
             self._sources[path] = source
-            self._caches.pop(id(source), None)
         values = tuple(None if arg is None else evaluate(arg, self) for arg in (args or ()))
         refs = tuple(getattr(arg, "lvalue", None) for arg in (args or ()))
         count = 1 if repeat is None else int(number(evaluate(repeat, self)))

@@ -9,6 +9,7 @@ the text in the jump's direction) and remembered per jump.
 from __future__ import annotations
 
 import re
+from typing import Any
 
 _PREFIX = r"^[ \t]*(?:/\d?[ \t]*)?(?:[N:]\d+[ \t]*)?(?:[A-Z_][A-Z0-9_]*:[ \t]*)?"
 _STRUCTURE = re.compile(
@@ -37,6 +38,8 @@ class ProgramSource:
         self.loop_spans: list[tuple[int, int]] = []
         self.jump_cache: dict[tuple[int, str, str], int | None] = {}
         self.line_of: dict[int, int] = {0: 1}
+        # blocks kept compiled, by line offset (the interpreter fills it for lines that can run again)
+        self.compiled: dict[int, Any] = {}
         # Plain substring tests on an upper-case copy (freed at once) decide which regex scans are
         # needed: a CAM program without control structures costs a few passes at C speed.
         upper = text.upper()
