@@ -82,6 +82,13 @@ class BlockCompiler:
     def __init__(self, axes: tuple[str, ...], resolver: Any) -> None:
         self.axes = frozenset(axis.upper() for axis in axes)
         self.resolver = resolver
+        # letters of a STRAIGHT block in either case -> (kind, upper-case name); kind 0 axis, 1 G, 2 F, 3 N
+        self._straight_words: dict[str, tuple[int, str]] = {}
+        for axis in self.axes:
+            self._straight_words[axis] = self._straight_words[axis.lower()] = (0, axis)
+        for kind, letter in ((1, "G"), (2, "F"), (3, "N")):
+            if letter not in self.axes:
+                self._straight_words[letter] = self._straight_words[letter.lower()] = (kind, letter)
 
     def compile_simple(self, text: str) -> Compiled | None:
         """The fast way for a block of constant address words, or None (then :meth:`compile`)."""
@@ -119,26 +126,29 @@ class BlockCompiler:
 
     def _straight(self, words: list[tuple[str, str]], text: str) -> Compiled | None:
         """A STRAIGHT block (only modal G of STRAIGHT_G, each axis once, F), or None."""
-        axes = self.axes
+        known = self._straight_words
         g_codes: list[int] = []
         axis_words: list[tuple[str, float]] = []
         seen: set[str] = set()
         feed = None
         number = ""
         for index, (letters, digits) in enumerate(words):
-            letters = letters.upper()
-            if letters in axes:
-                if letters in seen:
+            entry = known.get(letters)
+            if entry is None:
+                return None
+            kind, name = entry
+            if kind == 0:
+                if name in seen:
                     return None
-                seen.add(letters)
-                axis_words.append((letters, float(digits)))
-            elif letters == "G":
+                seen.add(name)
+                axis_words.append((name, float(digits)))
+            elif kind == 1:
                 if not digits.isdigit() or int(digits) not in STRAIGHT_G:
                     return None
                 g_codes.append(int(digits))
-            elif letters == "F" and feed is None:
+            elif kind == 2 and feed is None:
                 feed = float(digits)
-            elif letters == "N" and index == 0 and digits.isdigit():
+            elif kind == 3 and index == 0 and digits.isdigit():
                 number = "N" + digits
             else:
                 return None
