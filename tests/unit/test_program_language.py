@@ -224,6 +224,10 @@ def test_a_label_named_like_a_keyword_is_a_label() -> None:
     assert r_after(text, 1, 2, 3) == [2.0, 0.0, 1.0]
 
 
+def test_gotos_goes_back_to_the_start() -> None:
+    assert r_after("R1 = R1 + 1\nIF R1 < 3 GOTOS\nM30", 1) == [3.0]
+
+
 def test_case() -> None:
     text = """DEF INT SEL = 2
 CASE(SEL) OF 1 GOTOF ONE 2 GOTOF TWO DEFAULT GOTOF OTHER

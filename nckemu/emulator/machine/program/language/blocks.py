@@ -34,7 +34,7 @@ WORD_ADDRESSES = frozenset({"CR", "TURN", "AR", "AP", "RP", "PW", "SD", "PL", "L
 # Addresses taking an extension as digits before '=' (M1=3: spindle 1, M3)
 EXTENDED = frozenset("MSHTD")
 FRAME_WORDS = frozenset({"TRANS", "ATRANS", "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR"})
-JUMPS = frozenset({"GOTOF", "GOTOB", "GOTO", "GOTOC"})
+JUMPS = frozenset({"GOTOF", "GOTOB", "GOTO", "GOTOC", "GOTOS"})
 # Per-axis settings written as NAME[axis]=value; kept so a program can read them back (ACC[X]).
 AXIS_SETTINGS = frozenset({"ACC", "FA", "FL", "FGREF", "OVRA", "VELOLIM", "JERKLIM", "POS", "POSA"})
 
@@ -227,6 +227,8 @@ class BlockCompiler:
         if token is None or token[0] != NAME or token[1] not in JUMPS:
             raise ProgramAlarm(ALARM_SYNTAX, "GOTOF, GOTOB, GOTO or GOTOC expected")
         parser.pos += 1
+        if token[1] == "GOTOS":  # back to the program's start: no target
+            return token[1], ""
         return token[1], self._target(parser)
 
     def _target(self, parser: Parser) -> Any:
@@ -475,7 +477,7 @@ class BlockCompiler:
             if frac is not None:
                 raise ProgramAlarm(ALARM_SYNTAX, f"unexpected {name}{frac}")
             if name in JUMPS:
-                items.append((I_JUMP, name, self._target(parser), None))
+                items.append((I_JUMP, name, "" if name == "GOTOS" else self._target(parser), None))
                 continue
             if name == "MSG":
                 args = parser.arguments()

@@ -441,6 +441,9 @@ class Interpreter:
         return partner
 
     def _jump(self, frame: _Frame, kind: str, target: str, pos: int) -> None:
+        if kind == "GOTOS":
+            frame.pos, frame.line = 0, 1
+            return
         direction = {"GOTOF": "F", "GOTOB": "B"}.get(kind, "")
         offset = frame.source.find_target(target, pos, direction)
         if offset is None:

@@ -15,7 +15,7 @@ _PREFIX = r"^[ \t]*(?:/\d?[ \t]*)?(?:[N:]\d+[ \t]*)?(?:[A-Z_][A-Z0-9_]*:[ \t]*)?
 _STRUCTURE = re.compile(
     _PREFIX + r"(IF|ELSE|ENDIF|WHILE|ENDWHILE|FOR|ENDFOR|REPEAT|UNTIL|LOOP|ENDLOOP)\b(?![ \t]*:)",
     re.IGNORECASE | re.MULTILINE)
-_JUMP_IN_LINE = re.compile(r"\bGOTO[FBC]?\b", re.IGNORECASE)
+_JUMP_IN_LINE = re.compile(r"\bGOTO[FBCS]?\b", re.IGNORECASE)
 _PROC = re.compile(_PREFIX + r"PROC\b", re.IGNORECASE | re.MULTILINE)
 
 _OPENERS = {"IF": "ENDIF", "WHILE": "ENDWHILE", "FOR": "ENDFOR", "REPEAT": "UNTIL", "LOOP": "ENDLOOP"}
