@@ -172,3 +172,27 @@ def test_nested_control_structures_equal_python(program: list) -> None:
     for _ in Interpreter(env, MAIN, text).events():
         pass
     assert env.r_parameter(1) == reference(program)
+
+
+# --- real programs, damaged -------------------------------------------------------------------------
+
+def real_programs() -> list[str]:
+    from tests.conftest import SHARED
+
+    folder = SHARED / "programs"
+    if not folder.is_dir():
+        return ["G1 X10 F100\nIF R1 == 0\nR2 = SIN(30)\nENDIF\nM30"]
+    return [path.read_text() for path in sorted(folder.rglob("*")) if path.suffix.upper() in (".MPF", ".SPF")]
+
+
+REAL = real_programs()
+
+
+@given(st.sampled_from(REAL), st.lists(st.tuples(st.integers(0, 10_000), st.sampled_from(
+    list("XYZ=()[];\"\n0123456789.-+*/<>:,$_ ") + ["IF", "ENDIF", "GOTOB", "FOR", "DEF", "PROC", "M17"])),
+    min_size=1, max_size=6))
+def test_damaged_real_programs_give_events_or_an_alarm(program: str, edits: list[tuple[int, str]]) -> None:
+    for position, text in edits:
+        at = position % (len(program) + 1)
+        program = program[:at] + text + program[at + 1:]
+    run_guarded(program)
