@@ -537,3 +537,49 @@ def test_a_10_mb_program_runs_to_its_end() -> None:
     result = run(ten_mb_program(), limit=10_000_000)
     assert result.alarm is None and result.events[-1] == ProgramEnd(30)
     assert len(result.moves) == 250_000
+
+
+CAM_POST = """%_N_1001_MPF
+;$PATH=/_N_MPF_DIR
+; T1 D=10 - flat end mill
+N10 G90 G94 G17
+N12 G71
+N14 WORKPIECE(,"",,"BOX",112,0,-50,-80,0,0,100,100)
+N16 T="FLAT10" D1 M6
+N18 CYCLE800(0,"TABLE",200000,57,0,0,0,0,0,0,0,0,0,-1,100,1)
+N20 S5000 M3
+N22 G54
+N24 M8
+N26 CYCLE832(0.01,_ROUGH,1)
+N28 G0 X-5.35 Y12.5
+N30 G0 Z15.
+N32 G1 Z5. F1000
+N34 G1 Z-4.5 F333.3
+N36 G3 X0.5 Y6.65 CR=5.85
+N38 G1 X45.
+N40 G2 X50. Y11.65 I0. J5.
+N42 G1 Y88.35
+N44 G0 Z15.
+N46 CYCLE832()
+N48 M9
+N50 G0 SUPA Z0 D0
+N52 G0 SUPA X0 Y0
+N54 M30
+"""
+
+
+def test_a_cam_post_program_runs_with_its_cycles_as_no_ops() -> None:
+    env = DictEnvironment(offsets={"G54": {"X": 200.0, "Y": 100.0, "Z": -300.0}},
+                          tool_lengths={("FLAT10", 1): 80.0})
+    result = run(CAM_POST, env)
+    assert result.alarm is None and result.events[-1] == ProgramEnd(30)
+    assert [block.number for block in result.blocks][:3] == ["N10", "N12", "N14"]
+    moves = result.moves
+    assert moves[0].target_mm == {"X": 194.65, "Y": 112.5}
+    assert moves[1].target_mm == {"Z": -300.0 + 15.0 + 80.0}
+    arc = moves[4]
+    assert isinstance(arc, Arc) and not arc.clockwise
+    assert arc.centre_mm == pytest.approx({"X": 200.5, "Y": 112.5})
+    assert moves[6].centre_mm == pytest.approx({"X": 245.0, "Y": 111.65})  # type: ignore[union-attr]
+    assert moves[-2].target_mm == {"Z": 0.0} and moves[-1].target_mm == {"X": 0.0, "Y": 0.0}
+    assert [event.code for event in result.of(MFunction)] == [6, 8, 9, 30]
