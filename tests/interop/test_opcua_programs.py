@@ -17,7 +17,6 @@ from asyncua import Client, ua
 from asyncua.ua.uaerrors import UaStatusCodeError
 
 from nckemu.emulator.faces.opcua import OpcUaFace, nodesets
-from nckemu.emulator.machine.nck.channel import Channel
 from nckemu.emulator.runner import EmulatorThread
 
 from .opcua_tools import NS_URI, connect, two_faces
@@ -28,9 +27,6 @@ ADMIN, PASSWORD = "nckemu", "SUNRISE"
 pytestmark = [pytest.mark.timeout(300),
               pytest.mark.skipif(nodesets.find() is None, reason=nodesets.how_to_get())]
 
-# The channel that runs programs tells its steps (on_change) and starts on DB21.DBX7.1; until it is in
-# the tree the life test waits for it.
-RUNS_PROGRAMS = hasattr(Channel, "select")
 
 
 @pytest.fixture(scope="module")
@@ -221,7 +217,6 @@ async def _ids(client: Client, machine: str) -> dict[str, Any]:
 CNC_OF_PROG_STATUS = {1: 3, 2: 0, 3: 1, 4: 2}
 
 
-@pytest.mark.skipif(not RUNS_PROGRAMS, reason="the channel that runs programs is not in this tree yet")
 def test_a_program_s_life_over_opc_ua() -> None:
     """Power-on, select, NC start, M0, NC start again, M30, and a start aborted by reset, read as a
     dashboard reads them, with the transition events a subscriber to the Server object gets."""
@@ -304,7 +299,7 @@ def test_a_recording_s_run_is_followed(faces: tuple[EmulatorThread, OpcUaFace]) 
     part counted), with its transition events."""
     emulator, face = faces
     channel = emulator.emulator.nck.channels[1]
-    run = getattr(channel, "run_without_program", channel.start)  # what the recording drive calls
+    run = channel.run_without_program  # what the recording drive calls
     events: list[Any] = []
 
     class Handler:
