@@ -238,13 +238,18 @@ def _life(face: OpcUaFace) -> None:
             one = ua.Variant(1, ua.VariantType.UInt32)
             seen["power-on"] = await _view(client)
             await _subscribe_transitions(client, Handler())
-            text = b"N10 G4 F0.3\nN20 M0\nN30 G4 F0.3\nN40 M30\n"
+            text = b"N10 G4 F0.3\nN20 PAUSE\nN30 G4 F0.3\nN40 M30\n"
             await _call(client, "CopyFileToServer", ua.Variant("LIFE.MPF"),
                         ua.Variant(text, ua.VariantType.ByteString), ua.Variant(True))
+            await _call(client, "CopyFileToServer", ua.Variant("PAUSE.SPF"),        # M0 in a subprogram
+                        ua.Variant(b"N10 G4 F0.1\nN20 M0\nN30 M17\n", ua.VariantType.ByteString), ua.Variant(True))
             seen["select"] = await _call(client, "Select", ua.Variant("LIFE.MPF"), one)
             seen["selected"] = await _view(client)
             await _pulse(client, "DB21.DBX7.1")
             seen["m0"] = await _until(client, "Interrupted")
+            seen["m0 programs"] = (await _instance(client, f"{CNC}/ActProgramName"),
+                                   await _instance(client, f"{CNC}/ActMainProgramName"),
+                                   await _instance(client, f"{CNC}/ActProgramFile"))
             seen["m0 pointer"] = (await _instance(client, f"{CNC}/ActProgramBlock"),
                                   await _instance(client, f"{CNC}/ActProgramLine"),
                                   await _sinumerik(client, "/Channel/ProgramInfo/actBlock[u1]"),
@@ -276,6 +281,7 @@ def _life(face: OpcUaFace) -> None:
     assert m0["cnc status"] == CNC_OF_PROG_STATUS[m0["progStatus"]]
     block, line, act_block, act_line = seen["m0 pointer"]
     assert block == act_block and line == str(act_line) and "M0" in block   # the same block on both faces
+    assert seen["m0 programs"] == ("_N_PAUSE_SPF", "_N_LIFE_MPF", "/_N_SPF_DIR/_N_PAUSE_SPF")
     ended = seen["ended"]
     assert (ended["program"], ended["job"], ended["transition"]) == ("Ended", "Ended", "RunningToEnded")
     assert ended["cnc status"] == 0 and ended["runs"] == power_on["runs"] + 1   # M30 counted a part

@@ -32,6 +32,7 @@ from nckemu.emulator.faces.opcua.units import (
     REVOLUTIONS_PER_MINUTE,
 )
 from nckemu.emulator.faces.opcua.values import raw_reader
+from nckemu.emulator.machine.nck.channel import CHAN_RESET
 from nckemu.errors import NckNodeIdError
 
 if TYPE_CHECKING:
@@ -142,10 +143,10 @@ class CncInterfaceInstance:
         self._program_status(made, channel)
         self._bind(made, "ActOperationMode", "/Bag/State/opMode[u1]", _first(ua.VariantType.Int32, OPERATION_MODE))
         self._bind(made, "CmdOperationMode", "/Bag/State/opMode[u1]", _first(ua.VariantType.Int32, OPERATION_MODE))
-        for path in ("ActMainProgramName", "ActProgramName"):
-            self._bind(made, path, f"/Channel/ProgramInfo/progName{u}", _first(ua.VariantType.String))
-        for path in ("ActMainProgramFile", "ActProgramFile"):
-            self._bind(made, path, f"/Channel/ProgramInfo/workPandProgName{u}", _first(ua.VariantType.String))
+        self._bind(made, "ActMainProgramName", f"/Channel/ProgramInfo/progName{u}", _first(ua.VariantType.String))
+        self._bind(made, "ActMainProgramFile", f"/Channel/ProgramInfo/workPandProgName{u}",
+                   _first(ua.VariantType.String))
+        self._current_program(made, channel)
         if self._known(f"/Channel/ProgramInfo/actBlock{u}"):
             self._bind(made, "ActProgramBlock", f"/Channel/ProgramInfo/actBlock{u}", _first(ua.VariantType.String))
         if line:
@@ -170,6 +171,27 @@ class CncInterfaceInstance:
         except NckNodeIdError:
             return False
         return True
+
+    def _current_program(self, made: Made, channel: int) -> None:
+        """ActProgramName and ActProgramFile: the program the current block belongs to (a subprogram
+        while one runs), in reset the selected main program's name and path."""
+        main_name, realm = self._btss(f"/Channel/ProgramInfo/progName[u{channel}]")
+        main_file, _realm = self._btss(f"/Channel/ProgramInfo/workPandProgName[u{channel}]")
+        state = self.emulator.nck.channels[channel].state
+
+        def raw() -> object:
+            current = state.program if state.status != CHAN_RESET else ""  # in reset: the selected program
+            return current, str(main_name()[0]), str(main_file()[0])  # type: ignore[index]
+
+        def name(value: object) -> ua.Variant:
+            current, main, _file = value  # type: ignore[misc]
+            return ua.Variant(current.rsplit("/", 1)[-1] if current else main, ua.VariantType.String)
+
+        def file(value: object) -> ua.Variant:
+            current, _main, main = value  # type: ignore[misc]
+            return ua.Variant(current or main, ua.VariantType.String)
+        self.models.bind(made["ActProgramName"], Feed(raw, name, realm))
+        self.models.bind(made["ActProgramFile"], Feed(raw, file, realm))
 
     def _program_status(self, made: Made, channel: int) -> None:
         """ActProgramStatus from progStatus; in reset (progStatus 5, aborted) Canceled only when a reset
