@@ -33,7 +33,6 @@ from nckemu.emulator.faces.opcua.units import (
 )
 from nckemu.emulator.faces.opcua.values import raw_reader
 from nckemu.emulator.machine.nck.channel import CHAN_RESET
-from nckemu.errors import NckNodeIdError
 
 if TYPE_CHECKING:
     from nckemu.emulator.faces.opcua.parts import ModelValues
@@ -129,10 +128,9 @@ class CncInterfaceInstance:
         return self
 
     def _channel(self, types: Any, cnc: int, parent: ua.NodeId, channel: int) -> Made:
-        line = self._known(f"/Channel/ProgramInfo/actLineNumber[u{channel}]")
         made = self.maker.make(parent, types.find(cnc, "CncChannelType"), f"Channel{channel}",
                                root=f"CncInterface/CncChannelList/Channel{channel}", reference=HAS_COMPONENT,
-                               optional=("ActProgramLine",) if line else ())
+                               optional=("ActProgramLine",))
         u = f"[u{channel}]"
         self.models.set(made["Id"], ua.Variant(channel, ua.VariantType.UInt32))
         self._bind(made, "ActFeedrate", f"/Channel/State/actFeedRateIpo{u}", _first(ua.VariantType.Double))
@@ -147,11 +145,9 @@ class CncInterfaceInstance:
         self._bind(made, "ActMainProgramFile", f"/Channel/ProgramInfo/workPandProgName{u}",
                    _first(ua.VariantType.String))
         self._current_program(made, channel)
-        if self._known(f"/Channel/ProgramInfo/actBlock{u}"):
-            self._bind(made, "ActProgramBlock", f"/Channel/ProgramInfo/actBlock{u}", _first(ua.VariantType.String))
-        if line:
-            self._bind(made, "ActProgramLine", f"/Channel/ProgramInfo/actLineNumber{u}",
-                       lambda raw: ua.Variant(str(int(raw[0])), ua.VariantType.String))  # type: ignore[index]
+        self._bind(made, "ActProgramBlock", f"/Channel/ProgramInfo/actBlock{u}", _first(ua.VariantType.String))
+        self._bind(made, "ActProgramLine", f"/Channel/ProgramInfo/actLineNumber{u}",
+                   lambda raw: ua.Variant(str(int(raw[0])), ua.VariantType.String))  # type: ignore[index]
         self._bind(made, "ActModalOffsetFunction", f"/Channel/State/actFrameIndex{u}", _first(ua.VariantType.UInt32))
         self._bind(made, "ToolId", f"/Channel/State/actTNumber{u}", _first(ua.VariantType.UInt32))
         for path, unit in (("ActFeedrate", None), ("CmdFeedrate", None), ("ActOverride", None),
@@ -162,15 +158,6 @@ class CncInterfaceInstance:
             if path.startswith("PosTcp") and path.count("/") == 0:
                 self._position(made, path, None, None, None, MILLIMETRE)
         return made
-
-    def _known(self, node_id: str) -> bool:
-        """Whether the catalogue has a SINUMERIK variable (the program pointer comes with the channel that
-        runs programs)."""
-        try:
-            self.face.node_name(node_id)
-        except NckNodeIdError:
-            return False
-        return True
 
     def _current_program(self, made: Made, channel: int) -> None:
         """ActProgramName and ActProgramFile: the program the current block belongs to (a subprogram
