@@ -10,6 +10,7 @@ import asyncio
 import time
 from collections.abc import Iterator
 from importlib import resources
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -338,3 +339,24 @@ def test_a_recording_s_run_is_followed(faces: tuple[EmulatorThread, OpcUaFace]) 
     assert program == [(step, *step.split("To"), "") for step in steps]
     job = [(_text(event.Transition), event.Identifier) for event in events if hasattr(event, "RunsCompleted")]
     assert job == [(step, "Job1") for step in steps]
+
+
+def test_the_docs_example_runs() -> None:
+    """docs/opcua.md "Programs over OPC UA": its asyncua example copies, selects and starts a program,
+    which then runs to its end."""
+    docs = Path(__file__).resolve().parents[2] / "docs" / "opcua.md"
+    section = docs.read_text(encoding="utf-8").split("## Programs over OPC UA", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    names: dict[str, Any] = {}
+    exec(compile(code, f"{docs}:Programs over OPC UA", "exec"), names)  # noqa: S102 - our own docs
+    with two_faces() as (emulator, face):
+        asyncio.run(names["run_part"](face.url))
+
+        async def ended() -> str:
+            client = await connect(face)
+            try:
+                return (await _until(client, "Ended", 10.0))["program"]
+            finally:
+                await client.disconnect()
+        assert asyncio.run(ended()) == "Ended"
+        assert emulator.emulator.nck.channels[1].state.actual_parts == 1
