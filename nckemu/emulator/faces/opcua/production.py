@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
 
-from nckemu.emulator.faces.opcua import nodesets
+from nckemu.emulator.faces.opcua import asyncua_internals, nodesets
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import Made, Types
 from nckemu.emulator.faces.opcua.program_states import (
@@ -295,7 +295,7 @@ class Production:
     async def _concrete(self, server: Server, abstract: ua.NodeId, name: str) -> ua.NodeId:
         """A concrete subtype of an abstract event type, in the instance namespace (once per address space)."""
         nodeid = ua.NodeId(name, self.models.instance_namespace)
-        if nodeid in server.iserver.aspace._nodes:
+        if nodeid in asyncua_internals.nodes(server.iserver.aspace):
             return nodeid
         made = await server.get_node(abstract).add_object_type(nodeid, ua.QualifiedName(name, nodeid.NamespaceIndex))
         return made.nodeid  # type: ignore[no-any-return]
