@@ -301,7 +301,8 @@ class Production:
         return made.nodeid  # type: ignore[no-any-return]
 
     async def stop(self) -> None:
-        self.tracker.listeners.remove(self._stepped)
+        if self._stepped in self.tracker.listeners:
+            self.tracker.listeners.remove(self._stepped)
         if self._sender is not None:
             self._sender.cancel()
             try:
