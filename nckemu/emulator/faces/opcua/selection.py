@@ -140,5 +140,8 @@ async def add_methods(face: MethodHost, server: Server, methods: Any) -> None:
                                                    "3 channel not in reset, 4 rejected, 5 program running")]),
     ]
     for name, method, inputs, outputs in table:
-        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
-                                 request.with_arguments(method, len(inputs)), inputs, outputs)
+        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                        request.with_arguments(method, len(inputs)), inputs, outputs)
+        # UserExecutable as the session reads it: as ``refused`` decides
+        server.set_attribute_value_callback(node.nodeid, request.user_executable(
+            lambda user, rights: bool(user) and may(rights, REALM, write=True)), ua.AttributeIds.UserExecutable)
