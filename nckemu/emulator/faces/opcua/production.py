@@ -3,10 +3,9 @@
 ``ProgramTracker`` follows channel 1's program: the channel tells it each step (``on_change``: selected,
 started, interrupted, resumed, ended, aborted, unselected); a change of the channel's state it did not
 tell as a step (a recording runs the channel without a program) is worked out from how the channel looks
-after it (``state_listeners``, ``program_states.events_between``). It
-moves the two state machines of ``program_states.py`` at once, under a lock, so a read right after the
-channel acted sees the new state; the transition events go out afterwards, in order, from one task on
-the face's loop.
+after it (``state_listeners``, ``program_states.events_between``). It moves the two state machines of
+``program_states.py`` at once, under a lock, so a read right after the channel acted sees the new state;
+the transition events go out afterwards, in order, from one task on the face's loop.
 
 ``StateMachineNodes`` reads a state machine type from the address space (the NodeSet as imported):
 its states with their StateNumber and its transitions with their TransitionNumber and FromState/ToState.
