@@ -178,6 +178,8 @@ def test_user_access_level_and_user_executable_follow_the_sessions_rights(tmp_pa
             assert seen["GetMyAccessRights"] is logged_in, who
             assert seen["CopyFileFromServer"] is (logged_in and bool({"SinuReadAll", "FSRead"} & rights)), who
             assert seen["AddUser"] is (user == "nckemu"), who
+            may_select = logged_in and bool({"SinuWriteAll", "StateWrite"} & rights)
+            assert seen["Select"] is seen["Unselect"] is may_select, who
             assert seen["AddCertificateUser"] is False
 
 

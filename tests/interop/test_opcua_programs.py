@@ -10,6 +10,7 @@ import asyncio
 import time
 from collections.abc import Iterator
 from importlib import resources
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -17,7 +18,6 @@ from asyncua import Client, ua
 from asyncua.ua.uaerrors import UaStatusCodeError
 
 from nckemu.emulator.faces.opcua import OpcUaFace, nodesets
-from nckemu.emulator.machine.nck.channel import Channel
 from nckemu.emulator.runner import EmulatorThread
 
 from .opcua_tools import NS_URI, connect, two_faces
@@ -28,9 +28,6 @@ ADMIN, PASSWORD = "nckemu", "SUNRISE"
 pytestmark = [pytest.mark.timeout(300),
               pytest.mark.skipif(nodesets.find() is None, reason=nodesets.how_to_get())]
 
-# The channel that runs programs tells its steps (on_change) and starts on DB21.DBX7.1; until it is in
-# the tree the life test waits for it.
-RUNS_PROGRAMS = hasattr(Channel, "select")
 
 
 @pytest.fixture(scope="module")
@@ -221,7 +218,6 @@ async def _ids(client: Client, machine: str) -> dict[str, Any]:
 CNC_OF_PROG_STATUS = {1: 3, 2: 0, 3: 1, 4: 2}
 
 
-@pytest.mark.skipif(not RUNS_PROGRAMS, reason="the channel that runs programs is not in this tree yet")
 def test_a_program_s_life_over_opc_ua() -> None:
     """Power-on, select, NC start, M0, NC start again, M30, and a start aborted by reset, read as a
     dashboard reads them, with the transition events a subscriber to the Server object gets."""
@@ -243,13 +239,18 @@ def _life(face: OpcUaFace) -> None:
             one = ua.Variant(1, ua.VariantType.UInt32)
             seen["power-on"] = await _view(client)
             await _subscribe_transitions(client, Handler())
-            text = b"N10 G4 F0.3\nN20 M0\nN30 G4 F0.3\nN40 M30\n"
+            text = b"N10 G4 F0.3\nN20 PAUSE\nN30 G4 F0.3\nN40 M30\n"
             await _call(client, "CopyFileToServer", ua.Variant("LIFE.MPF"),
                         ua.Variant(text, ua.VariantType.ByteString), ua.Variant(True))
+            await _call(client, "CopyFileToServer", ua.Variant("PAUSE.SPF"),        # M0 in a subprogram
+                        ua.Variant(b"N10 G4 F0.1\nN20 M0\nN30 M17\n", ua.VariantType.ByteString), ua.Variant(True))
             seen["select"] = await _call(client, "Select", ua.Variant("LIFE.MPF"), one)
             seen["selected"] = await _view(client)
             await _pulse(client, "DB21.DBX7.1")
             seen["m0"] = await _until(client, "Interrupted")
+            seen["m0 programs"] = (await _instance(client, f"{CNC}/ActProgramName"),
+                                   await _instance(client, f"{CNC}/ActMainProgramName"),
+                                   await _instance(client, f"{CNC}/ActProgramFile"))
             seen["m0 pointer"] = (await _instance(client, f"{CNC}/ActProgramBlock"),
                                   await _instance(client, f"{CNC}/ActProgramLine"),
                                   await _sinumerik(client, "/Channel/ProgramInfo/actBlock[u1]"),
@@ -281,6 +282,7 @@ def _life(face: OpcUaFace) -> None:
     assert m0["cnc status"] == CNC_OF_PROG_STATUS[m0["progStatus"]]
     block, line, act_block, act_line = seen["m0 pointer"]
     assert block == act_block and line == str(act_line) and "M0" in block   # the same block on both faces
+    assert seen["m0 programs"] == ("_N_PAUSE_SPF", "_N_LIFE_MPF", "/_N_SPF_DIR/_N_PAUSE_SPF")
     ended = seen["ended"]
     assert (ended["program"], ended["job"], ended["transition"]) == ("Ended", "Ended", "RunningToEnded")
     assert ended["cnc status"] == 0 and ended["runs"] == power_on["runs"] + 1   # M30 counted a part
@@ -304,7 +306,7 @@ def test_a_recording_s_run_is_followed(faces: tuple[EmulatorThread, OpcUaFace]) 
     part counted), with its transition events."""
     emulator, face = faces
     channel = emulator.emulator.nck.channels[1]
-    run = getattr(channel, "run_without_program", channel.start)  # what the recording drive calls
+    run = channel.run_without_program  # what the recording drive calls
     events: list[Any] = []
 
     class Handler:
@@ -337,3 +339,24 @@ def test_a_recording_s_run_is_followed(faces: tuple[EmulatorThread, OpcUaFace]) 
     assert program == [(step, *step.split("To"), "") for step in steps]
     job = [(_text(event.Transition), event.Identifier) for event in events if hasattr(event, "RunsCompleted")]
     assert job == [(step, "Job1") for step in steps]
+
+
+def test_the_docs_example_runs() -> None:
+    """docs/opcua.md "Programs over OPC UA": its asyncua example copies, selects and starts a program,
+    which then runs to its end."""
+    docs = Path(__file__).resolve().parents[2] / "docs" / "opcua.md"
+    section = docs.read_text(encoding="utf-8").split("## Programs over OPC UA", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    names: dict[str, Any] = {}
+    exec(compile(code, f"{docs}:Programs over OPC UA", "exec"), names)  # noqa: S102 - our own docs
+    with two_faces() as (emulator, face):
+        asyncio.run(names["run_part"](face.url))
+
+        async def ended() -> str:
+            client = await connect(face)
+            try:
+                return (await _until(client, "Ended", 10.0))["program"]
+            finally:
+                await client.disconnect()
+        assert asyncio.run(ended()) == "Ended"
+        assert emulator.emulator.nck.channels[1].state.actual_parts == 1

@@ -32,7 +32,7 @@ from nckemu.emulator.faces.opcua.units import (
     REVOLUTIONS_PER_MINUTE,
 )
 from nckemu.emulator.faces.opcua.values import raw_reader
-from nckemu.errors import NckNodeIdError
+from nckemu.emulator.machine.nck.channel import CHAN_RESET
 
 if TYPE_CHECKING:
     from nckemu.emulator.faces.opcua.parts import ModelValues
@@ -128,10 +128,9 @@ class CncInterfaceInstance:
         return self
 
     def _channel(self, types: Any, cnc: int, parent: ua.NodeId, channel: int) -> Made:
-        line = self._known(f"/Channel/ProgramInfo/actLineNumber[u{channel}]")
         made = self.maker.make(parent, types.find(cnc, "CncChannelType"), f"Channel{channel}",
                                root=f"CncInterface/CncChannelList/Channel{channel}", reference=HAS_COMPONENT,
-                               optional=("ActProgramLine",) if line else ())
+                               optional=("ActProgramLine",))
         u = f"[u{channel}]"
         self.models.set(made["Id"], ua.Variant(channel, ua.VariantType.UInt32))
         self._bind(made, "ActFeedrate", f"/Channel/State/actFeedRateIpo{u}", _first(ua.VariantType.Double))
@@ -142,15 +141,13 @@ class CncInterfaceInstance:
         self._program_status(made, channel)
         self._bind(made, "ActOperationMode", "/Bag/State/opMode[u1]", _first(ua.VariantType.Int32, OPERATION_MODE))
         self._bind(made, "CmdOperationMode", "/Bag/State/opMode[u1]", _first(ua.VariantType.Int32, OPERATION_MODE))
-        for path in ("ActMainProgramName", "ActProgramName"):
-            self._bind(made, path, f"/Channel/ProgramInfo/progName{u}", _first(ua.VariantType.String))
-        for path in ("ActMainProgramFile", "ActProgramFile"):
-            self._bind(made, path, f"/Channel/ProgramInfo/workPandProgName{u}", _first(ua.VariantType.String))
-        if self._known(f"/Channel/ProgramInfo/actBlock{u}"):
-            self._bind(made, "ActProgramBlock", f"/Channel/ProgramInfo/actBlock{u}", _first(ua.VariantType.String))
-        if line:
-            self._bind(made, "ActProgramLine", f"/Channel/ProgramInfo/actLineNumber{u}",
-                       lambda raw: ua.Variant(str(int(raw[0])), ua.VariantType.String))  # type: ignore[index]
+        self._bind(made, "ActMainProgramName", f"/Channel/ProgramInfo/progName{u}", _first(ua.VariantType.String))
+        self._bind(made, "ActMainProgramFile", f"/Channel/ProgramInfo/workPandProgName{u}",
+                   _first(ua.VariantType.String))
+        self._current_program(made, channel)
+        self._bind(made, "ActProgramBlock", f"/Channel/ProgramInfo/actBlock{u}", _first(ua.VariantType.String))
+        self._bind(made, "ActProgramLine", f"/Channel/ProgramInfo/actLineNumber{u}",
+                   lambda raw: ua.Variant(str(int(raw[0])), ua.VariantType.String))  # type: ignore[index]
         self._bind(made, "ActModalOffsetFunction", f"/Channel/State/actFrameIndex{u}", _first(ua.VariantType.UInt32))
         self._bind(made, "ToolId", f"/Channel/State/actTNumber{u}", _first(ua.VariantType.UInt32))
         for path, unit in (("ActFeedrate", None), ("CmdFeedrate", None), ("ActOverride", None),
@@ -162,14 +159,26 @@ class CncInterfaceInstance:
                 self._position(made, path, None, None, None, MILLIMETRE)
         return made
 
-    def _known(self, node_id: str) -> bool:
-        """Whether the catalogue has a SINUMERIK variable (the program pointer comes with the channel that
-        runs programs)."""
-        try:
-            self.face.node_name(node_id)
-        except NckNodeIdError:
-            return False
-        return True
+    def _current_program(self, made: Made, channel: int) -> None:
+        """ActProgramName and ActProgramFile: the program the current block belongs to (a subprogram
+        while one runs), in reset the selected main program's name and path."""
+        main_name, realm = self._btss(f"/Channel/ProgramInfo/progName[u{channel}]")
+        main_file, _realm = self._btss(f"/Channel/ProgramInfo/workPandProgName[u{channel}]")
+        state = self.emulator.nck.channels[channel].state
+
+        def raw() -> object:
+            current = state.program if state.status != CHAN_RESET else ""  # in reset: the selected program
+            return current, str(main_name()[0]), str(main_file()[0])  # type: ignore[index]
+
+        def name(value: object) -> ua.Variant:
+            current, main, _file = value  # type: ignore[misc]
+            return ua.Variant(current.rsplit("/", 1)[-1] if current else main, ua.VariantType.String)
+
+        def file(value: object) -> ua.Variant:
+            current, _main, main = value  # type: ignore[misc]
+            return ua.Variant(current or main, ua.VariantType.String)
+        self.models.bind(made["ActProgramName"], Feed(raw, name, realm))
+        self.models.bind(made["ActProgramFile"], Feed(raw, file, realm))
 
     def _program_status(self, made: Made, channel: int) -> None:
         """ActProgramStatus from progStatus; in reset (progStatus 5, aborted) Canceled only when a reset

@@ -113,7 +113,7 @@ class Models:
             self.parts.append(cnc.CncInterfaceInstance(self, maker).build())
         self.nodes_made = maker.made
         for tracker in self.trackers.values():
-            await tracker.start(self.face.settings.sample_interval_ms / 1000.0 / 2)
+            tracker.start()
         for part in self.parts:
             await part.start(server)
 
@@ -121,7 +121,7 @@ class Models:
         for part in self.parts:
             await part.stop()
         for tracker in self.trackers.values():
-            await tracker.stop()
+            tracker.stop()
 
     def tracker(self, channel: int) -> ProgramTracker:
         """Channel ``channel``'s program life, one per face for every model that shows it."""

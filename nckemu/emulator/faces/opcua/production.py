@@ -3,11 +3,9 @@
 ``ProgramTracker`` follows channel 1's program: the channel tells it each step (``on_change``: selected,
 started, interrupted, resumed, ended, aborted, unselected); a change of the channel's state it did not
 tell as a step (a recording runs the channel without a program) is worked out from how the channel looks
-(``program_states.events_between``), at each change (``state_listeners``) or, for a channel that tells
-nothing, every half sample interval. It
-moves the two state machines of ``program_states.py`` at once, under a lock, so a read right after the
-channel acted sees the new state; the transition events go out afterwards, in order, from one task on
-the face's loop.
+after it (``state_listeners``, ``program_states.events_between``). It moves the two state machines of
+``program_states.py`` at once, under a lock, so a read right after the channel acted sees the new state;
+the transition events go out afterwards, in order, from one task on the face's loop.
 
 ``StateMachineNodes`` reads a state machine type from the address space (the NodeSet as imported):
 its states with their StateNumber and its transitions with their TransitionNumber and FromState/ToState.
@@ -47,6 +45,7 @@ from nckemu.emulator.faces.opcua.program_states import (
     Step,
     events_between,
 )
+from nckemu.emulator.machine.nck.channel import Channel
 
 
 class MachineToolHost(Protocol):
@@ -150,63 +149,36 @@ class ProgramTracker:
 
     def __init__(self, emulator: Any, number: int = 1) -> None:
         self.emulator = emulator
-        self.channel = emulator.nck.channels[number]
+        self.channel: Channel = emulator.nck.channels[number]
         self.program = ProgramStates()
         self.job = JobStates()
         self.program_at: datetime | None = None
         self.job_at: datetime | None = None
         self._lock = threading.Lock()
         self.listeners: list[Callable[[list[Step], list[Step]], None]] = []
-        self.tells = isinstance(getattr(self.channel, "on_change", None), list)
-        # A channel that tells its program's steps may still change its state without a step (a
-        # recording runs it without a program): its state listeners catch those changes.
-        listeners = getattr(self.channel, "state_listeners", None)
-        self._state_listeners: list[Any] | None = listeners if isinstance(listeners, list) else None
-        self._told = False  # a step told since the last look
+        self._told = False  # a step told since the channel's state last changed
         self._look = self.look()
-        self._poller: asyncio.Task[None] | None = None
 
-    async def start(self, interval_s: float) -> None:
-        """Listen to the channel, or look at it every ``interval_s`` when it does not tell."""
-        if self.tells:
-            self.channel.on_change.append(self.tell)
-            if self._state_listeners is not None:
-                self._state_listeners.append(self._state_changed)
-        else:
-            self._poller = asyncio.get_running_loop().create_task(self._poll_forever(interval_s))
+    def start(self) -> None:
+        """Listen to the channel's steps, and to its state for the changes it tells as no step (a
+        recording runs it without a program)."""
+        self.channel.on_change.append(self.tell)
+        self.channel.state_listeners.append(self._state_changed)
 
-    async def stop(self) -> None:
-        if self.tells and self.tell in self.channel.on_change:
-            self.channel.on_change.remove(self.tell)
-        if self._state_listeners is not None and self._state_changed in self._state_listeners:
-            self._state_listeners.remove(self._state_changed)
-        if self._poller is not None:
-            self._poller.cancel()
-            try:
-                await self._poller
-            except asyncio.CancelledError:
-                pass
-            self._poller = None
-
-    async def _poll_forever(self, interval_s: float) -> None:
-        while True:
-            try:
-                self.poll()
-            except Exception:  # the poller must go on; the fault is logged
-                log.exception("OPC UA program tracker")
-            await asyncio.sleep(interval_s)
+    def stop(self) -> None:
+        for listeners, listener in ((self.channel.on_change, self.tell),
+                                    (self.channel.state_listeners, self._state_changed)):
+            if listener in listeners:
+                listeners.remove(listener)  # type: ignore[arg-type]
 
     def counters(self) -> tuple[float, float]:
         """RunsCompleted and RunsPlanned: actParts and reqParts."""
         state = self.channel.state
-        return float(getattr(state, "actual_parts", 0.0)), float(getattr(state, "required_parts", 0.0))
+        return float(state.actual_parts), float(state.required_parts)
 
     def look(self) -> ChannelLook:
         state = self.channel.state
-        selected = getattr(self.channel, "selected", None)
-        if not isinstance(selected, str):
-            selected = self.emulator.nck.programs.selected
-        return ChannelLook(int(state.program_status), str(selected), float(getattr(state, "total_parts", 0.0)))
+        return ChannelLook(int(state.program_status), self.channel.selected, float(state.total_parts))
 
     def tell(self, event: str) -> None:
         """The channel did ``event`` (any thread)."""
@@ -237,15 +209,6 @@ class ProgramTracker:
         if program_steps or job_steps:
             for listener in list(self.listeners):
                 listener(program_steps, job_steps)
-
-    def poll(self) -> None:
-        """For a channel that does not tell its steps: work them out from how it looks now."""
-        if self.tells:
-            return
-        look = self.look()
-        before, self._look = self._look, look
-        for event in events_between(before, look):
-            self._step(event)
 
     def program_moment(self) -> Moment:
         with self._lock:
@@ -348,7 +311,8 @@ class Production:
         return made.nodeid  # type: ignore[no-any-return]
 
     async def stop(self) -> None:
-        self.tracker.listeners.remove(self._stepped)
+        if self._stepped in self.tracker.listeners:
+            self.tracker.listeners.remove(self._stepped)
         if self._sender is not None:
             self._sender.cancel()
             try:

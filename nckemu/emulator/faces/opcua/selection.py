@@ -25,7 +25,7 @@ from asyncua import Server, ua
 
 from nckemu.emulator.faces.opcua import files, request
 from nckemu.emulator.faces.opcua.settings import may
-from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE, CHAN_RESET
+from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE, CHAN_RESET, Channel
 from nckemu.errors import NckError, NckNoSuchFile, NckPiStateError
 
 if TYPE_CHECKING:
@@ -57,13 +57,7 @@ def select(face: MethodHost, file: Any, channel_number: Any) -> int:
     if not programs.exists(path):
         return NO_PROGRAM
     try:
-        chooser = getattr(channel, "select", None)
-        if chooser is not None:
-            chooser(path)
-        else:  # a channel that does not run programs: the store's selection, in reset only
-            if channel.state.status != CHAN_RESET:
-                return NOT_IN_RESET
-            programs.select(path)
+        channel.select(path)
     except NckNoSuchFile:
         return NO_PROGRAM
     except NckPiStateError:
@@ -78,20 +72,14 @@ def unselect(face: MethodHost, channel_number: Any) -> int:
     channel = _channel(face, channel_number)
     if channel is None:
         return NO_CHANNEL
-    programs = face.emulator.nck.programs
-    selected = getattr(channel, "selected", programs.selected)  # each channel its own, where it keeps one
-    if not selected:
+    if not channel.selected:
         return NOTHING_SELECTED
     if channel.state.status == CHAN_ACTIVE:
         return RUNNING
     if channel.state.status != CHAN_RESET:
         return NOT_IN_RESET
     try:
-        chooser = getattr(channel, "unselect", None)
-        if chooser is not None:
-            chooser()
-        else:  # a channel that does not run programs: the store's selection
-            programs.selected = ""
+        channel.unselect()
     except NckPiStateError:
         return NOT_IN_RESET
     except NckError:
@@ -99,7 +87,7 @@ def unselect(face: MethodHost, channel_number: Any) -> int:
     return SELECTED
 
 
-def _channel(face: MethodHost, number: Any) -> Any:
+def _channel(face: MethodHost, number: Any) -> Channel | None:
     if isinstance(number, bool) or not isinstance(number, int):
         return None
     return face.emulator.nck.channels.get(number)
@@ -152,5 +140,8 @@ async def add_methods(face: MethodHost, server: Server, methods: Any) -> None:
                                                    "3 channel not in reset, 4 rejected, 5 program running")]),
     ]
     for name, method, inputs, outputs in table:
-        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
-                                 request.with_arguments(method, len(inputs)), inputs, outputs)
+        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                        request.with_arguments(method, len(inputs)), inputs, outputs)
+        # UserExecutable as the session reads it: as ``refused`` decides
+        server.set_attribute_value_callback(node.nodeid, request.user_executable(
+            lambda user, rights: bool(user) and may(rights, REALM, write=True)), ua.AttributeIds.UserExecutable)
