@@ -3,7 +3,9 @@
 ``run_offline(emulator, path)`` selects and starts ``path`` on channel 1 of an emulator built with a
 :class:`~nckemu.emulator.machine.clock.SimulatedClock` and steps the machine's cycle
 (:meth:`Emulator.step_machine`) until the program ends, raises an alarm or ``max_time_s`` has passed.
-An M0 (or M1 with optional stop) is answered with NC start at once: offline nobody presses it.
+An M0 (or M1 with optional stop) is answered with NC start at once: offline nobody presses it. The
+cycle is 1 s by default, as a served living machine's (``serve --speed``, ``--cycle 1s``): the time a
+program takes does not depend on the cycle; the heat's inputs are taken once a cycle.
 What the run would have recorded is sampled every ``sample_s``: the columns of a recording
 (``t_s``, ``temp_<sensor>_C``, ``spindle_rpm``, ``pos_<axis>_mm``).
 """
@@ -23,6 +25,7 @@ if TYPE_CHECKING:
     from nckemu.emulator.machine.core import Emulator
 
 DEFAULT_MAX_TIME_S = 7 * 24 * 3600.0
+OFFLINE_CYCLE_S = 1.0
 
 
 @dataclass
@@ -62,7 +65,7 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
     clock = emulator.clock
     if not isinstance(clock, SimulatedClock):
         raise NckConfigError("an offline run needs an emulator built with clock=SimulatedClock()")
-    cycle = cycle_s or emulator.machine.program.cycle_s
+    cycle = cycle_s or OFFLINE_CYCLE_S
     channel = emulator.nck.channels[1]
     last: list[BlockRecord | None] = [None]
 
