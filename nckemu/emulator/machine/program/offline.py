@@ -7,7 +7,8 @@ An M0 (or M1 with optional stop) is answered with NC start at once: offline nobo
 cycle is 1 s by default, as a served living machine's (``serve --speed``, ``--cycle 1s``): the time a
 program takes does not depend on the cycle; the heat's inputs are taken once a cycle.
 What the run would have recorded is sampled every ``sample_s``: the columns of a recording
-(``t_s``, ``temp_<sensor>_C``, ``spindle_rpm``, ``pos_<axis>_mm``).
+(``t_s``, ``temp_<sensor>_C``, ``spindle_rpm``, ``pos_<axis>_mm``, and ``err_<axis>_um``: the error
+the heat makes on the axis, less the compensation, as a gauge would read it).
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ def recording_columns(emulator: Emulator) -> list[str]:
     if any(axis.spindle for axis in machine.axes):
         columns.append("spindle_rpm")
     columns += [f"pos_{axis.recording}_mm" for axis in machine.axes if not axis.spindle and axis.recording]
+    columns += [f"err_{axis.recording}_um" for axis in machine.axes if not axis.spindle and axis.recording]
     return columns
 
 
@@ -53,6 +55,8 @@ def sample(emulator: Emulator, t_s: float) -> list[float]:
     if any(axis.spindle for axis in emulator.machine.axes):
         row.append(nck.channels[1].spindle_speed_rpm(1) if nck.channels[1].state.spindles else 0.0)
     row += [nck.actual_position_mm(axis.number) for axis in emulator.machine.axes
+            if not axis.spindle and axis.recording]
+    row += [emulator.heat.measured_error_um(axis.number) for axis in emulator.machine.axes
             if not axis.spindle and axis.recording]
     return row
 
