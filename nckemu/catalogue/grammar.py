@@ -22,8 +22,8 @@ BTSS, the controller's paths and the NC-Var selector's lines: a number is a line
   MD10000[u1,2]  TEMP_COMP_ABS_VALUE[u4]   by number or name
   /Tool/Compensation/cuttEdgeParam[u1, c7, 3]   column (T number) 7, line 3
 SINUMERIK OPC UA node ids (``ns=2;s=`` in front is optional): the BTSS paths, and machine and setting
-data, in whose ``/NC/`` ids a number is the NC index counted from 0 (as the controller's MD and GUD ids):
-  /NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]   /NC/_N_AX_TEA_ACX/$MA_ENC_COMP_ENABLE[1,u4]
+data, whose ``/NC/`` ids count lines from 1 too (the controller's GUD ids do: ARRAY[0] is ARRAY[1]):
+  /NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]   /NC/_N_AX_TEA_ACX/$MA_ENC_COMP_ENABLE[2,u4] (index 1)
   /Plc/M5.0  /Plc/MB6  /Plc/DB5.DBW2  /Plc/DB8.DBB2:STRING  /Plc/DB8.DBW2:[10]  /Plc/DB2.DBD0:REAL[10]
   (``/Random/Plc/...`` is the same as ``/Plc/...``)
 S7, as STEP 7 and S7 tools write PLC memory (German E/A for I/Q accepted):
@@ -182,7 +182,7 @@ def node_paths(spec: VariableSpec) -> list[str]:
         paths += ["/Channel/Parameter/R", "/Channel/Parameter/rpa"]  # rpa: the BTSS name
     if not paths:
         paths.append(f"/Nckemu/{_AREA_FOLDER.get(area, 'Nck')}/{spec.name}")
-    return paths
+    return paths + list(spec.aliases)
 
 
 def btss_base(spec: VariableSpec) -> str:
@@ -217,10 +217,10 @@ def _btss_parts(spec: VariableSpec, address: NckAddress) -> list[str]:
 
 def display_node_id(spec: VariableSpec, address: NckAddress, namespace: int | None = 2) -> str:
     """The SINUMERIK OPC UA node id of an address (``ns=2;s=`` in front unless ``namespace`` is None):
-    the BTSS path with lines from 1, or the ``/NC/`` id with the NC index from 0."""
+    the BTSS path, or the ``/NC/`` id (line first, unit last), lines from 1 in both."""
     path = node_paths(spec)[0]
     if path.lower().startswith("/nc/"):
-        parts = [str(address.line - 1)] if spec.lines > 1 or address.line != 1 or address.line_count > 1 else []
+        parts = [str(address.line)] if spec.lines > 1 or address.line != 1 or address.line_count > 1 else []
         if address.line_count > 1:
             parts.append(f"#{address.line_count}")
         if spec.columns > 1:
@@ -276,7 +276,7 @@ def index_ranges(spec: VariableSpec) -> IndexRanges:
     btss = f"{btss_base(spec)}[{','.join(btss_parts)}]"
     path = node_paths(spec)[0]
     if path.lower().startswith("/nc/"):
-        node_parts = ([f"0..{spec.lines - 1}"] if spec.lines > 1 else []) + \
+        node_parts = ([f"1..{spec.lines}"] if spec.lines > 1 else []) + \
             ([f"c{spec.column}..{last_column}"] if spec.columns > 1 else []) + [unit]
     else:
         node_parts = btss_parts
@@ -351,8 +351,7 @@ def _parse_path(text: str, source: str, specs: Sequence[VariableSpec] | None) ->
         if _NC_DATA.match(path.lower()) is not None or root != "nc":
             raise NckNodeNotConfigured(f"{path}: this machine has no such variable (nckemu vars lists them)")
         raise NckNodeIdUnknown(f"{text!r}: not an /NC/_N_<NC|CH|AX>_<SEA|TEA>_ACX/$.. id")
-    syntax = "nc_data" if path.lower().startswith("/nc/") else "btss"
-    return _resolve(text, spec, match["index"], syntax, realm_of(path))
+    return _resolve(text, spec, match["index"], "btss", realm_of(path))
 
 
 def _parse_bare(text: str, source: str, table: tuple[VariableSpec, ...]) -> NodeName:
@@ -408,8 +407,8 @@ def _where(spec: VariableSpec) -> str:
 
 
 def _resolve(text: str, spec: VariableSpec, index: str | None, syntax: str, realm: str) -> NcNodeName:
-    """The bracket ``index`` of ``spec`` in ``syntax``: "nc" (NC syntax), "btss" (lines from 1) or
-    "nc_data" (an /NC/ id: BTSS parts, but a number is the NC index from 0)."""
+    """The bracket ``index`` of ``spec`` in ``syntax``: "nc" (NC syntax) or "btss" (BTSS and every OPC UA
+    node id: lines from 1)."""
     parts = [part.strip().lower() for part in (index or "").split(",")]
     if parts == [""]:
         parts = []
@@ -428,7 +427,7 @@ def _resolve(text: str, spec: VariableSpec, index: str | None, syntax: str, real
     if syntax == "nc":
         area, unit, column, line, count, array = _resolve_nc(text, spec, tokens)
     else:
-        area, unit, column, line, count, array = _resolve_btss(text, spec, tokens, syntax == "nc_data")
+        area, unit, column, line, count, array = _resolve_btss(text, spec, tokens)
     _check(text, spec, area, unit, column, line, count, syntax)
     return NcNodeName(spec, area, unit, line, count, column, realm, array)
 
@@ -437,8 +436,7 @@ def _vocabulary(syntax: str) -> str:
     if syntax == "nc":
         return ("NC syntax: an index from 0, AXn, SPn, Cn/Nn/Bn/Tn unit, colN column, xN lines, lN line; "
                 "a uN part makes it BTSS")
-    base = "an NC index from 0" if syntax == "nc_data" else "lines from 1"
-    return f"BTSS: [uN, line], [uN, first, last], [uN, first, #count], cN column; {base}"
+    return "BTSS: [uN, line], [uN, first, last], [uN, first, #count], cN column; lines from 1"
 
 
 def _resolve_nc(text: str, spec: VariableSpec,
@@ -499,8 +497,7 @@ def _resolve_nc(text: str, spec: VariableSpec,
     return area, unit, column, 1 if line is None else line, count, count > 1
 
 
-def _resolve_btss(text: str, spec: VariableSpec, tokens: list[tuple[str, int]],
-                  nc_index: bool) -> tuple[int, int, int, int, int, bool]:
+def _resolve_btss(text: str, spec: VariableSpec, tokens: list[tuple[str, int]]) -> tuple[int, int, int, int, int, bool]:
     unit, column = 1, spec.column
     numbers: list[int] = []
     count: int | None = None
@@ -515,13 +512,12 @@ def _resolve_btss(text: str, spec: VariableSpec, tokens: list[tuple[str, int]],
             numbers.append(number)
         else:
             raise NckNodeIdUnknown(f"{text!r}: {prefix}{number} is NC syntax; in BTSS write "
-                                   f"{_vocabulary('nc_data' if nc_index else 'btss')}")
+                                   f"{_vocabulary('btss')}")
     if len(numbers) > 2 or (count is not None and len(numbers) != 1):
         raise NckNodeIdUnknown(f"{text!r}: expected [uN, line], [uN, first, last] or [uN, first, #count]")
-    shift = 1 if nc_index else 0
-    line = numbers[0] + shift if numbers else 1
+    line = numbers[0] if numbers else 1
     if len(numbers) == 2:
-        count = numbers[1] + shift - line + 1
+        count = numbers[1] - line + 1
     array = count is not None
     return min(spec.areas), unit, column, line, 1 if count is None else count, array
 

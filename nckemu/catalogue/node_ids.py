@@ -9,7 +9,7 @@ the forms the controller serves:
   /Tool/Compensation/cuttEdgeParam[u1, c2, 3, 5]   column (T number) 2, lines 3..5
   /NC/_N_CH_TEA_ACX/$MC_CHAN_NAME[u1]               machine data (TEA) of a channel
   /NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]     setting data (SEA) of axis 4 (scheme inferred)
-  /NC/_N_AX_TEA_ACX/$MA_ENC_COMP_ENABLE[1, u4]      a number in an /NC/ id: the NC index, from 0
+  /NC/_N_AX_TEA_ACX/$MA_ENC_COMP_ENABLE[2, u4]      a number in an /NC/ id: a line from 1 (NC index 1)
   /Plc/M5.0  /Plc/MB6  /Plc/DB5.DBW2  /Plc/DB8.DBB2:STRING  /Plc/DB8.DBW2:[10]  /Plc/DB2.DBD0:REAL[10]
   (``/Random/Plc/...`` is the same as ``/Plc/...``; ``ns=2;s=`` in front is allowed)
 Catalogue rows without a BTSS path and without an SD/MD number are served as ``/Nckemu/<area>/<name>``.

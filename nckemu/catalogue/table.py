@@ -26,7 +26,7 @@ BUILTIN_SOURCE = "nckemu/catalogue/variables.toml"
 ROW_KEYS = frozenset({
     "name", "number", "module", "column", "areas", "type", "lines", "length", "unit", "min", "max",
     "default", "read_level", "write_level", "retained", "effective", "source", "description", "path",
-    "columns",
+    "columns", "aliases",
 })
 REQUIRED_KEYS = ("name", "number", "module", "column", "areas", "type")
 
@@ -57,6 +57,9 @@ class VariableSpec:
     # How many columns from ``column`` on the variable occupies: > 1 where the column is an index, as
     # the T number of the tool offsets (module TO: column = T number); its value source gets the column.
     columns: int = 1
+    # Other paths the controller serves the same value under, line for line (a Siemens BTSS path of a row
+    # served first as nckemu's own /Nckemu/.. id): names that read and write this row.
+    aliases: tuple[str, ...] = ()
 
     @property
     def read_only(self) -> bool:
@@ -117,6 +120,9 @@ def _spec(row: Mapping[str, object]) -> VariableSpec:
             raise KeyError("source", "must name a value source such as \"axes.actual_position\"")
         if columns > 1 and source is None:
             raise KeyError("columns", "a variable over several columns needs a value source (it gets the column)")
+        aliases = row.get("aliases", [])
+        if not isinstance(aliases, list) or not all(isinstance(a, str) and a.startswith("/") for a in aliases):
+            raise KeyError("aliases", "a list of paths such as \"/Channel/MachineAxis/actToolBasePos\"")
         return VariableSpec(
             name=str(row["name"]), number=str(row["number"]),
             module=_integer(row, "module", 0, 0xFF), column=column, columns=columns,
@@ -128,6 +134,7 @@ def _spec(row: Mapping[str, object]) -> VariableSpec:
             write_level=_integer(row, "write_level", READ_ONLY, LOWEST_ACCESS_LEVEL, READ_ONLY),
             retained=bool(row.get("retained", False)), effective=effective,
             source=source, description=str(row.get("description", "")), path=str(row.get("path", "")),
+            aliases=tuple(aliases),
         )
     except ValueError as exc:
         field = str(exc).split(" ", 1)[0]

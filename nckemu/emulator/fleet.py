@@ -293,6 +293,7 @@ class Fleet:
                     raise
                 raise NckConfigError(f"machine {entry.name!r}: {exc}", path=spec.source, line=entry.line,
                                      field="name") from None
+            emulator.identify(entry.name, len(self.machines) + 1)  # its own name and serial number
             server = EmulatorServer(emulator, host=entry.host, port=entry.port, limits=limits)
             face = make_face(emulator, server) if make_face is not None else None
             opcua: Face | None = None

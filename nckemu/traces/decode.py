@@ -10,7 +10,7 @@ from typing import Any
 
 from nckemu.catalogue.table import display_name, spec_at
 from nckemu.errors import NckError, ReturnCode
-from nckemu.protocol import blocks, cyclic, pi, s7, szl, userdata
+from nckemu.protocol import blocks, cyclic, ncprog, pi, s7, szl, userdata
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
 from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
 from nckemu.protocol.values import decode_nck_values, nck_value_format, nck_value_reader
@@ -120,6 +120,9 @@ class Exchange:
     header_error: str = ""
     read_job: _ReadJob | None = field(default=None, repr=False, compare=False)  # a cached read job's decoders
     service: str = ""  # the function as tshark names it, where ``function`` does not say it
+    # An NC transfer telegram's fields by tshark's names (``_NcTransfers``), of the job and of the answer.
+    nc: dict[str, Any] = field(default_factory=dict)
+    nc_answer: dict[str, Any] = field(default_factory=dict)
 
     @property
     def service_name(self) -> str:
@@ -131,7 +134,8 @@ class Exchange:
                 "time_s": self.job.time_s, "connection": self.connection, "function": self.function,
                 "service": self.service_name, "sender": "client" if self.job.from_client else "server",
                 "pdu_ref": self.pdu_ref, "detail": self.detail, "header_error": self.header_error or None,
-                "items": [i.to_json() for i in self.items]}
+                "items": [i.to_json() for i in self.items],
+                **({"nc": self.nc, "nc_answer": self.nc_answer} if self.nc or self.nc_answer else {})}
 
 
 def _address_json(address: object) -> dict[str, Any]:
@@ -354,6 +358,7 @@ def _decode(capture: Capture) -> list[Exchange]:
     exchanges: list[Exchange] = []
     s7comm_plus: dict[int, list[Any]] = {}  # connection -> [its exchange, frame count]
     userdata_state = UserdataState()
+    nc_transfers = _NcTransfers()
     for pdu in capture.pdus:
         if pdu.kind != "s7":
             continue
@@ -389,6 +394,19 @@ def _decode(capture: Capture) -> list[Exchange]:
         # Jobs from the client are filed under the connection number, jobs from the server under its
         # negative: both sides number their own jobs.
         side = pdu.connection if pdu.from_client else -pdu.connection
+        if parsed.rosctr == s7.Rosctr.USERDATA and ncprog.is_nc_parameter(parsed.parameter):
+            exchange = nc_transfers.telegram(pdu, parsed, capture)
+            if exchange is not None:
+                open_jobs[(side, parsed.pdu_ref)] = exchange
+                exchanges.append(exchange)
+                continue
+            waiting = open_jobs.pop((-side, parsed.pdu_ref), None)
+            if waiting is None:
+                capture.problems.append(f"frame {pdu.frame}: NC response without a request (PDU ref {parsed.pdu_ref})")
+                continue
+            waiting.answer = pdu
+            nc_transfers.answer(waiting, parsed, capture)
+            continue
         if parsed.rosctr == s7.Rosctr.USERDATA:
             exchange, answered = _describe_userdata(pdu, parsed, capture, userdata_state)
             if exchange is not None:
@@ -411,6 +429,135 @@ def _decode(capture: Capture) -> list[Exchange]:
     for plus, count in s7comm_plus.values():
         plus.detail = f"protocol 0x72, not decoded ({count} frame{'s' if count != 1 else ''})"
     return exchanges
+
+
+class _NcTransfers:
+    """NC program transfers of a capture: each telegram's fields by tshark's names (type, function
+    group, subfunction, sequence, data unit reference, last data unit, window, file name), and at the
+    telegram that completes a transfer its content (length, time stamp, path, text), as Wireshark
+    reassembles them by sequence number."""
+
+    def __init__(self) -> None:
+        self._names: dict[tuple[int, int], str] = {}  # (connection, sequence) -> file name
+        self._pieces: dict[tuple[int, int], list[bytes]] = {}
+        self._pending_names: dict[tuple[int, int], str] = {}  # (connection, PDU ref) -> requested name
+
+    @staticmethod
+    def _fields(parameter: ncprog.NcParameter) -> dict[str, Any]:
+        fields: dict[str, Any] = {"s7comm.param.userdata.type": parameter.type >> 4,
+                                  "s7comm.param.userdata.funcgroup": parameter.type & 0x0F,
+                                  "s7comm.param.userdata.subfunc": parameter.subfunction,
+                                  "s7comm.param.userdata.seq_num": parameter.sequence}
+        if parameter.long:
+            fields["s7comm.param.userdata.dataunitref"] = parameter.data_unit_ref
+            fields["s7comm.param.userdata.lastdataunit"] = parameter.last_data_unit
+        return fields
+
+    def telegram(self, pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange | None:
+        """A request or push as an exchange; None for a response (paired by the caller)."""
+        try:
+            parameter = ncprog.parse_nc_parameter(parsed.parameter)
+        except NckError as exc:
+            capture.problems.append(f"frame {pdu.frame}: NC programming parameter not decoded ({exc})")
+            return Exchange(pdu.connection, pdu, None, "userdata", parsed.pdu_ref, service="NC programming")
+        if parameter.type == ncprog.NC_RESPONSE:
+            return None
+        exchange = Exchange(pdu.connection, pdu, None, PUSH if parameter.type == ncprog.NC_PUSH else "userdata",
+                            parsed.pdu_ref, service=f"NC programming -> {_nc_subfunction(parameter.subfunction)}")
+        exchange.nc = self._fields(parameter)
+        exchange.detail = self._payload(exchange, exchange.nc, parameter, parsed.data, pdu, capture)
+        return exchange
+
+    def answer(self, exchange: Exchange, parsed: s7.S7Pdu, capture: Capture) -> None:
+        assert exchange.answer is not None
+        try:
+            parameter = ncprog.parse_nc_parameter(parsed.parameter)
+        except NckError as exc:
+            capture.problems.append(f"frame {exchange.answer.frame}: NC programming answer not decoded ({exc})")
+            return
+        exchange.nc_answer = self._fields(parameter)
+        if parameter.error_code:
+            code = parameter.error_code
+            meaning = ncprog.ERROR_TEXTS.get(code, "")
+            exchange.header_error = describe_header_error(code >> 8, code & 0xFF) + (f" ({meaning})" if meaning else "")
+            return
+        if parameter.subfunction == ncprog.NcSubfunction.REQUEST_DOWNLOAD:
+            name = self._pending_names.pop((exchange.connection, exchange.pdu_ref), "")
+            self._names[(exchange.connection, parameter.sequence)] = name
+            self._pieces[(exchange.connection, parameter.sequence)] = []
+        elif parameter.subfunction == ncprog.NcSubfunction.START_UPLOAD:
+            name = self._pending_names.pop((exchange.connection, exchange.pdu_ref), "")
+            self._names[(exchange.connection, parameter.sequence)] = name
+            self._pieces[(exchange.connection, parameter.sequence)] = []
+        if parameter.subfunction == ncprog.NcSubfunction.DOWNLOAD_ENDED:
+            exchange.detail += " -> stored"
+            return
+        detail = self._payload(exchange, exchange.nc_answer, parameter, parsed.data, exchange.answer, capture)
+        exchange.detail += f" -> {detail}" if detail else " -> ok"
+
+    def _payload(self, exchange: Exchange, fields: dict[str, Any], parameter: ncprog.NcParameter, raw: bytes,
+                 pdu: TracePdu, capture: Capture) -> str:
+        """The data part by subfunction into ``fields``; the words ``trace show`` prints."""
+        try:
+            data = ncprog.parse_nc_data(raw)
+        except NckError as exc:
+            capture.problems.append(f"frame {pdu.frame}: NC programming data not decoded ({exc})")
+            return ""
+        sub, payload = parameter.subfunction, data.payload
+        key = (exchange.connection, parameter.sequence)
+        try:
+            if sub == ncprog.NcSubfunction.REQUEST_DOWNLOAD and parameter.type == ncprog.NC_REQUEST:
+                name = ncprog.parse_name(payload)
+                fields["s7comm.param.blockcontrol.filename"] = name
+                self._pending_names[(exchange.connection, exchange.pdu_ref)] = name
+                return f"file {name}"
+            if sub == ncprog.NcSubfunction.START_UPLOAD and parameter.type == ncprog.NC_REQUEST:
+                request = ncprog.parse_start_upload(payload)
+                fields["s7comm.data.ncprg.unackcount"] = request.window
+                fields["s7comm.param.blockcontrol.filename"] = request.name
+                self._pending_names[(exchange.connection, exchange.pdu_ref)] = request.name
+                return f"file {request.name}, window {request.window}"
+            if sub in (ncprog.NcSubfunction.REQUEST_DOWNLOAD, ncprog.NcSubfunction.CONTINUE_DOWNLOAD,
+                       ncprog.NcSubfunction.CONTINUE_UPLOAD):
+                window = ncprog.parse_window(payload)
+                fields["s7comm.data.ncprg.unackcount"] = window.count
+                return f"sequence {parameter.sequence}, window {window.count}"
+            if sub in (ncprog.NcSubfunction.DOWNLOAD_BLOCK, ncprog.NcSubfunction.START_UPLOAD,
+                       ncprog.NcSubfunction.UPLOAD):
+                chunk = ncprog.parse_chunk(payload)
+                pieces = self._pieces.setdefault(key, [])
+                pieces.append(chunk)
+                words = (f"sequence {parameter.sequence}, unit {parameter.data_unit_ref}"
+                         f"{' (last)' if parameter.is_last else ''}: {len(chunk)} bytes")
+                if parameter.is_last:
+                    words += self._complete(key, fields)
+                return words
+            if sub == ncprog.NcSubfunction.DOWNLOAD_ENDED:
+                return f"sequence {parameter.sequence}"
+        except NckError as exc:
+            capture.problems.append(f"frame {pdu.frame}: NC transfer not decoded ({exc})")
+        return ""
+
+    def _complete(self, key: tuple[int, int], fields: dict[str, Any]) -> str:
+        content = ncprog.parse_transfer_content(b"".join(self._pieces.pop(key, [])))
+        fields["s7comm.data.ncprg.filelength"] = "" if content.length is None else f"{content.length:08d}"
+        fields["s7comm.data.ncprg.filetime"] = content.stamp
+        fields["s7comm.data.ncprg.filepath"] = f";$PATH={content.path}\n"
+        fields["s7comm.data.ncprg.filedata"] = content.text.hex()
+        fields["text"] = content.text.decode("latin-1")
+        name = self._names.get(key, "")
+        where = f"{content.path}/{name}" if name else content.path
+        lines = content.text.count(b"\n")
+        first = content.text.split(b"\n", 1)[0].decode("latin-1").strip()
+        return (f"; {where}: length {content.length}, time {content.stamp.strip() or '-'}, "
+                f"{len(content.text)} bytes, {lines} lines, first: {first!r}")
+
+
+def _nc_subfunction(subfunction: int) -> str:
+    try:
+        return ncprog.SUBFUNCTION_NAMES[ncprog.NcSubfunction(subfunction)]
+    except ValueError:
+        return f"Unknown subfunc: 0x{subfunction:02x}"
 
 
 def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture, state: UserdataState
@@ -488,7 +635,13 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
         elif function == s7.Function.PI_SERVICE:
             exchange.detail = _describe_pi(pi.parse_pi_request(parsed.parameter))
         elif function in blocks.FUNCTIONS:
-            exchange.detail = blocks.describe_block_control(blocks.parse_block_control(parsed.parameter))
+            control = blocks.parse_block_control(parsed.parameter)
+            exchange.detail = blocks.describe_block_control(control)
+            name = control.file_name or ""
+            if function == blocks.START_UPLOAD and (name.upper().startswith("_N_") or name.startswith("/")):
+                # an NC file uploaded through the PLC-block jobs (libnodave's daveGetNCProgram)
+                exchange.detail = f"NC file {name}"
+                exchange.nc = {"s7comm.param.blockcontrol.filename": name}
         elif function == s7.Function.SETUP_COMMUNICATION:
             setup = s7.parse_setup_communication(parsed.parameter)
             exchange.detail = f"PDU {setup.pdu_length}, AMQ {setup.max_amq_calling}/{setup.max_amq_called}"

@@ -110,12 +110,14 @@ def test_machine_axis_lines_by_axis_and_index(faces: tuple[EmulatorThread, OpcUa
 
 def test_machine_data_index_counts_from_zero(faces: tuple[EmulatorThread, OpcUaFace],
                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """NC syntax counts indices from 0; BTSS and every OPC UA node id (the /NC/ ones too) lines from 1."""
     emulator, face = faces
     for name in ("MD10000[1]", "$MN_AXCONF_MACHAX_NAME_TAB[1]", "MD10000[u1,2]",
-                 "/NC/_N_NC_TEA_ACX/$MN_AXCONF_MACHAX_NAME_TAB[1]"):
+                 "/NC/_N_NC_TEA_ACX/$MN_AXCONF_MACHAX_NAME_TAB[2]", "/NC/_N_NC_TEA_ACX/$MN_AXCONF_MACHAX_NAME_TAB[u1,2]"):
         assert _get(capsys, emulator.port, name)[1] == "MD10000 AXCONF_MACHAX_NAME_TAB[1,N1] = Y1\n", name
     assert _get(capsys, emulator.port, "MD10000[0]")[1].endswith("= X1\n")
-    assert _ua_read(face, "/NC/_N_NC_TEA_ACX/$MN_AXCONF_MACHAX_NAME_TAB[1]") == ["Y1"]
+    assert _ua_read(face, "/NC/_N_NC_TEA_ACX/$MN_AXCONF_MACHAX_NAME_TAB[2]") == ["Y1"]
+    assert _ua_read(face, "/NC/_N_NC_TEA_ACX/$MN_AXCONF_MACHAX_NAME_TAB[u1,1]") == ["X1"]
 
 
 @pytest.mark.parametrize(("name", "words"), [

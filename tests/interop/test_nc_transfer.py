@@ -113,6 +113,50 @@ def test_python_snap7_raw_frames_are_the_reference_vectors(emu: EmulatorThread) 
         client.disconnect()
 
 
+def test_python_snap7_raw_windows_are_frames_4_and_9(emu: EmulatorThread) -> None:
+    """Eight blocks that are not the last: the NC pushes frame 4; an upload of many pieces: 20 pushes,
+    then frame 9 from the client brings the rest."""
+    client = _snap7(emu.port)
+    try:
+        sequence = _exchange(client, REQUEST_DOWNLOAD)[17]
+        content = ncprog.build_transfer_content(ncprog.TransferContent("/_N_MPF_DIR", _program(300)))
+        pieces = ncprog.split_content(content, client.get_pdu_length() - ncprog.BLOCK_OVERHEAD)
+        assert len(pieces) > 16
+        for index, piece in enumerate(pieces):
+            last = index == len(pieces) - 1
+            parameter = ncprog.build_nc_parameter(ncprog.NcParameter(
+                ncprog.NC_PUSH, 2, sequence, True, (index + 1) & 0xFF, 0 if last else 1))
+            frame = s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, 1, parameter,
+                                          ncprog.build_nc_data(ncprog.NcData(ncprog.build_chunk(piece)))))
+            client.connection.send_data(frame)
+            if not last and (index + 1) % 8 == 0:
+                assert bytes(client.connection.receive_data()) == _with_sequence(bytes.fromhex(
+                    "320700000001000C000600011208123F032A00000000FF0900020800"), sequence)
+        ended = bytes.fromhex("3207000000010008000600011204117F042AFF0900020000")
+        assert ncprog.parse_nc_parameter(s7.parse_pdu(_exchange(client, _with_sequence(ended, sequence))).parameter
+                                         ).error_code == 0
+        start_upload = bytes.fromhex("3207000000010008001100011204117F0600FF09000D1400") + b"_N_TEST_MPF"
+        first = s7.parse_pdu(_exchange(client, start_upload))
+        upload_sequence = first.parameter[7]
+        assert first.parameter[4:7] == bytes.fromhex("12BF06") and first.parameter[9] == 1  # more follow
+        received = [ncprog.parse_chunk(ncprog.parse_nc_data(first.data).payload)]
+        last = False
+        while not last:
+            for _ in range(ncprog.UPLOAD_WINDOW):
+                push = s7.parse_pdu(bytes(client.connection.receive_data()))
+                assert push.parameter[4:8] == bytes([0x12, 0x3F, 0x07, upload_sequence])
+                received.append(ncprog.parse_chunk(ncprog.parse_nc_data(push.data).payload))
+                last = push.parameter[9] == 0
+                if last:
+                    break
+            if not last:
+                client.connection.send_data(_with_sequence(bytes.fromhex(
+                    "3207000000010008000600011204113F0833FF0900021400"), upload_sequence))
+        assert b"".join(received) == content.replace(content[8:24], received[0][8:24])
+    finally:
+        client.disconnect()
+
+
 def test_plc_block_upload_of_an_nc_file(emu: EmulatorThread) -> None:
     """libnodave's daveGetNCProgram: 0x1D with the file name, 0x1E until no more data, 0x1F."""
     text = _program(200)
@@ -245,6 +289,9 @@ def test_programs_are_retained_with_state(tmp_path: Path) -> None:
         assert "_N_KEPT_MPF" in state.read_text()
     with EmulatorThread(state_path=state) as emu, NckClient("127.0.0.1", emu.port) as nck:
         assert P.get_program_sync(nck, "KEPT.MPF") == text
+        P.delete_program_sync(nck, "KEPT.MPF")
+    with EmulatorThread(state_path=state) as emu:
+        assert not emu.call(lambda: emu.nck.programs.exists("/_N_MPF_DIR/_N_KEPT_MPF"))
 
 
 def test_transfers_of_two_clients_at_once(emu: EmulatorThread) -> None:
@@ -284,7 +331,7 @@ def test_program_commands(emu: EmulatorThread, tmp_path: Path, capsys: pytest.Ca
     for signal, bit in (("start", 1), ("stop", 3), ("reset", 7)):
         assert main(["program", signal, *port]) == 0
         assert json.loads(capsys.readouterr().out)["address"] == f"DB21.DBX7.{bit}"
-        assert emu.call(lambda: emu.plc.read_bit(0x84, 21, 7, bit)) is False  # the edge ended at 0
+        assert emu.call(lambda bit=bit: emu.plc.read_bit(0x84, 21, 7, bit)) is False  # the edge ended at 0
 
 
 @pytest.mark.parametrize(("argv", "line"), [

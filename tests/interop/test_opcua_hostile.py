@@ -175,7 +175,7 @@ def test_a_second_create_session_on_a_channel_closes_the_first(faces: tuple[Emul
     face = faces[1]
 
     def open_sessions() -> int:
-        return sum(1 for s in face._sessions if s.state.name != "Closed")
+        return sum(1 for s in face.sessions.made if s.state.name != "Closed")
 
     async def go() -> int:
         before = open_sessions()

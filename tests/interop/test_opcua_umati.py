@@ -323,6 +323,7 @@ def test_subscriptions_follow_the_machine(faces: tuple[EmulatorThread, OpcUaFace
             await asyncio.sleep(0.5)
             model = emulator.emulator.nck
             model.add_program("/_N_MPF_DIR/_N_UMATI_MPF")
+            model.programs.write("/_N_MPF_DIR/_N_UMATI_MPF", b"G4 F60\nM30\n")  # runs until the reset
             with NckClient("127.0.0.1", emulator.port) as nck:
                 nck.pi_service("_N_SELECT", "201", "/_N_MPF_DIR/_N_UMATI_MPF")  # sampled: no write
                 nck.put({"NCKEMU_CHAN_COMMAND[C1]": 1})   # start: active, running
@@ -338,7 +339,8 @@ def test_subscriptions_follow_the_machine(faces: tuple[EmulatorThread, OpcUaFace
     run(go())
     assert seen["state"] == [2, 0, 2]               # Reset, Active, Reset
     assert seen["btss"] == [0, 1, 0]
-    assert [text.Text for text in seen["program"]] == ["Aborted", "Running", "Aborted"]
+    # power-on is the initial state (no program has run yet), a reset aborts the running program
+    assert [text.Text for text in seen["program"]] == ["Initializing", "Running", "Aborted"]
     assert seen["override"][-3:] == seen["btss override"][-3:] == [50.0, 60.0, 70.0]   # every write, none lost
     assert seen["rotating"] == [False, True, False]
     assert seen["name"][-1] == seen["btss name"][-1] == "_N_UMATI_MPF"

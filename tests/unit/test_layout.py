@@ -73,3 +73,13 @@ def test_the_walk_finds_a_circle() -> None:
     graph.add_import(importer="a.c", imported="a.d")
     assert strongly_connected(graph) == [["a.b", "a.c"]]
 
+
+def test_the_opcua_face_parts_form_no_circle_even_under_type_checking() -> None:
+    """Each part of the OPC UA face is typed against a protocol of ``parts.py``, never the face itself."""
+    graph = grimp.build_graph("nckemu", exclude_type_checking_imports=False)
+    package = "nckemu.emulator.faces.opcua"
+    circles = [component for component in strongly_connected(graph)
+               if any(module.startswith(package + ".") for module in component)]
+    assert circles == []
+    face_importers = {module for module in graph.find_modules_that_directly_import(f"{package}.face")}
+    assert face_importers <= {package}, "only the package imports the face; its parts do not"

@@ -28,6 +28,14 @@ from nckemu.protocol.values import decode_nck_values
 log = logging.getLogger("nckemu.emulator.core")
 
 
+SERIAL_NUMBER = "HW_SERIAL_NUMBER"  # MD18030
+
+
+def serial_number(number: int) -> str:
+    """The serial number of a fleet's ``number``-th machine (the first's is the catalogue default)."""
+    return f"NCKEMU{number:014d}"
+
+
 class Emulator:
     """An NCU: NCK and PLC, with optional retained state on disk; the faces (S7, OPC UA, web) come in
     through ``nck`` and ``plc``."""
@@ -39,6 +47,9 @@ class Emulator:
         self.nck = NckModel(self.machine, self.clock)
         self.plc = PlcModel(self.machine, self.nck, clock=self.clock)
         self.store = RetainedStore(Path(state_path)) if state_path is not None else None
+        # The machine's own name among others (a fleet's machine: ``identify``); faces name it by this
+        # (the OPC UA ApplicationUri, the umati instance), the machine file's name otherwise.
+        self.name = self.machine.name
         # Parts of the machine's state that layers above the emulator report (a living machine's
         # recording and PLC program): name -> a function giving a JSON-able dict (the live page).
         self.status_sections: dict[str, Callable[[], dict[str, Any]]] = {}
@@ -112,6 +123,23 @@ class Emulator:
                 log.exception("the machine's cycle failed at %.1f s", self.clock.now_s())
             k += 1
             await asyncio.sleep(self.cycle_s)
+
+    def identify(self, name: str, number: int) -> None:
+        """This is the machine ``name``, the ``number``-th (from 1) of a fleet: its own name and serial
+        number (MD18030 $MN_HW_SERIAL_NUMBER ``NCKEMU`` and 14 digits), unless its machine file or state
+        file gave it another serial number."""
+        self.name = name
+        store = self.nck.store
+        spec = store.spec(SERIAL_NUMBER)
+        for key, stored in store.stored.items():
+            if key[0] == SERIAL_NUMBER and stored and stored[0] == spec.default:
+                store.write_lines(spec, key[1], 1, [serial_number(number)])
+                store.active[key] = list(store.stored[key])
+
+    @property
+    def serial_number(self) -> str:
+        """MD18030 as the NCK holds it now (what every face shows as the serial number)."""
+        return str(self.nck.store.active_value(SERIAL_NUMBER, 1)).rstrip()
 
     @property
     def default_access_level(self) -> int:

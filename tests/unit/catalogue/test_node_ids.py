@@ -22,7 +22,8 @@ from nckemu.protocol.addresses import NckArea
     ("/Channel/Parameter/R[ u1 , 3 , #2 ]", 1, 3, 2, True),
     ("/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]", 4, 1, 1, False),
     ("/NC/_N_CH_TEA_ACX/$MC_CHAN_NAME[u1]", 1, 1, 1, False),
-    ("/NC/_N_AX_TEA_ACX/$MA_ENC_COMP_ENABLE[1, u4]", 4, 2, 1, False),  # 0-based index in /NC/ ids
+    ("/NC/_N_AX_TEA_ACX/$MA_ENC_COMP_ENABLE[2, u4]", 4, 2, 1, False),  # /NC/ ids count lines from 1 too
+    ("/NC/_N_NC_TEA_ACX/$MN_VERSION_INFO[u1,1]", 1, 1, 1, False),  # as the BTSS form MD18040[u1,1]
     ("/channel/state/PROGSTATUS", 1, 1, 1, False),
 ])
 def test_nc_examples(text: str, unit: int, line: int, count: int, array: bool) -> None:

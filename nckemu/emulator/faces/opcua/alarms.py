@@ -28,7 +28,7 @@ from asyncua import Server, ua
 from nckemu.emulator.machine.nck.alarms import Alarm, AlarmEvent, Alarms
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.face import OpcUaFace
+    from nckemu.emulator.faces.opcua.parts import AlarmHost
 
 # Loggers keep their names from before the 0.2 layout, so logs and users' log filters stay as they were.
 log = logging.getLogger("nckemu.emulator.opcua.alarms")
@@ -129,7 +129,7 @@ class AlarmEventQueue:
 class AlarmEvents:
     """Sends the alarm events of one face's emulator; ``start`` after the server is initialised."""
 
-    def __init__(self, face: OpcUaFace) -> None:
+    def __init__(self, face: AlarmHost) -> None:
         self.face = face
         self._generator: Any = None
         self._template: Any = None

@@ -21,21 +21,29 @@ from nckemu import __version__
 from nckemu.emulator.faces.opcua import nodesets
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
+from nckemu.emulator.faces.opcua.program_states import ABORTED
+from nckemu.emulator.faces.opcua.units import (
+    DEGREE,
+    KILOWATT,
+    MILLIMETRE,
+    MILLIMETRE_PER_MINUTE,
+    NEWTON_METRE,
+    PERCENT,
+    REVOLUTIONS_PER_MINUTE,
+)
 from nckemu.emulator.faces.opcua.values import raw_reader
+from nckemu.errors import NckNodeIdError
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.models import Models
+    from nckemu.emulator.faces.opcua.parts import ModelValues
 
 # SINUMERIK codes -> OPC 40502 enumerations (ours, docs/assumptions.md)
 OPERATION_MODE = {0: 0, 1: 1, 2: 2}          # opMode JOG/MDA/AUTO -> CncOperationMode Manual/MDA/Automatic
 CHANNEL_STATUS = {0: 2, 1: 0, 2: 1}          # chanStatus reset/active/interrupted -> Reset/Active/Interrupted
 # progStatus 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted -> CncChannelProgramStatus
 PROGRAM_STATUS = {1: 3, 2: 0, 3: 1, 4: 2, 5: 4}
+PROG_ABORTED, STOPPED, CANCELED = 5, 0, 4
 TURN_DIRECTION = {0: 2, 1: 0, 2: 1}          # turnState stopped/M3/M4 -> CncSpindleTurnDirection None/CW/CCW
-MILLIMETRE = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=5066068,
-                              DisplayName=ua.LocalizedText("mm"), Description=ua.LocalizedText("millimetre"))
-DEGREE = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=17476,
-                          DisplayName=ua.LocalizedText("°"), Description=ua.LocalizedText("degree"))
 
 
 def _first(kind: ua.VariantType, mapping: dict[int, int] | None = None) -> Callable[[object], ua.Variant]:
@@ -54,7 +62,7 @@ def _first(kind: ua.VariantType, mapping: dict[int, int] | None = None) -> Calla
 
 
 class CncInterfaceInstance:
-    def __init__(self, models: Models, maker: Instantiator) -> None:
+    def __init__(self, models: ModelValues, maker: Instantiator) -> None:
         self.models, self.maker = models, maker
         self.face = models.face
         self.emulator = models.face.emulator
@@ -120,8 +128,10 @@ class CncInterfaceInstance:
         return self
 
     def _channel(self, types: Any, cnc: int, parent: ua.NodeId, channel: int) -> Made:
+        line = self._known(f"/Channel/ProgramInfo/actLineNumber[u{channel}]")
         made = self.maker.make(parent, types.find(cnc, "CncChannelType"), f"Channel{channel}",
-                               root=f"CncInterface/CncChannelList/Channel{channel}", reference=HAS_COMPONENT)
+                               root=f"CncInterface/CncChannelList/Channel{channel}", reference=HAS_COMPONENT,
+                               optional=("ActProgramLine",) if line else ())
         u = f"[u{channel}]"
         self.models.set(made["Id"], ua.Variant(channel, ua.VariantType.UInt32))
         self._bind(made, "ActFeedrate", f"/Channel/State/actFeedRateIpo{u}", _first(ua.VariantType.Double))
@@ -129,14 +139,18 @@ class CncInterfaceInstance:
         self._bind(made, "ActOverride", f"/Channel/State/feedRateIpoOvr{u}", _first(ua.VariantType.Double))
         self._bind(made, "CmdOverride", f"/Channel/State/feedRateIpoOvr{u}", _first(ua.VariantType.Double))
         self._bind(made, "ActStatus", f"/Channel/State/chanStatus{u}", _first(ua.VariantType.Int32, CHANNEL_STATUS))
-        self._bind(made, "ActProgramStatus", f"/Channel/State/progStatus{u}",
-                   _first(ua.VariantType.Int32, PROGRAM_STATUS))
+        self._program_status(made, channel)
         self._bind(made, "ActOperationMode", "/Bag/State/opMode[u1]", _first(ua.VariantType.Int32, OPERATION_MODE))
         self._bind(made, "CmdOperationMode", "/Bag/State/opMode[u1]", _first(ua.VariantType.Int32, OPERATION_MODE))
         for path in ("ActMainProgramName", "ActProgramName"):
             self._bind(made, path, f"/Channel/ProgramInfo/progName{u}", _first(ua.VariantType.String))
         for path in ("ActMainProgramFile", "ActProgramFile"):
             self._bind(made, path, f"/Channel/ProgramInfo/workPandProgName{u}", _first(ua.VariantType.String))
+        if self._known(f"/Channel/ProgramInfo/actBlock{u}"):
+            self._bind(made, "ActProgramBlock", f"/Channel/ProgramInfo/actBlock{u}", _first(ua.VariantType.String))
+        if line:
+            self._bind(made, "ActProgramLine", f"/Channel/ProgramInfo/actLineNumber{u}",
+                       lambda raw: ua.Variant(str(int(raw[0])), ua.VariantType.String))  # type: ignore[index]
         self._bind(made, "ActModalOffsetFunction", f"/Channel/State/actFrameIndex{u}", _first(ua.VariantType.UInt32))
         self._bind(made, "ToolId", f"/Channel/State/actTNumber{u}", _first(ua.VariantType.UInt32))
         for path, unit in (("ActFeedrate", None), ("CmdFeedrate", None), ("ActOverride", None),
@@ -147,6 +161,32 @@ class CncInterfaceInstance:
             if path.startswith("PosTcp") and path.count("/") == 0:
                 self._position(made, path, None, None, None, MILLIMETRE)
         return made
+
+    def _known(self, node_id: str) -> bool:
+        """Whether the catalogue has a SINUMERIK variable (the program pointer comes with the channel that
+        runs programs)."""
+        try:
+            self.face.node_name(node_id)
+        except NckNodeIdError:
+            return False
+        return True
+
+    def _program_status(self, made: Made, channel: int) -> None:
+        """ActProgramStatus from progStatus; in reset (progStatus 5, aborted) Canceled only when a reset
+        aborted the program (the umati program state Aborted), else Stopped: nothing has run since
+        power-on, or the program ended normally."""
+        status, realm = self._btss(f"/Channel/State/progStatus[u{channel}]")
+        tracker = self.models.tracker(channel)
+
+        def raw() -> object:
+            return int(status()[0]), tracker.program.state  # type: ignore[index]
+
+        def variant(value: object) -> ua.Variant:
+            code, state = value  # type: ignore[misc]
+            if code == PROG_ABORTED:
+                return ua.Variant(CANCELED if state == ABORTED else STOPPED, ua.VariantType.Int32)
+            return ua.Variant(PROGRAM_STATUS.get(code, STOPPED), ua.VariantType.Int32)
+        self.models.bind(made["ActProgramStatus"], Feed(raw, variant, realm))
 
     def _axis(self, types: Any, cnc: int, parent: ua.NodeId, axis: Any, channel: ua.NodeId) -> None:
         made = self.maker.make(parent, types.find(cnc, "CncAxisType"), axis.name,
@@ -162,6 +202,7 @@ class CncInterfaceInstance:
         self._position(made, "PosDirect", f"/Nckemu/Axis/NCKEMU_ACTUAL_POS[u{a}]",
                        f"/Nckemu/Axis/NCKEMU_COMMANDED_POS[u{a}]", f"/Nckemu/Channel/remainingDistance[u1,{a}]", unit)
         self._position(made, "PosIndirect", f"/Nckemu/Channel/workPosition[u1,{a}]", None, None, unit)
+        self._drive(made, axis)
         for path in ("ActLoad", "ActPower", "ActTorque", "CmdTorque"):
             self._units(made, path, _unit_of(path), 0.0, 1.0e6)
 
@@ -178,10 +219,21 @@ class CncInterfaceInstance:
         self._bind(made, "ActStatus", f"/Channel/Spindle/actSpeed{where}",
                    lambda raw: ua.Variant(1 if float(raw[0]) else 0, ua.VariantType.Int32))  # type: ignore[index]
         self._position(made, "AnglePos", None, None, None, DEGREE)
+        self._drive(made, axis)
         for path in ("ActSpeed", "CmdSpeed", "ActOverride", "CmdOverride", "ActLoad", "ActPower", "ActTorque",
                      "CmdTorque"):
             low, high = (0.0, 200.0) if "Override" in path else (0.0, 1.0e6)
             self._units(made, path, _unit_of(path), low, high)
+
+    def _drive(self, made: Made, axis: Any) -> None:
+        """ActLoad, ActPower, ActTorque of an axis or spindle: its drive's r0081, r0032, r0080 (the drive
+        model, the values S7 and the BTSS node read); an axis without a drive keeps zero."""
+        drive = self.emulator.nck.drives.drive_of_axis(axis.number)
+        if drive is None:
+            return
+        for path, parameter in (("ActLoad", "r0081"), ("ActPower", "r0032"), ("ActTorque", "r0080")):
+            if made.get(path) is not None:
+                self._bind(made, path, f"/DriveVsa/Drive/{parameter}[u{drive.number}]", _first(ua.VariantType.Double))
 
     async def start(self, server: Server) -> None:
         pass
@@ -190,17 +242,16 @@ class CncInterfaceInstance:
         pass
 
 
-_UNITS = {  # UNECE codes (OPC UA's units): mm/min, %, rpm, kW, N·m
-    "Feedrate": ("mm/min", 4337453), "DryRunFeed": ("mm/min", 4337453), "Override": ("%", 20529),
-    "Speed": ("1/min", 4362574), "Power": ("kW", 4937544), "Torque": ("N·m", 5129559), "Load": ("%", 20529),
+_UNITS = {  # by the variable's name: UNECE common codes (units.py)
+    "Feedrate": MILLIMETRE_PER_MINUTE, "DryRunFeed": MILLIMETRE_PER_MINUTE, "Override": PERCENT,
+    "Speed": REVOLUTIONS_PER_MINUTE, "Power": KILOWATT, "Torque": NEWTON_METRE, "Load": PERCENT,
 }
 
 
 def _unit_of(path: str) -> ua.EUInformation:
-    for suffix, (text, code) in _UNITS.items():
+    for suffix, unit in _UNITS.items():
         if path.endswith(suffix):
-            return ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=code,
-                                    DisplayName=ua.LocalizedText(text), Description=ua.LocalizedText(text))
+            return unit
     return MILLIMETRE
 
 

@@ -1,7 +1,9 @@
 """Methods under ``Sinumerik/Methods``: GetMyAccessRights, CopyFileToServer, CopyFileFromServer.
 
 Part programs live in the emulator's program store, the ``_N_MPF_DIR`` the PI services select from:
-``Sinumerik/FileSystem/Part Program/PART1.MPF`` is ``/_N_MPF_DIR/_N_PART1_MPF``.
+``Sinumerik/FileSystem/Part Program/PART1.MPF`` is ``/_N_MPF_DIR/_N_PART1_MPF``; the names the control
+and users write (``/_N_SPF_DIR/_N_CYCLE_SPF``, ``CYCLE.SPF``) are taken too. A program is written and read
+whole through the store (``Programs.write``/``read``); the program a channel runs is not replaced.
 """
 
 from __future__ import annotations
@@ -12,11 +14,13 @@ from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
 
+from nckemu.catalogue.program_names import program_path as nc_program_path
 from nckemu.emulator.faces.opcua import request
 from nckemu.emulator.faces.opcua.settings import may
+from nckemu.errors import NckNoSuchFile, NckPiBadArguments, NckPiStateError
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.face import OpcUaFace
+    from nckemu.emulator.faces.opcua.parts import MethodHost
 
 MAX_PROGRAM_BYTES = 16 * 1024 * 1024
 _UA_PATH = re.compile(r"^/?sinumerik/filesystem/part program/(?P<name>[A-Za-z0-9_]{1,24})\.mpf$", re.IGNORECASE)
@@ -29,7 +33,10 @@ def program_path(text: str) -> str | None:
         match = pattern.match(text.strip())
         if match:
             return f"/_N_MPF_DIR/_N_{match['name'].upper()}_MPF"
-    return None
+    try:  # the names the control and users write
+        return nc_program_path(text)
+    except NckPiBadArguments:
+        return None
 
 
 def _plain(argument: Any) -> Any:
@@ -41,7 +48,7 @@ def _bad(name: str) -> ua.StatusCode:
     return ua.StatusCode(getattr(ua.StatusCodes, name))
 
 
-async def add_methods(face: OpcUaFace, server: Server) -> Any:
+async def add_methods(face: MethodHost, server: Server) -> Any:
     ns = face.namespace
     root = await server.nodes.objects.get_child([f"{ns}:Sinumerik"])
     methods = await root.add_object(ua.NodeId("/Methods", ns), ua.QualifiedName("Methods", ns))
@@ -69,8 +76,10 @@ async def add_methods(face: OpcUaFace, server: Server) -> Any:
             return _bad("BadInvalidArgument")
         if target in programs.paths and not overwrite:
             return _bad("BadInvalidState")
-        programs.add(target)
-        programs.texts[target] = bytes(data)
+        try:
+            programs.write(target, bytes(data))
+        except NckPiStateError:  # the program a channel is running
+            return _bad("BadInvalidState")
         face.emulator.saves.request()  # the program store is retained data (serve --state)
         await face.emulator.saves.durable()
         return []
@@ -83,9 +92,11 @@ async def add_methods(face: OpcUaFace, server: Server) -> Any:
         target = program_path(path) if isinstance(path, str) else None
         if target is None:
             return _bad("BadInvalidArgument")
-        if target not in programs.paths:
+        try:
+            text = programs.read(target)
+        except NckNoSuchFile:
             return _bad("BadNotFound")
-        return [ua.Variant(programs.texts.get(target, b""), ua.VariantType.ByteString)]
+        return [ua.Variant(text, ua.VariantType.ByteString)]
 
     def argument(name: str, kind: ua.VariantType) -> ua.Argument:
         return ua.Argument(Name=name, DataType=ua.NodeId(kind.value), ValueRank=-1, ArrayDimensions=[],
@@ -98,7 +109,15 @@ async def add_methods(face: OpcUaFace, server: Server) -> Any:
          [argument("path", text), argument("data", blob), argument("overwrite", flag)], []),
         ("CopyFileFromServer", copy_from_server, [argument("path", text)], [argument("data", blob)]),
     ]
+    # Who may call each (UserExecutable as the session reads it): as the handlers above decide.
+    executable: dict[str, Callable[[str, frozenset[str]], bool]] = {
+        "GetMyAccessRights": lambda user, _rights: bool(user),
+        "CopyFileToServer": lambda user, rights: bool(user) and may(rights, "FS", True),
+        "CopyFileFromServer": lambda user, rights: bool(user) and may(rights, "FS", False),
+    }
     for name, method, inputs, outputs in table:
-        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
-                                 request.with_arguments(method, len(inputs)), inputs, outputs)
+        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                        request.with_arguments(method, len(inputs)), inputs, outputs)
+        server.set_attribute_value_callback(node.nodeid, request.user_executable(executable[name]),
+                                            ua.AttributeIds.UserExecutable)
     return methods

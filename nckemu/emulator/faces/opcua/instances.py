@@ -15,12 +15,22 @@ Node ids are strings in the face's instance namespace: the path of browse names 
 from __future__ import annotations
 
 import datetime
-from collections.abc import Callable, Iterable, MutableMapping
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from asyncua import ua
 from asyncua.server.address_space import AttributeValue, NodeData
+
+
+class NodeStore(Protocol):
+    """Nodes by id, as asyncua's ``AddressSpace`` offers them (``aspace[nodeid]``)."""
+
+    def __getitem__(self, nodeid: ua.NodeId) -> NodeData: ...
+
+    def __setitem__(self, nodeid: ua.NodeId, node: NodeData) -> None: ...
+
+    def __contains__(self, nodeid: ua.NodeId) -> bool: ...
 
 HAS_COMPONENT = ua.NodeId(ua.ObjectIds.HasComponent)
 HAS_PROPERTY = ua.NodeId(ua.ObjectIds.HasProperty)
@@ -84,7 +94,7 @@ class Made:
 class Types:
     """The type definitions of an address space (read once; shared by every face of the process)."""
 
-    def __init__(self, nodes: MutableMapping[ua.NodeId, NodeData],
+    def __init__(self, nodes: NodeStore,
                  named: dict[tuple[int, str], ua.NodeId] | None = None) -> None:
         self.nodes = nodes
         self.named = named or {}   # (namespace index, browse name) -> type (nodesets.py writes the index)
@@ -186,7 +196,7 @@ class Types:
 class Instantiator:
     """Makes instances in one face's address space (``nodes``), node ids in ``namespace``."""
 
-    def __init__(self, types: Types, nodes: MutableMapping[ua.NodeId, NodeData], namespace: int) -> None:
+    def __init__(self, types: Types, nodes: NodeStore, namespace: int) -> None:
         self.types = types
         self.nodes = nodes
         self.namespace = namespace

@@ -27,11 +27,12 @@ from asyncua.server.address_space import AttributeValue
 from nckemu.emulator.faces.opcua import cnc, nodesets, request, umati
 from nckemu.emulator.faces.opcua.feeds import FedMonitored, Feed
 from nckemu.emulator.faces.opcua.instances import Instantiator, Types
+from nckemu.emulator.faces.opcua.production import ProgramTracker
 from nckemu.emulator.faces.opcua.settings import may
 from nckemu.emulator.faces.opcua.values import UaStatus
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.face import OpcUaFace
+    from nckemu.emulator.faces.opcua.parts import NamingHost
 
 log = logging.getLogger("nckemu.emulator.opcua.models")
 
@@ -44,8 +45,9 @@ _TOLD_MISSING = False
 class Models:
     """The companion models of one face (none when switched off or the NodeSets are missing)."""
 
-    def __init__(self, face: OpcUaFace) -> None:
+    def __init__(self, face: NamingHost) -> None:
         self.face = face
+        self.server: Server | None = None  # the face's, once started
         self.wanted = tuple(face.settings.models)
         self.directory: Path | None = None
         if self.wanted:
@@ -61,6 +63,7 @@ class Models:
         self.instance_namespace = 0
         self.parts: list[Any] = []
         self.nodes_made = 0
+        self.trackers: dict[int, ProgramTracker] = {}  # the program life of each channel shown (production.py)
 
     @property
     def on(self) -> bool:
@@ -93,7 +96,8 @@ class Models:
         namespaces = await server.get_namespace_array()
         self.namespaces = {uri: index for index, uri in enumerate(namespaces)}
         self.instance_namespace = await server.register_namespace(INSTANCE_NAMESPACE)
-        nodes = server.iserver.aspace._nodes
+        self.server = server
+        nodes = server.iserver.aspace
         types = _TYPES.get(self.shelf_used.path)
         if types is None:
             named = {}
@@ -108,12 +112,23 @@ class Models:
         if "CNC" in self.wanted:
             self.parts.append(cnc.CncInterfaceInstance(self, maker).build())
         self.nodes_made = maker.made
+        for tracker in self.trackers.values():
+            await tracker.start(self.face.settings.sample_interval_ms / 1000.0 / 2)
         for part in self.parts:
             await part.start(server)
 
     async def stop(self) -> None:
         for part in self.parts:
             await part.stop()
+        for tracker in self.trackers.values():
+            await tracker.stop()
+
+    def tracker(self, channel: int) -> ProgramTracker:
+        """Channel ``channel``'s program life, one per face for every model that shows it."""
+        found = self.trackers.get(channel)
+        if found is None:
+            found = self.trackers[channel] = ProgramTracker(self.face.emulator, channel)
+        return found
 
     def ns(self, uri: str) -> int:
         return self.namespaces[uri]
@@ -138,17 +153,18 @@ class Models:
     # ------------------------------------------------------------------ values
     def bind(self, nodeid: ua.NodeId, feed: Feed) -> None:
         """``nodeid``'s value is read from the machine through ``feed`` on every read."""
-        node = self.face.server.iserver.aspace._nodes[nodeid]
+        assert self.server is not None
         self.feeds[nodeid] = feed
-        attribute = node.attributes[ua.AttributeIds.Value]
-        value = AttributeValue(None)  # type: ignore[arg-type]
-        value.datachange_callbacks = attribute.datachange_callbacks
-        value.value_callback = self._reader(feed)
-        node.attributes[ua.AttributeIds.Value] = value
+        self.server.set_attribute_value_callback(nodeid, self._reader(feed))
+        access = self.server.iserver.aspace[nodeid].attributes[ua.AttributeIds.AccessLevel].value
+        level = access.Value.Value if access is not None and access.Value is not None else 0
+        self.server.set_attribute_value_callback(  # readable by the sessions that may read its realm
+            nodeid, request.user_access_level(int(level or 0), feed.realm), ua.AttributeIds.UserAccessLevel)
 
     def set(self, nodeid: ua.NodeId, variant: ua.Variant) -> None:
         """A value that does not change while the face runs (identification)."""
-        node = self.face.server.iserver.aspace._nodes[nodeid]
+        assert self.server is not None
+        node = self.server.iserver.aspace[nodeid]
         node.attributes[ua.AttributeIds.Value] = AttributeValue(ua.DataValue(variant))
 
     @staticmethod
@@ -175,4 +191,5 @@ class Models:
         feed = self.feeds.get(nodeid)
         if feed is None:
             return None
-        return FedMonitored(self.face.server.iserver.aspace._nodes[nodeid], feed)
+        assert self.server is not None
+        return FedMonitored(self.server.iserver.aspace[nodeid], feed)

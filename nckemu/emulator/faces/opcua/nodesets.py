@@ -41,6 +41,7 @@ from typing import Any
 
 from asyncua import Server, ua
 
+from nckemu.emulator.faces.opcua import asyncua_internals
 from nckemu.emulator.faces.opcua import shelf as address_cache
 
 log = logging.getLogger("nckemu.emulator.opcua.nodesets")
@@ -288,9 +289,9 @@ async def _build(directory: Path, path: Path) -> tuple[tuple[str, ...], dict[str
     await server.register_namespace(FACE_NAMESPACE_PLACEHOLDER)
     await import_models(server, directory)
     namespaces = tuple(await server.get_namespace_array())
-    nodes = server.iserver.aspace._nodes
+    nodes = server.iserver.aspace
     keys: list[Any] = list(nodes.keys())
-    source = getattr(nodes, "source", None)  # a shelf-backed address space: the nodes never touched too
+    source = asyncua_internals.shelf_source(nodes)  # a shelf-backed address space: the nodes never touched too
     if source is not None:
         keys += [ua.NodeId.from_string(key) for key in source.keys()]
     types: dict[str, str] = {}

@@ -13,6 +13,8 @@ from typing import Any
 
 from asyncua import ua
 
+from nckemu.emulator.faces.opcua.settings import may
+
 _RIGHTS: contextvars.ContextVar[frozenset[str]] = contextvars.ContextVar("nckemu_opcua_rights", default=frozenset())
 _USER: contextvars.ContextVar[str] = contextvars.ContextVar("nckemu_opcua_user", default="")
 
@@ -44,3 +46,27 @@ def with_arguments(method: Callable[..., Awaitable[Any]], count: int) -> Callabl
             return ua.StatusCode(ua.StatusCodes.BadTooManyArguments)
         return await method(parent, *arguments)
     return checked
+
+
+def user_access_level(access: int, realm: str | None) -> Callable[[ua.NodeId, ua.AttributeIds], ua.DataValue]:
+    """A value callback for a variable's UserAccessLevel: its AccessLevel ``access`` as far as the
+    request's rights allow in ``realm`` (None: anyone reads, no one writes)."""
+    read_bit, write_bit = ua.AccessLevel.CurrentRead.mask, ua.AccessLevel.CurrentWrite.mask
+
+    def level(_nodeid: ua.NodeId, _attribute: ua.AttributeIds) -> ua.DataValue:
+        if realm is None:
+            allowed = read_bit
+        else:
+            rights = _RIGHTS.get()
+            allowed = (read_bit if may(rights, realm, write=False) else 0) \
+                | (write_bit if may(rights, realm, write=True) else 0)
+        return ua.DataValue(ua.Variant(access & allowed, ua.VariantType.Byte))
+    return level
+
+
+def user_executable(allowed: Callable[[str, frozenset[str]], bool]) -> Callable[[ua.NodeId, ua.AttributeIds],
+                                                                                ua.DataValue]:
+    """A value callback for a method's UserExecutable: ``allowed(user, rights)`` of the request."""
+    def executable(_nodeid: ua.NodeId, _attribute: ua.AttributeIds) -> ua.DataValue:
+        return ua.DataValue(ua.Variant(bool(allowed(_USER.get(), _RIGHTS.get())), ua.VariantType.Boolean))
+    return executable

@@ -48,7 +48,7 @@ def policy_types(settings: OpcUaSettings) -> list[ua.SecurityPolicyType]:
 
 
 def application_uri(emulator: Emulator) -> str:
-    return f"urn:nckemu:{_safe(emulator.machine.name)}"
+    return f"urn:nckemu:{_safe(emulator.name)}"
 
 
 def _safe(text: str) -> str:
@@ -64,7 +64,7 @@ def pki_dir(emulator: Emulator) -> Path:
         candidates.append(state.parent / f"{state.stem}.opcua-pki")
     root = cache_root()
     if root is not None:
-        candidates.append(root / "pki" / _safe(emulator.machine.name))
+        candidates.append(root / "pki" / _safe(emulator.name))
     for where in candidates:
         try:
             where.mkdir(parents=True, exist_ok=True)
@@ -88,7 +88,7 @@ async def apply(server: Server, emulator: Emulator, settings: OpcUaSettings, rul
             # asyncua checks that the certificate names this host (and makes a new one where it does not)
             await setup_self_signed_certificate(
                 key, certificate, uri, socket.gethostname(), [ExtendedKeyUsageOID.SERVER_AUTH],
-                {"countryName": "DE", "organizationName": "nckemu", "commonName": f"nckemu {emulator.machine.name}"})
+                {"countryName": "DE", "organizationName": "nckemu", "commonName": f"nckemu {emulator.name}"})
             key.chmod(0o600)
         try:
             await server.load_certificate(str(certificate))

@@ -26,6 +26,8 @@ from typing import Any
 
 import asyncua
 
+from nckemu.emulator.faces.opcua import asyncua_internals
+
 # Loggers keep their names from before the 0.2 layout, so logs and users' log filters stay as they were.
 log = logging.getLogger("nckemu.emulator.opcua.shelf")
 
@@ -149,6 +151,6 @@ def share(server: Any) -> None:
         source = _OPEN.get(key)
         if source is None:
             source = _OPEN[key] = shelve.open(str(path), "r")
-        aspace._nodes = ShelfNodes(source)
+        asyncua_internals.replace_nodes(aspace, ShelfNodes(source))
 
-    aspace.load_aspace_shelf = load
+    asyncua_internals.load_shelves_with(aspace, load)

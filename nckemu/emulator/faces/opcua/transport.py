@@ -36,13 +36,18 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-import asyncua.server.server as _server_module
 from asyncua import ua
 from asyncua.common.utils import NotEnoughData, ServiceError
-from asyncua.server.binary_server_asyncio import BinaryServer, OPCUAProtocol
-from asyncua.server.uaprocessor import UaProcessor
+from asyncua.server.binary_server_asyncio import OPCUAProtocol
 from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary, uatcp_to_binary
 from asyncua.ua.uaerrors import UaError, UaStatusCodeError
+
+from nckemu.emulator.faces.opcua.asyncua_internals import (
+    Processor,
+    Protocol,
+    SocketServer,
+    serve_connections_with,
+)
 
 log = logging.getLogger("nckemu.emulator.opcua.transport")
 
@@ -127,7 +132,7 @@ def _status_of(exc: BaseException) -> int:
     return ua.StatusCodes.BadInternalError
 
 
-class _Processor(UaProcessor):
+class _Processor(Processor):
     """asyncua's processor; a second CreateSession closes the first, Publish requests are capped, a
     request it cannot decode gets BadDecodingError."""
 
@@ -145,13 +150,13 @@ class _Processor(UaProcessor):
             return True
         return await super().process_message(seqhdr, body)
 
-    async def _process_message(self, typeid: Any, requesthdr: Any, seqhdr: Any, body: Any) -> Any:
+    async def serve(self, typeid: Any, requesthdr: Any, seqhdr: Any, body: Any) -> Any:
         if typeid == _CREATE_SESSION and self.session is not None:
             await self._end_session()
-        elif typeid == _PUBLISH and len(self._publish_requests) >= self.guard.max_publish_requests:
+        elif typeid == _PUBLISH and self.publish_requests_queued >= self.guard.max_publish_requests:
             raise ServiceError(ua.StatusCodes.BadTooManyPublishRequests)
         try:
-            result = await super()._process_message(typeid, requesthdr, seqhdr, body)
+            result = await super().serve(typeid, requesthdr, seqhdr, body)
         except (ServiceError, UaStatusCodeError):
             raise
         except (*_DECODING, UaError) as exc:
@@ -166,7 +171,7 @@ class _Processor(UaProcessor):
 
     async def _end_session(self) -> None:
         """Close this channel's session and stop its watchdog (asyncua would leave both running)."""
-        watchdog, self._session_watchdog_task = self._session_watchdog_task, None
+        watchdog = self.take_session_watchdog()
         if watchdog is not None:
             watchdog.cancel()
         session, self.session = self.session, None
@@ -177,7 +182,7 @@ class _Processor(UaProcessor):
         # asyncua's close waits for the session watchdog; when the watchdog itself closes a timed-out
         # session, that is a task waiting on itself (RuntimeError), and the connection's close later
         # raises it again. Stop the watchdog here, never wait on it.
-        watchdog, self._session_watchdog_task = self._session_watchdog_task, None
+        watchdog = self.take_session_watchdog()
         if watchdog is not None and watchdog is not asyncio.current_task():
             watchdog.cancel()
         try:
@@ -204,7 +209,7 @@ def _operations(body: Any) -> tuple[int, int] | None:
         return None
 
 
-class _Protocol(OPCUAProtocol):
+class _Protocol(Protocol):
     """asyncua's protocol with the checks on framing it lacks (see the module's docstring)."""
 
     def __init__(self, *args: Any, guard: Limits, **kwargs: Any) -> None:
@@ -246,7 +251,7 @@ class _Protocol(OPCUAProtocol):
             return
         self._failed = True
         self._disarm()
-        self._buffer = b""
+        self.buffered = b""
         try:
             self.transport.write(uatcp_to_binary(ua.MessageType.Error, ua.ErrorMessage(ua.StatusCode(status), reason)))
         except Exception:  # the transport is gone already
@@ -256,7 +261,7 @@ class _Protocol(OPCUAProtocol):
     def data_received(self, data: bytes) -> None:
         if self._failed:
             return
-        buffered = self._buffer + data
+        buffered = self.buffered + data
         offset = 0
         # Check every complete header in what has arrived before asyncua parses it.
         while len(buffered) - offset >= 8:
@@ -271,22 +276,22 @@ class _Protocol(OPCUAProtocol):
                 break
             self._hello_seen = True
             offset += size
-        self._buffer = b""
+        self.buffered = b""
         super().data_received(buffered)
         self._rearm()
 
     def _rearm(self) -> None:
         """The timer runs while part of a message is here: bytes of a chunk, or chunks of a message."""
-        if self._buffer or not self._hello_seen or self.processor._connection._incoming_parts:
+        if self.buffered or not self._hello_seen or self.processor.chunks_waiting:
             self._arm()  # the rest must come within the partial timeout
         else:
             self._disarm()
 
-    async def _process_one_msg(self, header: Any, buf: Any) -> None:
+    async def process_one_message(self, header: Any, buf: Any) -> None:
         if self._failed:
             return
         try:
-            await super()._process_one_msg(header, buf)
+            await super().process_one_message(header, buf)
         except Exception as exc:  # asyncua would log a traceback and leave the connection open
             status = _status_of(exc)
             log.debug("OPC UA %s: %s (%s: %s)", self.peer_name, ua.StatusCode(status).name, type(exc).__name__, exc)
@@ -296,17 +301,17 @@ class _Protocol(OPCUAProtocol):
             self._rearm()
 
 
-class _BinaryServer(BinaryServer):
+class _BinaryServer(SocketServer):
     """asyncua's socket server; a face's server (``install``) makes guarded connections."""
 
-    def _make_protocol(self) -> OPCUAProtocol:
+    def make_protocol(self) -> OPCUAProtocol:
         guard = getattr(self.iserver, "nckemu_transport_limits", None)
         if guard is None:
-            return super()._make_protocol()
-        return _Protocol(iserver=self.iserver, policies=self._policies, clients=self.clients,
+            return super().make_protocol()
+        return _Protocol(iserver=self.iserver, policies=self.security_policies, clients=self.clients,
                          closing_tasks=self.closing_tasks, limits=self.limits, guard=guard)
 
 
 # asyncua's Server makes its BinaryServer by this module-level name when it starts; servers without
 # ``install`` get asyncua's own protocol from it.
-_server_module.BinaryServer = _BinaryServer  # type: ignore[misc]
+serve_connections_with(_BinaryServer)

@@ -33,17 +33,18 @@ from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
 
-from nckemu.emulator.faces.opcua import nodesets
+from nckemu.emulator.faces.opcua import nodesets, production
 from nckemu.emulator.faces.opcua.alarms import AlarmEventQueue, severity_of
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import HAS_COMPONENT, ORGANIZES, Instantiator, Made
 from nckemu.emulator.faces.opcua.settings import SIGNAL_COLORS
+from nckemu.emulator.faces.opcua.units import PERCENT
 from nckemu.emulator.faces.opcua.values import PLC_AREAS, raw_reader, read_value
 from nckemu.emulator.machine.nck.alarms import AlarmEvent
 from nckemu.protocol.addresses import S7Area
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.models import Models
+    from nckemu.emulator.faces.opcua.parts import ModelValues
 
 log = logging.getLogger("nckemu.emulator.opcua.umati")
 
@@ -55,10 +56,13 @@ OPERATION_MODE = {0: 0, 1: 0, 2: 1}
 CHANNEL_MODE = {0: 2, 1: 1, 2: 0}
 # chanStatus 0 reset, 1 active, 2 interrupted -> ChannelState (0 Active, 1 Interrupted, 2 Reset)
 CHANNEL_STATE = {0: 2, 1: 0, 2: 1}
-# progStatus 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted -> program and job states
-PROGRAM_STATE = {1: "Interrupted", 2: "Interrupted", 3: "Running", 4: "Interrupted", 5: "Aborted"}
-PERCENT = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=20529,
-                           DisplayName=ua.LocalizedText("%"), Description=ua.LocalizedText("percent"))
+
+
+def product_instance_uri(name: str, serial: str) -> str:
+    """The default ProductInstanceUri: nckemu's, the machine's own name (a fleet's machine's), its serial
+    number; globally unique as long as serial numbers are (a fleet numbers them)."""
+    parts = [re.sub(r"[^A-Za-z0-9._~-]+", "-", part).strip("-") or "machine" for part in (name, serial)]
+    return f"urn:nckemu:{parts[0]}:{parts[1]}"
 
 
 def _int(kind: ua.VariantType, mapping: dict[int, int] | None = None, default: int = 0) -> Callable[[object], ua.Variant]:
@@ -83,7 +87,7 @@ def _uint32(raw: object) -> ua.Variant:
 class MachineToolInstance:
     """The MachineTool instance of one face, built from the types in its address space."""
 
-    def __init__(self, models: Models, maker: Instantiator) -> None:
+    def __init__(self, models: ModelValues, maker: Instantiator) -> None:
         self.models = models
         self.maker = maker
         self.face = models.face
@@ -94,6 +98,7 @@ class MachineToolInstance:
         self._template: Any = None
         self._alerts = AlarmEventQueue(self.emulator.nck.alarm_list, self._send, "OPC UA alert event")
         self.alerts_sent = 0
+        self.production: production.Production | None = None
 
     # ------------------------------------------------------------------ helpers
     def feed(self, path: str, reader: Callable[[], object], variant: Callable[[object], ua.Variant],
@@ -126,14 +131,14 @@ class MachineToolInstance:
         models, types = self.models, self.maker.types
         mt, machinery = models.ns(nodesets.MACHINE_TOOL), models.ns(nodesets.MACHINERY)
         machines = _machines_folder(types, machinery)
-        machine = self.emulator.machine
-        self.made = made = self.maker.make(
-            machines, types.find(mt, "MachineToolType"), machine.name, root="MachineTool", reference=ORGANIZES,
+        self.made = made = self.maker.make(  # named as the machine is among others (a fleet's own name)
+            machines, types.find(mt, "MachineToolType"), self.emulator.name, root="MachineTool", reference=ORGANIZES,
             optional=("Identification/Model", "Identification/SoftwareRevision", "Identification/Location",
                       "Identification/YearOfConstruction", "Identification/ProductCode",
                       "Monitoring/MachineTool/FeedOverride", "Monitoring/MachineTool/PowerOnDuration",
                       "Production/ProductionPlan", "Production/Statistics/PartsProducedInLifetime",
                       "Production/ActiveProgram/JobIdentifier", "Production/ActiveProgram/JobNodeId",
+                      *(f"Production/ActiveProgram/State/{path}" for path in production.LAST_TRANSITION),
                       "Notification/Messages", "Equipment/Tools")
             + (("Monitoring/Stacklight",) if self.face.settings.stacklight else ()))
         self._identification(made)
@@ -149,11 +154,12 @@ class MachineToolInstance:
         machine = self.emulator.machine
         manufacturer = str(table.get("manufacturer", "nckemu"))
         model = str(table.get("model", machine.name))
-        serial = str(table.get("serial_number", self.value_of("/NC/_N_NC_TEA_ACX/$MN_HW_SERIAL_NUMBER", "0")))
+        # The serial number and software revision the S7 face serves (MD18030, MD18040 line 1), without
+        # the padding of the fixed-length field.
+        serial = str(table.get("serial_number", self.emulator.serial_number))
         software = str(table.get("software_revision",
-                                 self.value_of("/NC/_N_NC_TEA_ACX/$MN_VERSION_INFO[u1,1]", "")))
-        uri = str(table.get("product_instance_uri", "urn:" + "/".join(
-            re.sub(r"[^A-Za-z0-9._-]+", "-", part) for part in ("nckemu", manufacturer, model, serial))))
+                                 str(self.value_of("/NC/_N_NC_TEA_ACX/$MN_VERSION_INFO[u1,1]", "")).rstrip()))
+        uri = str(table.get("product_instance_uri", product_instance_uri(self.emulator.name, serial)))
         strings = {"Identification/SerialNumber": serial, "Identification/SoftwareRevision": software,
                    "Identification/ProductInstanceUri": uri,
                    "Identification/Location": str(table.get("location", "")),
@@ -209,45 +215,13 @@ class MachineToolInstance:
         self.models.set(made[f"{path}/EURange"], ua.Variant(ua.Range(low, high)))
         self.models.set(made[f"{path}/EngineeringUnits"], ua.Variant(PERCENT))
 
-    def _states(self, types: Any, mt: int, machine_type: str) -> dict[str, tuple[ua.NodeId, int]]:
-        """The states of a state machine type: name -> (state node id, state number)."""
-        found: dict[str, tuple[ua.NodeId, int]] = {}
-        type_id = types.find(mt, machine_type)
-        for ref in types.node(type_id).references:
-            if not ref.IsForward or ref.ReferenceTypeId != HAS_COMPONENT:
-                continue
-            target = types.node(ref.NodeId)
-            if types.rule(ref.NodeId) is not None or ref.NodeClass != ua.NodeClass.Object:
-                continue
-            number = 0
-            for child in target.references:
-                if child.BrowseName.Name == "StateNumber" and child.IsForward:
-                    number = int(types.node(child.NodeId).attributes[ua.AttributeIds.Value].value.Value.Value or 0)
-            found[ref.BrowseName.Name] = (ref.NodeId, number)
-        return found
-
-    def _state_machine(self, made: Made, path: str, states: dict[str, tuple[ua.NodeId, int]],
-                       reader: Callable[[], object], state_of: Callable[[object], str], realm: str) -> None:
-        def name(raw: object) -> str:
-            return state_of(raw) if state_of(raw) in states else "Initializing"
-        self.models.bind(made[f"{path}/CurrentState"], Feed(
-            reader, lambda raw: ua.Variant(ua.LocalizedText(name(raw))), realm))
-        self.models.bind(made[f"{path}/CurrentState/Id"], Feed(
-            reader, lambda raw: ua.Variant(states[name(raw)][0], ua.VariantType.NodeId), realm))
-        self.models.bind(made[f"{path}/CurrentState/Number"], Feed(
-            reader, lambda raw: ua.Variant(states[name(raw)][1], ua.VariantType.UInt32), realm))
-
     def _production(self, made: Made, types: Any, mt: int) -> None:
-        status, realm = self.btss("/Channel/State/progStatus[u1]")
-        program_states = self._states(types, mt, "ProductionProgramStateMachineType")
-        job_states = self._states(types, mt, "ProductionJobStateMachineType")
         self.fed("Production/ActiveProgram/Name", "/Channel/ProgramInfo/progName[u1]", _text)
         self._set(made, "Production/ActiveProgram/NumberInList", ua.Variant(0, ua.VariantType.UInt16))
-        self._state_machine(made, "Production/ActiveProgram/State", program_states, status,
-                            lambda raw: PROGRAM_STATE.get(int(raw[0]), "Initializing"), realm)  # type: ignore[index]
         self.fed("Production/Statistics/PartsProducedInLifetime", "/Channel/State/totalParts[u1]", _uint32)
         job = self.maker.make(made["Production/ProductionPlan"], types.find(mt, "ProductionJobType"), "Job1",
-                              root="MachineTool/Production/ProductionPlan/Job1", reference=HAS_ORDERED_COMPONENT)
+                              root="MachineTool/Production/ProductionPlan/Job1", reference=HAS_ORDERED_COMPONENT,
+                              optional=tuple(f"State/{path}" for path in production.LAST_TRANSITION))
         self._set(made, "Production/ActiveProgram/JobIdentifier", ua.Variant("Job1", ua.VariantType.String))
         self._set(made, "Production/ActiveProgram/JobNodeId", ua.Variant(job.root, ua.VariantType.NodeId))
         self.models.set(job["Identifier"], ua.Variant("Job1", ua.VariantType.String))
@@ -256,18 +230,9 @@ class MachineToolInstance:
         self._bind(job, "RunsPlanned", "/Channel/State/reqParts[u1]", _uint32)
         self._bind(job, "RunsPlanned/IsValid", "/Channel/State/reqParts[u1]",
                    lambda raw: ua.Variant(float(raw[0]) > 0, ua.VariantType.Boolean))  # type: ignore[index]
-        parts, _realm = self.btss("/Channel/State/actParts[u1]")
-        planned, _realm = self.btss("/Channel/State/reqParts[u1]")
-
-        def job_raw() -> object:
-            return (int(status()[0]), float(parts()[0]), float(planned()[0]))  # type: ignore[index]
-
-        def job_state(raw: object) -> str:
-            program, done, wanted = raw  # type: ignore[misc]
-            if program == 5 and wanted > 0 and done >= wanted:
-                return "Ended"
-            return PROGRAM_STATE.get(program, "Initializing")
-        self._state_machine(job, "State", job_states, job_raw, job_state, realm)
+        # the state machines follow channel 1's program (production.py)
+        self.production = production.Production(self)
+        self.production.bind(made, job, "Production/ActiveProgram/State", "State")
         program = self.maker.make(job["ProductionPrograms"], types.find(mt, "ProductionProgramType"), "Program1",
                                   root="MachineTool/Production/ProductionPlan/Job1/ProductionPrograms/Program1",
                                   reference=HAS_ORDERED_COMPONENT)
@@ -326,9 +291,13 @@ class MachineToolInstance:
         self.alerts = await server.get_event_generator(alert_type, messages)
         self._template = self.alerts.event
         self._alerts.start()
+        if self.production is not None:
+            await self.production.start(server)
 
     async def stop(self) -> None:
         self._alerts.stop()
+        if self.production is not None:
+            await self.production.stop()
 
     async def _send(self, event: AlarmEvent) -> None:
         """An ``AlertType`` event from Notification/Messages: the alarm's number as ErrorCode and condition

@@ -23,7 +23,7 @@ from nckemu.emulator.faces.opcua import request
 from nckemu.emulator.faces.opcua.settings import RIGHTS, OpcUaSettings
 
 if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.face import OpcUaFace
+    from nckemu.emulator.faces.opcua.parts import MethodHost
 
 MAX_USERS = 20
 MAX_TEXT = 128
@@ -162,7 +162,7 @@ class UserRegistry:
         self.accounts = accounts
 
 
-async def add_methods(face: OpcUaFace, server: Server, methods: Any, registry: UserRegistry) -> None:
+async def add_methods(face: MethodHost, server: Server, methods: Any, registry: UserRegistry) -> None:
     """The user-management methods on the ``Methods`` object (``methods``, made by ``files.add_methods``)."""
     ns = face.namespace
     text, texts = ua.VariantType.String, ua.VariantType.String
@@ -206,6 +206,17 @@ async def add_methods(face: OpcUaFace, server: Server, methods: Any, registry: U
         ("AddCertificateUser", not_supported, [argument("user"), argument("certificate", ua.VariantType.ByteString)],
          []),
     ]
+    def admin_only(user: str, _rights: frozenset[str]) -> bool:
+        return bool(user) and user == registry.admin
+
+    # Who may call each (UserExecutable as the session reads it): as the registry decides.
+    executable: dict[str, Callable[[str, frozenset[str]], bool]] = {
+        name: admin_only for name in ("AddUser", "DeleteUser", "GetUserList", "GiveUserAccess", "DeleteUserAccess",
+                                      "GetUserAccessRights")}
+    executable["ChangeMyPassword"] = lambda user, _rights: bool(user)
+    executable["AddCertificateUser"] = lambda _user, _rights: False  # not supported for anyone
     for name, method, inputs, outputs in table:
-        await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
-                                 request.with_arguments(method, len(inputs)), inputs, outputs)
+        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                        request.with_arguments(method, len(inputs)), inputs, outputs)
+        server.set_attribute_value_callback(node.nodeid, request.user_executable(executable[name]),
+                                            ua.AttributeIds.UserExecutable)

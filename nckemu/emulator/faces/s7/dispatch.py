@@ -60,6 +60,8 @@ DATA_TS_OCTET_STRING = 0x09
 # and data 0A 00 00 00 (the form C snap7 gives unavailable SZLs and tshark decodes; what a real CPU
 # answers for an unserved group was not found: the machine's settings.userdata_not_served_error).
 USERDATA_NOT_SERVED = 0x8104
+# PI services that change retained data (the program store): answered once it is saved, as a write.
+RETAINED_PI_SERVICES = frozenset({"_N_F_DELE"})
 
 _ELEMENT_BYTES: dict[int, int] = {
     S7TransportSize.BYTE: 1, S7TransportSize.CHAR: 1, S7TransportSize.WORD: 2,
@@ -340,6 +342,8 @@ class Dispatcher:
         service = request.service
         if service.startswith("_N_"):
             self.nck.pi_service(service, request.arguments, ctx)
+            if service in RETAINED_PI_SERVICES:
+                self.retained_changed()
         elif service == "P_PROGRAM":
             self._plc_control("start")
         else:

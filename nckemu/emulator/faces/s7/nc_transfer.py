@@ -113,6 +113,9 @@ class NcTransfers:
         sub = parameter.subfunction
         if sub == NcSubfunction.REQUEST_DOWNLOAD and parameter.type == ncprog.NC_REQUEST:
             return [self._request_download(pdu.pdu_ref, data.payload)]
+        if parameter.type == ncprog.NC_REQUEST and sub in (NcSubfunction.DOWNLOAD_BLOCK, NcSubfunction.CONTINUE_UPLOAD):
+            # pushes sent as requests: a request is always answered, and these are not requests
+            return [self._answer(pdu.pdu_ref, sub, parameter.sequence, error=ERROR_SEQUENCE)]
         if sub == NcSubfunction.DOWNLOAD_BLOCK:
             return self._download_block(pdu.pdu_ref, parameter, data.payload)
         if sub == NcSubfunction.DOWNLOAD_ENDED and parameter.type == ncprog.NC_REQUEST:
@@ -190,7 +193,8 @@ class NcTransfers:
         """Write the downloaded program whole; 0, or the error code of why not."""
         try:
             content = ncprog.parse_transfer_content(b"".join(download.pieces))
-            path = program_path(f"{content.path.rstrip('/')}/{download.name}")
+            name = download.name
+            path = program_path(name if name.startswith("/") else f"{content.path.rstrip('/')}/{name}")
             old = len(self.programs.texts.get(path, b""))
             if self.programs.stored_bytes() - old + len(content.text) > self.store_bytes:
                 return ERROR_STORE_FULL
@@ -271,7 +275,10 @@ class NcTransfers:
     # ------------------------------------------------------------------ PLC-block path
     def block_job(self, pdu: s7.S7Pdu, pdu_size: int) -> s7.S7Pdu | None:
         """The answer to a 0x1D/0x1E/0x1F job about an NC file; None for anything else (a PLC block)."""
-        control = blocks.parse_block_control(pdu.parameter)
+        try:
+            control = blocks.parse_block_control(pdu.parameter)
+        except NckProtocolError:
+            return None  # not one of ours: answered as any block job the emulator does not serve
         if control.function == blocks.START_UPLOAD:
             name = control.file_name or ""
             if not (name.upper().startswith("_N_") or name.startswith("/")):

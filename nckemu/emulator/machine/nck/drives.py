@@ -15,6 +15,7 @@ What the values follow:
              ambient plus a steady rise with the square of the load
   r0030/27   torque-generating current in proportion to the load; r0027 adds the magnetizing current
   r0032      mechanical power (load x speed) over the efficiency, plus copper losses
+  r0080      torque: the load of the rated torque (rated power over rated speed)
   r0026      the DC link at the supply's level; the infeed's r0032 is the drives' power over its efficiency
   r0037      power unit temperatures: ambient plus a rise with the current at the measured indices,
              ``unmeasured_C`` at the others
@@ -118,6 +119,12 @@ class Drives:
         """r0027: the absolute current, Iq and the magnetizing current Id together."""
         return math.hypot(self.torque_current_A(model, number), self.drive(number).magnetizing_current_A)
 
+    def torque_Nm(self, model: NckParts, number: int) -> float:
+        """r0080: the load (torque utilization, r0081) of the rated torque, rated power over rated speed."""
+        drive = self.drive(number)
+        rated_Nm = drive.rated_power_kW * 1000.0 / (2.0 * math.pi * drive.rated_speed_rpm / 60.0)
+        return rated_Nm * self.load_pct(model, number) / 100.0
+
     def power_kW(self, model: NckParts, number: int) -> float:
         """r0032: electrical active power, motoring positive: load x speed over the efficiency, plus the
         copper losses of the current."""
@@ -174,6 +181,7 @@ DRIVE_READERS: dict[str, Callable[[NckParts, int, int], object]] = {
     "drives.motor.r0032": _motor(lambda drives, model, unit: drives.power_kW(model, unit)),
     "drives.motor.r0035": _motor(lambda drives, model, unit: drives.motor_temperature_C(model, unit)),
     "drives.motor.r0037": lambda model, unit, line: model.drives.power_unit_temperature_C(model, unit, line - 1),
+    "drives.motor.r0080": _motor(lambda drives, model, unit: drives.torque_Nm(model, unit)),
     "drives.motor.r0081": _motor(lambda drives, model, unit: drives.load_pct(model, unit)),
     "drives.infeed.r0026": lambda model, _unit, _line: model.drives.settings.dc_link_V,
     "drives.infeed.r0032": lambda model, _unit, _line: model.drives.infeed_power_kW(model),

@@ -15,6 +15,12 @@ class UndefinedName(KeyError):
 
 
 class ProgramEnvironment:
+    # Machine data the interpreter reads at program start (class attributes, so a subclass or an
+    # instance can override them; documented defaults).
+    reset_motion: int = 0          # MD20150 group 1 after reset: 0 = G0 (UNCONFIRMED default), 1 = G1
+    reset_inch: bool = False       # MD10240 SCALING_SYSTEM_IS_METRIC TRUE: G71 (mm) after reset
+    tool_change_mode: int = 1      # MD22550 TOOL_CHANGE_MODE: 1 = T preselects and M6 changes; 0 = T changes
+
     def __init__(self, axes: Sequence[str] = ("X", "Y", "Z"), r_parameters: int = 100) -> None:
         self.axes = tuple(axes)
         self.r_count = r_parameters
@@ -36,6 +42,10 @@ class ProgramEnvironment:
     def work_offset_mm(self, frame: str, axis: str) -> float:
         """The settable frame ``frame`` (G54...G57, G505...) of ``axis``; 0 where none is set."""
         return 0.0
+
+    def axis_is_rotary(self, axis: str) -> bool:
+        """Rotary axes take degrees and are not converted by G70/G700 (A, B, C unless told otherwise)."""
+        return axis.upper() in ("A", "B", "C")
 
     def tool_length_mm(self, tool: int | str | None, edge: int | None) -> float:
         """The active tool edge's length 1 (applied along the infeed axis of the plane)."""

@@ -6,7 +6,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from nckemu.catalogue.node_ids import PlcNodeName
-from nckemu.emulator.faces.opcua.face import _Monitored, _PlcIndex
+from nckemu.emulator.faces.opcua.monitoring import _Monitored, _PlcIndex
 from nckemu.protocol.addresses import S7Area
 
 KINDS = {"BYTE": 1, "WORD": 2, "DWORD": 4, "REAL": 4, "BOOL": 1, "STRING": 1}

@@ -22,3 +22,7 @@ ALARM_UNKNOWN_G = 12470
 ALARM_CALL_DEPTH = 14000
 # Subprogram levels a program may open below the main program (840D sl: 16 levels in all; UNCONFIRMED).
 MAX_CALL_DEPTH = 15
+# UNCONFIRMED: more M functions in a block than allowed, or two of one group (M3 and M5 for one
+# spindle) in the same block ("auxiliary function programmed incorrectly").
+ALARM_AUXILIARY = 14770
+MAX_M_PER_BLOCK = 5

@@ -17,7 +17,10 @@ from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, evaluate, is_dyn
 
 # block kinds
 WORDS, IF, ELSE, ENDIF, WHILE, ENDWHILE, FOR, ENDFOR, REPEAT, UNTIL, LOOP, ENDLOOP = range(12)
-IF_JUMP, CASE, DEF, PROC, EXTERN, NOTHING = range(12, 18)
+IF_JUMP, CASE, DEF, PROC, EXTERN, NOTHING, STRAIGHT = range(12, 19)
+# G functions a STRAIGHT block may carry: modal settings that need nothing of the block's other words
+STRAIGHT_G = frozenset({0, 1, 17, 18, 19, 40, 60, 64, 70, 71, 90, 91, 94, 95, 601, 602, 603, 641, 642, 643,
+                        644, 645, 700, 710})
 
 _KEYWORD_KINDS = {"ELSE": ELSE, "ENDIF": ENDIF, "ENDWHILE": ENDWHILE, "ENDFOR": ENDFOR,
                   "REPEAT": REPEAT, "LOOP": LOOP, "ENDLOOP": ENDLOOP}
@@ -64,12 +67,79 @@ class Compiled:
         self.extra = extra
 
 
+# A block of address words with constant values only (most CAM blocks): N10 G1 X12.5 Y-3 F1200
+_SIMPLE_BLOCK = re.compile(r"(?:[ \t]*[A-Z]+[ \t]*=?[ \t]*[+-]?(?:\d+\.?\d*|\.\d+))+[ \t]*", re.IGNORECASE)
+_SIMPLE_WORD = re.compile(r"([A-Z]+)[ \t]*=?[ \t]*([+-]?(?:\d+\.?\d*|\.\d+))", re.IGNORECASE)
+_SIMPLE_ADDRESSES = frozenset({"M", "S", "F", "T", "D", "H", "CR", "TURN"})
+
+
 class BlockCompiler:
     """Compiles blocks for one interpreter (it knows the axes and how names resolve)."""
 
     def __init__(self, axes: tuple[str, ...], resolver: Any) -> None:
         self.axes = frozenset(axis.upper() for axis in axes)
         self.resolver = resolver
+
+    def compile_simple(self, text: str) -> Compiled | None:
+        """The fast way for a block of constant address words, or None (then :meth:`compile`)."""
+        if _SIMPLE_BLOCK.fullmatch(text) is None:
+            return None
+        words = _SIMPLE_WORD.findall(text)
+        straight = self._straight(words, text)
+        if straight is not None:
+            return straight
+        items: list[tuple] = []
+        number = ""
+        axes = self.axes
+        for index, (letters, digits) in enumerate(words):
+            letters = letters.upper()
+            value: float | int = float(digits) if "." in digits else int(digits)
+            if letters in axes:
+                items.append((I_AXIS, letters, value, None))
+            elif letters == "G":
+                if value.__class__ is float or value < 0:
+                    return None
+                items.append((I_G, value, None, None))
+            elif letters == "N":
+                if index or value.__class__ is float or value < 0:
+                    return None
+                number = "N" + digits
+            elif letters in _SIMPLE_ADDRESSES:
+                if letters == "M" and (value.__class__ is float or value < 0):
+                    return None
+                items.append((I_ADDR, letters, value, 0))
+            elif letters in ("I", "J", "K"):
+                items.append((I_ADDR, letters, value, None))
+            else:
+                return None
+        return Compiled(number, WORDS, items, text)
+
+    def _straight(self, words: list[tuple[str, str]], text: str) -> Compiled | None:
+        """A STRAIGHT block (only modal G of STRAIGHT_G, each axis once, F), or None."""
+        axes = self.axes
+        g_codes: list[int] = []
+        axis_words: list[tuple[str, float]] = []
+        seen: set[str] = set()
+        feed = None
+        number = ""
+        for index, (letters, digits) in enumerate(words):
+            letters = letters.upper()
+            if letters in axes:
+                if letters in seen:
+                    return None
+                seen.add(letters)
+                axis_words.append((letters, float(digits)))
+            elif letters == "G":
+                if not digits.isdigit() or int(digits) not in STRAIGHT_G:
+                    return None
+                g_codes.append(int(digits))
+            elif letters == "F" and feed is None:
+                feed = float(digits)
+            elif letters == "N" and index == 0 and digits.isdigit():
+                number = "N" + digits
+            else:
+                return None
+        return Compiled(number, STRAIGHT, (tuple(g_codes), tuple(axis_words), feed), text)
 
     def compile(self, text: str, tokens: list) -> Compiled:
         parser = Parser(tokens, self.resolver)
@@ -346,7 +416,7 @@ class BlockCompiler:
                 items.append((I_AXIS, name, axis_value, mode))
                 continue
             if frac is None and following is not None and following[0] == OP and following[1] == "(" \
-                    and name not in ("MSG", "SETAL") and name not in FUNCTIONS:
+                    and name not in ("MSG", "SETAL") and name not in FUNCTIONS and name not in NO_OP_WORDS:
                 if name in ("IC", "AC"):
                     raise ProgramAlarm(ALARM_SYNTAX, f"{name}() stands after an address and '='")
                 args = parser.arguments()

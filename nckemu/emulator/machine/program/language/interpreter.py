@@ -35,7 +35,15 @@ from ..motions import (
     ToolSelect,
 )
 from . import blocks as b
-from .alarms import ALARM_CALL_DEPTH, ALARM_NESTING, ALARM_UNKNOWN_G, MAX_CALL_DEPTH
+from .alarms import (
+    ALARM_ARITHMETIC,
+    ALARM_AUXILIARY,
+    ALARM_CALL_DEPTH,
+    ALARM_NESTING,
+    ALARM_UNKNOWN_G,
+    MAX_CALL_DEPTH,
+    MAX_M_PER_BLOCK,
+)
 from .blocks import BlockCompiler, Compiled
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
 from .lexer import strip_comment, tokenize
@@ -58,6 +66,7 @@ _SETTLED_G = frozenset({
     347, 348, 620, 621, 460, 461, 462, 810, 811, 812, 820, 821, 822, 931, 942, 952, 962, 971, 973, 290, 291,
 })
 _STANDARD_CYCLE = re.compile(r"(CYCLE\d+[A-Z]?|POCKET\d+|SLOT\d+|LONGHOLE|HOLES\d|WORKPIECE|[EF]_[A-Z0-9_]+)")
+_BLOCK_NUMBER = re.compile(r"(?:/\d?\s*)?(N\d+)", re.IGNORECASE)
 _END_CODES = frozenset({0, 1, 2, 17, 30})
 
 
@@ -102,10 +111,10 @@ class Interpreter:
     # --- modal state ------------------------------------------------------------------------------
     def _reset_modal(self) -> None:
         env = self.env
-        self.motion = int(getattr(env, "reset_motion", 0))
+        self.motion = 1 if env.reset_motion == 1 else 0
         self.plane = "G17"
         self.absolute = True
-        self.inch_geometry = bool(getattr(env, "reset_inch", False))
+        self.inch_geometry = bool(env.reset_inch)
         self.inch_feed = False
         self.feed_mode = "G94"
         self.exact_stop = True
@@ -173,13 +182,10 @@ class Interpreter:
         self._update_shift()
 
     def _is_rotary(self, axis: str) -> bool:
-        check = getattr(self.env, "axis_is_rotary", None)
-        if check is not None:
-            try:
-                return bool(check(axis))
-            except Exception:
-                return False
-        return axis in ("A", "B", "C")
+        try:
+            return bool(self.env.axis_is_rotary(axis))
+        except Exception:
+            return axis in ("A", "B", "C")
 
     # --- running ----------------------------------------------------------------------------------
     def events(self) -> Iterator[Event]:
@@ -221,8 +227,15 @@ class Interpreter:
             if compiled is None:
                 raw = text[pos:end]
                 try:
-                    compiled = self._compile(raw)
+                    try:
+                        compiled = self._compile(raw)
+                    except ArithmeticError as exc:
+                        raise ProgramAlarm(ALARM_ARITHMETIC, f"arithmetic error ({exc})") from None
                 except ProgramAlarm as alarm:
+                    # the faulty block is the current block on the control's display
+                    text_only = strip_comment(raw).strip()
+                    number = _BLOCK_NUMBER.match(text_only)
+                    yield Block(source.path, line, number.group(1).upper() if number else "", text_only, frame.depth)
                     raise self._located(alarm, source, line, raw) from None
                 if compiled is None:
                     continue
@@ -236,6 +249,9 @@ class Interpreter:
             try:
                 events = self._execute(compiled, frame, pos)
             except ProgramAlarm as alarm:
+                raise self._located(alarm, source, line, compiled.text) from None
+            except ArithmeticError as exc:  # an overflow deep in a conversion is still arithmetic
+                alarm = ProgramAlarm(ALARM_ARITHMETIC, f"arithmetic error ({exc})")
                 raise self._located(alarm, source, line, compiled.text) from None
             if events:
                 yield from events
@@ -251,7 +267,7 @@ class Interpreter:
         text = strip_comment(raw).strip()
         if not text or text[0] == "%":
             return None
-        return self._compiler.compile(text, tokenize(text))
+        return self._compiler.compile_simple(text) or self._compiler.compile(text, tokenize(text))
 
     # --- names ------------------------------------------------------------------------------------
     def _resolve(self, parser: Parser, name: str) -> Any:
@@ -428,8 +444,43 @@ class Interpreter:
             raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {target} not found")
         self._go_to(frame, offset)
 
+    def _straight(self, compiled: Compiled, frame: _Frame) -> list[Event] | None:
+        """A block of constant axis words, F and modal G only (most CAM blocks), the short way."""
+        g_codes, axis_words, feed = compiled.items
+        for code in g_codes:
+            if code <= 1:
+                self.motion = code
+            else:
+                self._g(code, {})
+        if feed is not None:
+            self.feed_mm = feed * INCH_MM if (self.inch_feed and self.feed_mode != "G93") else feed
+        if not axis_words:
+            return None
+        motion = self.motion
+        if self.inch_geometry or not self.absolute or motion > 1:
+            events: list[Event] = [self._motion([(axis, value, None) for axis, value in axis_words], {}, {})]
+        else:
+            shift = self.shift
+            work_pos = self.work_pos
+            targets = {}
+            for axis, value in axis_words:
+                work_pos[axis] = value
+                targets[axis] = value + shift[axis] if axis in shift else value
+            if motion == 0:
+                events = [Move(targets, None, self.feed_mode, self.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
+            else:
+                if self.feed_mm <= 0:
+                    raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
+                events = [Move(targets, self.feed_mm, self.feed_mode, self.exact_stop,  # type: ignore[arg-type]
+                               dict(axis_words))]
+        if self._modal_call is not None:
+            self._call(self._modal_call[0], self._modal_call[1], None, frame)
+        return events
+
     def _execute(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
         kind = compiled.kind
+        if kind == b.STRAIGHT:
+            return self._straight(compiled, frame)
         if kind == b.WORDS:
             return self._words(compiled.items, frame, pos)
         if kind == b.NOTHING or kind == b.EXTERN:
@@ -512,7 +563,7 @@ class Interpreter:
 
     def _define(self, declarations: list, frame: _Frame) -> None:
         for name, kind, dims, init in declarations:
-            if name in self._axes or re.fullmatch(r"R\d+", name):
+            if name in self._axes or len(name) == 1 or re.fullmatch(r"R\d+", name) or name in b.WORD_ADDRESSES:
                 raise ProgramAlarm(ALARM_SYNTAX, f"DEF {name}: the name is taken by the control")
             variable = Variable(name, kind, dims)
             if init is not None:
@@ -775,7 +826,7 @@ class Interpreter:
             value = address["T"]
             tool = value.upper() if value.__class__ is str else int(number(value))
             self.preselected = tool
-        direct = getattr(self.env, "tool_change_mode", 1) == 0
+        direct = self.env.tool_change_mode == 0
         if change or (has_t and direct):
             self.tool = self.preselected
             tool = self.tool
@@ -793,8 +844,12 @@ class Interpreter:
 
     def _spindle_words(self, address: dict, m_codes: list, spos: list, flags: dict, events: list) -> None:
         directions: dict[int, str] = {}
+        if len(m_codes) > MAX_M_PER_BLOCK:
+            raise ProgramAlarm(ALARM_AUXILIARY, f"{len(m_codes)} M functions in one block (at most {MAX_M_PER_BLOCK})")
         for extension, m_code in m_codes:
             if m_code in (3, 4, 5):
+                if (extension or 1) in directions:
+                    raise ProgramAlarm(ALARM_AUXILIARY, f"two spindle directions for spindle {extension or 1} in one block")
                 directions[extension or 1] = f"M{m_code}"
         for spindle in spos:
             directions[spindle] = "M5"

@@ -91,6 +91,8 @@ class ProgramSource:
         return line
 
     def in_loop(self, offset: int) -> bool:
+        if not self.loop_spans:
+            return False
         return any(start <= offset <= end for start, end in self.loop_spans)
 
     def find_target(self, target: str, current: int, direction: str) -> int | None:
