@@ -43,7 +43,7 @@ def straight_moves(count: int) -> str:
 
 
 def loop_heavy(count: int) -> str:
-    return (f"DEF INT I\nR1=0\nFOR I=1 TO {count}\nR1=R1+I*0.5\nR2=R1/I\nENDFOR\nG0 X=R2/R1\nM30\n")
+    return (f"DEF INT CNT\nR1=0\nFOR CNT=1 TO {count}\nR1=R1+CNT*0.5\nR2=R1/CNT\nENDFOR\nG0 X=R2/R1\nM30\n")
 
 
 def interpreter_alone(text: str) -> tuple[int, float]:
@@ -68,11 +68,11 @@ def through_channel(text: str) -> tuple[int, float, float]:
 
 
 WARM_UP = """; a 20 minute warm-up: spindle steps, moves at feed, dwells
-DEF INT K
+DEF INT CYC
 G90 G71 G94
 G0 X100 Y100 Z-20
-FOR K=1 TO 40
-  S=1000+K*150 M3
+FOR CYC=1 TO 40
+  S=1000+CYC*150 M3
   G1 X700 Y100 F6000
   G1 X700 Y600
   G1 X100 Y600
