@@ -177,13 +177,9 @@ class NckEnvironment(ProgramEnvironment):
         state = self._channel.state
         if key == "$AC_TIME":  # time since the start of the block (s)
             return max(0.0, self._run.t_s - self._run.block_start_s)
-        if key in ("$AA_IM", "$AA_IW", "$P_EP", "$AA_MM") and indices:
-            axis = str(indices[0]).upper()
-            position = self.machine_position_mm(axis)
-            if key in ("$AA_IW", "$P_EP"):
-                number = self._axes[axis]
-                position -= self._parts.frames.active_shift_mm(self._channel.number, number)
-            return position
+        if key in ("$AA_IM", "$AA_MM") and len(indices) == 1 and str(indices[0]).upper() in self._axes:
+            # the actual machine position, with the compensation ($P_EP, $AA_IW: the interpreter's own)
+            return self._parts.actual_position_mm(self._axes[str(indices[0]).upper()])
         counters = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
                     "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
         if key in counters:
