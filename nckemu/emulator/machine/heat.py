@@ -40,6 +40,11 @@ class Heat:
                 path_m_min += channel.state.path_feed_mm_min * M_PER_MM
         return spindle_rpm, path_m_min
 
+    @property
+    def warm(self) -> bool:
+        """Whether any sensor still carries heat of a program (it decays in the cycle)."""
+        return any(abs(value) > 1e-6 for value in self.nck.sensors.heat_C.values())
+
     def thermal_error_um(self, axis: int) -> float:
         """The error the heat makes on machine axis ``axis`` now (its thermal_um_per_K)."""
         spec = self.machine.axis(axis)
