@@ -188,7 +188,10 @@ def _set_settable_shift(model: NckParts, unit: int, line: int, value: object) ->
 
 
 def _set_channel_command(model: NckParts, unit: int, _line: int, value: object) -> None:
-    _channel(model, unit).command(int(value))  # type: ignore[call-overload]
+    try:
+        _channel(model, unit).command(int(value))  # type: ignore[call-overload]
+    except NckPiStateError as exc:  # NC start refused (JOG, an alarm): the item's error, the alarm on the list
+        raise NckAccessDenied(str(exc)) from None
 
 
 def _set_mode(model: NckParts, _unit: int, _line: int, value: object) -> None:
