@@ -1,7 +1,8 @@
 """Part programs through the interpreter (nckemu/emulator/machine/program/language), in one run:
 
 - blocks per second executed for a program of straight G1 moves, and for a loop-heavy program
-  (FOR, IF, arithmetic, R parameters): the interpreter's events consumed as a channel would;
+  (FOR, IF, arithmetic, R parameters), and (no target) for circles with I/J: the interpreter's events
+  consumed as a channel would;
 - pygcode (PyPI, a pure-Python G-code parser) only *parsing* the same straight-move program, as the
   anchor: printed as a ratio (skipped with a message when pygcode is not installed: `pip install
   -e .[bench]`);
@@ -43,6 +44,13 @@ def straight_program(blocks: int) -> str:
               for i in range(blocks)]
     lines.append("M30")
     return "\n".join(lines) + "\n"
+
+
+def arc_program(blocks: int) -> str:
+    lines = ["G90 G17 G0 X10 Y0 F1000"]
+    lines += [f"N{i + 10} G3 X-10 Y0 I-10 J0" if i % 2 == 0 else f"N{i + 10} G3 X10 Y0 I10 J0"
+              for i in range(blocks)]
+    return "\n".join(lines) + "\nM30\n"
 
 
 def loop_program(iterations: int) -> str:
@@ -142,6 +150,8 @@ def main() -> int:
     straight = straight_program(args.blocks)
     blocks, seconds = execute(straight)
     results: dict[str, Any] = {"straight_blocks": blocks, "straight_blocks_per_s": round(blocks / seconds)}
+    arc_blocks, arc_seconds = execute(arc_program(args.blocks // 4))
+    results.update(arc_blocks=arc_blocks, arc_blocks_per_s=round(arc_blocks / arc_seconds))
     loop_blocks, loop_seconds = execute(loop_program(args.loops))
     results.update(loop_blocks=loop_blocks, loop_blocks_per_s=round(loop_blocks / loop_seconds))
     parse_seconds = pygcode_parse(straight)
@@ -163,6 +173,7 @@ def main() -> int:
         return 0
     print(f"straight G1: {results['straight_blocks']} blocks, {results['straight_blocks_per_s']} blocks/s executed "
           "(target >= 50000)")
+    print(f"circles    : {results['arc_blocks']} blocks, {results['arc_blocks_per_s']} blocks/s executed")
     print(f"loop-heavy : {results['loop_blocks']} blocks, {results['loop_blocks_per_s']} blocks/s executed")
     if "pygcode_parse_lines_per_s" in results:
         print(f"pygcode    : {results['pygcode_parse_lines_per_s']} lines/s parsed only; executed/parsed = "

@@ -16,7 +16,7 @@ last part) -> the first piece in the answer, the others as NC pushes; after ever
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any, TypeVar
@@ -31,7 +31,7 @@ from nckemu.errors import (
     NckTimeoutError,
     service_error_for,
 )
-from nckemu.protocol import ncprog, s7
+from nckemu.protocol import blocks, ncprog, s7
 from nckemu.protocol.codes import HEADER_ERROR_TEXTS
 from nckemu.protocol.ncprog import NcData, NcParameter, NcSubfunction
 
@@ -155,11 +155,14 @@ async def put_program(nck: AsyncNckClient, name: str, text: bytes, *, now: datet
                 ncprog.build_nc_data(NcData(ncprog.build_chunk(piece))))
             unacknowledged += 1
             if not last and unacknowledged == window:
-                push, _ = await wire.receive(what)
+                push, push_data = await wire.receive(what)
                 if push.type != ncprog.NC_PUSH or push.subfunction != NcSubfunction.CONTINUE_DOWNLOAD:
                     raise NckProtocolError(f"{what}: expected continue download, got {ncprog.describe(push)}")
                 unacknowledged = 0
-                window = DOWNLOAD_WINDOW_AFTER_FIRST
+                # libnodave goes on with 8 whatever the push says; the count it carries is taken
+                # here, which is the same with an NC that announces 8 (nckemu's default).
+                window = max(1, ncprog.parse_window(push_data.payload).count) if len(push_data.payload) == 2 \
+                    else DOWNLOAD_WINDOW_AFTER_FIRST
         await wire.send(ncprog.build_nc_parameter(NcParameter(ncprog.NC_REQUEST, NcSubfunction.DOWNLOAD_ENDED,
                                                               sequence)),
                         ncprog.build_nc_data(NcData(b"\x00\x00")))
@@ -214,6 +217,26 @@ async def get_program(nck: AsyncNckClient, name: str) -> bytes:
     return (await get_file(nck, name)).text
 
 
+async def get_file_by_blocks(nck: AsyncNckClient, name: str) -> bytes:
+    """libnodave's ``daveGetNCProgram``: start upload (0x1D) naming the NC file, upload (0x1E) until
+    the answer's status says no more, end upload (0x1F); the bytes as the NC sent them (nckemu sends
+    the transfer content, header included; what a real NC sends is unconfirmed)."""
+    path = program_path(name)
+    leaf = path.rsplit("/", 1)[-1]
+    start = await nck.exchange(blocks.build_block_control(blocks.BlockControl(blocks.START_UPLOAD, 0, 0, 0, leaf)))
+    upload_id = blocks.parse_block_control(start.parameter).session
+    received, more = [], True
+    try:
+        while more:
+            answer = await nck.exchange(blocks.build_block_control(
+                blocks.BlockControl(blocks.UPLOAD, 0, 0, upload_id, None)))
+            more = len(answer.parameter) > 1 and bool(answer.parameter[1] & 0x01)
+            received.append(ncprog.parse_upload_data(answer.data).content)
+    finally:
+        await nck.exchange(blocks.build_block_control(blocks.BlockControl(blocks.END_UPLOAD, 0, 0, upload_id, None)))
+    return b"".join(received)
+
+
 def parse_listing(content: ncprog.TransferContent) -> Listing:
     """A directory upload's lines ``<name> <size>`` (nckemu's format; a name alone where no size)."""
     entries: list[tuple[str, int | None]] = []
@@ -266,8 +289,13 @@ async def pulse(nck: AsyncNckClient, signal: str, channel: int = 1) -> str:
 
 
 # ---------------------------------------------------------------- sync twins
-def _run(nck: NckClient, coroutine: Awaitable[T]) -> T:
-    return nck._call(coroutine)  # type: ignore[arg-type]
+# A transfer's telegrams each wait at most the client's timeout; the whole may take long (megabytes
+# over a slow link), so the sync twins wait for it this long rather than the client's job bound.
+SYNC_TRANSFER_WAIT_S = 3600.0
+
+
+def _run(nck: NckClient, coroutine: Coroutine[Any, Any, T]) -> T:
+    return nck.submit(coroutine).result(SYNC_TRANSFER_WAIT_S)
 
 
 def put_program_sync(nck: NckClient, name: str, text: bytes) -> str:
@@ -276,6 +304,10 @@ def put_program_sync(nck: NckClient, name: str, text: bytes) -> str:
 
 def get_file_sync(nck: NckClient, name: str, *, mark: bool = True) -> ncprog.TransferContent:
     return _run(nck, get_file(nck.async_client, name, mark=mark))
+
+
+def get_file_by_blocks_sync(nck: NckClient, name: str) -> bytes:
+    return _run(nck, get_file_by_blocks(nck.async_client, name))
 
 
 def get_program_sync(nck: NckClient, name: str) -> bytes:

@@ -540,16 +540,18 @@ class _NcTransfers:
 
     def _complete(self, key: tuple[int, int], fields: dict[str, Any]) -> str:
         content = ncprog.parse_transfer_content(b"".join(self._pieces.pop(key, [])))
-        fields["s7comm.data.ncprg.filelength"] = "" if content.length is None else f"{content.length:08d}"
+        fields["s7comm.data.ncprg.filelength"] = " " * 8 if content.length is None else f"{content.length:08d}"
         fields["s7comm.data.ncprg.filetime"] = content.stamp
         fields["s7comm.data.ncprg.filepath"] = f";$PATH={content.path}\n"
         fields["s7comm.data.ncprg.filedata"] = content.text.hex()
         fields["text"] = content.text.decode("latin-1")
         name = self._names.get(key, "")
-        where = f"{content.path}/{name}" if name else content.path
+        directory = content.length is None or content.path.rsplit("/", 1)[-1].upper() == name.upper()
+        where = content.path if directory or not name else f"{content.path}/{name}"
+        length = "blank (a directory)" if content.length is None else str(content.length)
         lines = content.text.count(b"\n")
         first = content.text.split(b"\n", 1)[0].decode("latin-1").strip()
-        return (f"; {where}: length {content.length}, time {content.stamp.strip() or '-'}, "
+        return (f"; {where}: length {length}, time {content.stamp.strip() or '-'}, "
                 f"{len(content.text)} bytes, {lines} lines, first: {first!r}")
 
 

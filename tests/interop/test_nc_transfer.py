@@ -72,6 +72,16 @@ def test_a_big_program_crosses_many_blocks_and_windows_both_ways(pdu_size: int) 
         assert len(text) // (min(pdu_size, 480) - 28) > 2 * ncprog.UPLOAD_WINDOW  # python-snap7 asks for 480
 
 
+@pytest.mark.parametrize("window", [1, 3, 20])
+def test_the_download_window_is_a_setting(window: int) -> None:
+    machine = load_machine(None)
+    machine = dataclasses.replace(machine, settings=dataclasses.replace(machine.settings, nc_download_window=window))
+    text = _program(300)
+    with EmulatorThread(machine) as emu, NckClient("127.0.0.1", emu.port) as nck:
+        P.put_program_sync(nck, "WINDOW.MPF", text)
+        assert P.get_program_sync(nck, "WINDOW.MPF") == text
+
+
 def _snap7(port: int) -> snap7.Client:
     client = snap7.Client()
     client.connect("127.0.0.1", 0, 4, port)
@@ -181,6 +191,9 @@ def test_plc_block_upload_of_an_nc_file(emu: EmulatorThread) -> None:
         assert ncprog.parse_transfer_content(received).text == text
     finally:
         client.disconnect()
+    with NckClient("127.0.0.1", emu.port) as nck:  # our client's daveGetNCProgram, at PDU 480
+        assert ncprog.parse_transfer_content(P.get_file_by_blocks_sync(nck, "TEST.MPF")).text == text
+        assert nck.get("R5") == [0.0]
 
 
 def test_a_download_cut_off_leaves_the_old_program_whole_and_others_are_served(emu: EmulatorThread) -> None:

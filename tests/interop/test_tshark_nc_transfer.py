@@ -38,6 +38,7 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
         with NckClient("127.0.0.1", emu.port) as nck:
             P.put_program_sync(nck, "DAILY.MPF", TEXT)
             assert P.get_program_sync(nck, "DAILY.MPF") == TEXT
+            assert ("_N_DAILY_MPF", len(TEXT)) in P.list_directory_sync(nck, "MPF_DIR").entries
         # and libnodave's daveGetNCProgram: the PLC-block start upload naming the NC file
         client = snap7.Client()
         client.connect("127.0.0.1", 0, 4, emu.port)
@@ -82,7 +83,7 @@ def test_nc_transfer_fields_equal_tsharks(recorded: Path) -> None:
     subfunctions = ",".join(theirs[frame]["s7comm.param.userdata.subfunc"] for frame in sorted(nc_frames))
     assert "3" in subfunctions.split(",") and "8" in subfunctions.split(",")
     texts = [row["s7comm.data.ncprg.filedata"] for row in theirs.values() if row["s7comm.data.ncprg.filedata"]]
-    assert texts == [TEXT.hex(), TEXT.hex()]
+    assert texts[:2] == [TEXT.hex(), TEXT.hex()] and len(texts) == 3  # and the directory listing
 
 
 def test_trace_show_names_the_transfer(recorded: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -93,4 +94,5 @@ def test_trace_show_names_the_transfer(recorded: Path, capsys: pytest.CaptureFix
     assert out.count("/_N_MPF_DIR/_N_DAILY_MPF: length") == 2  # the download and the upload, reassembled
     assert "first: 'N0 G1 X0.5 F300 ; line 0'" in out
     assert "Download ended: sequence 1 -> stored" in out
+    assert "; /_N_MPF_DIR: length blank (a directory)" in out
     assert "start upload NC file _N_DAILY_MPF -> upload id 1, block length 1" in out

@@ -219,6 +219,15 @@ def test_missing_jump_target_alarms_when_the_jump_runs_and_gotoc_continues() -> 
     assert result.alarm is not None and result.alarm.number == ALARM_JUMP_TARGET
 
 
+def test_a_label_named_like_a_keyword_is_a_label() -> None:
+    text = "WHILE R1 < 2\nR1 = R1 + 1\nENDWHILE\nGOTOF LOOP\nR2 = 9\nLOOP: R3 = 1\nM30"
+    assert r_after(text, 1, 2, 3) == [2.0, 0.0, 1.0]
+
+
+def test_gotos_goes_back_to_the_start() -> None:
+    assert r_after("R1 = R1 + 1\nIF R1 < 3 GOTOS\nM30", 1) == [3.0]
+
+
 def test_case() -> None:
     text = """DEF INT SEL = 2
 CASE(SEL) OF 1 GOTOF ONE 2 GOTOF TWO DEFAULT GOTOF OTHER
@@ -264,6 +273,47 @@ def test_subprogram_locals_are_their_own_and_m17_returns() -> None:
     assert r_after(text, 1, 2, env=env) == [15.0, 1.0]
 
 
+def test_an_empty_subprogram_repeated_ends() -> None:
+    env = DictEnvironment(programs={"EMPTY.SPF": "PROC EMPTY\n; nothing\n"})
+    result = run("EMPTY P999999999\nM30", env)
+    assert result.alarm is None and result.events[-1] == ProgramEnd(30)
+
+
+def test_events_again_starts_over() -> None:
+    env = DictEnvironment()
+    interpreter = Interpreter(env, MAIN, "G91 G0 X1\nM30")
+    first = [event for event in interpreter.events() if isinstance(event, Move)]
+    env._position_mm["X"] = 0.0
+    second = [event for event in interpreter.events() if isinstance(event, Move)]
+    assert first == second == [Move({"X": 1.0}, None, "G94", True, {"X": 1.0})]
+
+
+def test_def_nck_is_global_to_subprograms() -> None:
+    env = DictEnvironment(programs={"USE.SPF": "PROC USE\nCOUNTER = COUNTER + 1\nRET"})
+    assert r_after("DEF NCK INT COUNTER = 4\nUSE\nUSE\nR1 = COUNTER\nM30", 1, env=env) == [6.0]
+    result = run("DEF INT COUNTER = 4\nUSE\nM30", env)
+    assert result.alarm is not None and result.alarm.number == ALARM_NAME_NOT_DEFINED
+
+
+def test_m30_in_a_subprogram_returns_or_ends_as_set() -> None:
+    env = DictEnvironment(programs={"SUB.SPF": "PROC SUB\nR1 = 1\nM30"})
+    result = run("SUB\nR2 = 2\nM2", env)
+    assert result.events[-1] == ProgramEnd(2) and env.r_parameter(2) == 2.0
+    env = DictEnvironment(programs={"SUB.SPF": "PROC SUB\nR1 = 1\nM30"})
+    env.subprogram_end_returns = False
+    result = run("SUB\nR2 = 2\nM2", env)
+    assert result.events[-1] == ProgramEnd(30) and env.r_parameter(2) == 0.0
+
+
+def test_a_subprogram_sent_again_between_calls_runs_as_sent() -> None:
+    env = DictEnvironment(programs={"SUB.SPF": "PROC SUB\nR1 = R1 + 1\nRET"})
+    events = Interpreter(env, MAIN, "SUB\nSUB\nM30").events()
+    for event in events:
+        if isinstance(event, Block) and event.line == 2 and event.depth == 0:
+            env.programs["/_N_SPF_DIR/_N_SUB_SPF"] = "PROC SUB\nR1 = R1 + 10\nRET"
+    assert env.r_parameter(1) == 11.0
+
+
 def test_missing_subprogram_alarms_14011() -> None:
     result = run("G0 X0\nNO_SUCH_SUB(1, 2)\nM30")
     assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_PROGRAM_NOT_FOUND, 2)
@@ -290,6 +340,19 @@ def test_settings_without_a_model_are_accepted() -> None:
     assert run("NO_SUCH_WORD\nM30").alarm.number == ALARM_NAME_NOT_DEFINED  # type: ignore[union-attr]
 
 
+def test_modal_call_of_a_program_runs_after_each_motion_block() -> None:
+    env = DictEnvironment(programs={"DRILL.SPF": "PROC DRILL(REAL _DEPTH)\nR1 = R1 + 1\nR2 = _DEPTH\nRET"})
+    result = run("MCALL DRILL(-5)\nG0 X1\nX2\nR3 = 1\nMCALL\nX3\nM30", env)
+    assert result.alarm is None
+    assert (env.r_parameter(1), env.r_parameter(2)) == (2.0, -5.0)
+
+
+def test_proc_save_restores_the_callers_modal_state() -> None:
+    env = DictEnvironment(programs={"INCH.SPF": "PROC INCH SAVE\nG70 G91 G1 X1 F10\nRET"})
+    result = run("G0 X0\nINCH\nG0 X1\nM30", env)
+    assert [move.target_mm for move in result.moves] == [{"X": 0.0}, {"X": 25.4}, {"X": 1.0}]
+
+
 def test_setal_cycle_alarm() -> None:
     result = run("SETAL(61000)\nM30")
     assert result.alarm is not None and result.alarm.number == 61000
@@ -310,6 +373,12 @@ def test_straight_moves_modal_g_and_feed() -> None:
 def test_ic_and_ac_override_the_mode_per_axis() -> None:
     result = run("G0 X5 Y5\nG91 X=AC(1) Y2\nG90 X=IC(3) Y1\nM30")
     assert [move.target_mm for move in result.moves][1:] == [{"X": 1.0, "Y": 7.0}, {"X": 4.0, "Y": 1.0}]
+
+
+def test_rotary_positioning_modes_are_absolute_positions() -> None:
+    result = run("G0 C10\nG91 C=DC(90)\nC=ACP(180) B=ACN(5)\nC=CIC(10)\nM30")
+    assert [move.target_mm for move in result.moves] == [{"C": 10.0}, {"C": 90.0}, {"C": 180.0, "B": 5.0},
+                                                         {"C": 190.0}]
 
 
 def test_inch_geometry_and_feed() -> None:
@@ -419,6 +488,11 @@ def test_program_end_without_m30_and_comments_header_lines() -> None:
     assert result.blocks[0].line == 5
 
 
+def test_program_text_as_bytes_from_the_store() -> None:
+    events = list(Interpreter(DictEnvironment(), MAIN, b"G0 X1 ; \xb0C\nM30").events())
+    assert events[1] == Move({"X": 1.0}, None, "G94", True, {"X": 1.0})
+
+
 def test_crlf_and_block_skip_and_labels_with_numbers() -> None:
     result = run("N5 START: G0 X1\r\n/ G0 X2\r\nN10 M30\r\n")
     assert [move.target_mm for move in result.moves] == [{"X": 1.0}, {"X": 2.0}]
@@ -429,3 +503,83 @@ def test_named_axes_from_the_environment() -> None:
     env = DictEnvironment(axes=("X", "Y", "Z", "B", "SP1", "U"))
     moves = run("G0 B90 U=5 SP1=3\nM30", env).moves
     assert moves[0].target_mm == {"B": 90.0, "U": 5.0, "SP1": 3.0}
+
+
+# --- big programs ------------------------------------------------------------------------------------
+
+def ten_mb_program() -> str:
+    line = "N{} G1 X{:.3f} Y{:.3f} Z-1.500 F2000 ; cut\n"
+    thousand = "".join(line.format(i, i % 500 * 0.1, i % 300 * 0.2) for i in range(1000))
+    return "G90 G94\n" + thousand * 250 + "M30\n"
+
+
+def test_a_10_mb_program_loads_without_copies_per_line() -> None:
+    import tracemalloc
+
+    text = ten_mb_program()
+    assert len(text) > 10_000_000
+    tracemalloc.start()
+    try:
+        interpreter = Interpreter(DictEnvironment(), MAIN, text)
+        events = interpreter.events()
+        for _ in range(2_000):
+            next(events)
+        kept, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert kept < 2_000_000  # bytes beyond the text itself: nothing per line is kept
+    assert peak < len(text) + 2_000_000  # one passing upper-case copy for the load-time scan
+    events.close()
+
+
+@pytest.mark.slow
+def test_a_10_mb_program_runs_to_its_end() -> None:
+    result = run(ten_mb_program(), limit=10_000_000)
+    assert result.alarm is None and result.events[-1] == ProgramEnd(30)
+    assert len(result.moves) == 250_000
+
+
+CAM_POST = """%_N_1001_MPF
+;$PATH=/_N_MPF_DIR
+; T1 D=10 - flat end mill
+N10 G90 G94 G17
+N12 G71
+N14 WORKPIECE(,"",,"BOX",112,0,-50,-80,0,0,100,100)
+N16 T="FLAT10" D1 M6
+N18 CYCLE800(0,"TABLE",200000,57,0,0,0,0,0,0,0,0,0,-1,100,1)
+N20 S5000 M3
+N22 G54
+N24 M8
+N26 CYCLE832(0.01,_ROUGH,1)
+N28 G0 X-5.35 Y12.5
+N30 G0 Z15.
+N32 G1 Z5. F1000
+N34 G1 Z-4.5 F333.3
+N36 G3 X0.5 Y6.65 CR=5.85
+N38 G1 X45.
+N40 G2 X50. Y11.65 I0. J5.
+N42 G1 Y88.35
+N44 G0 Z15.
+N46 CYCLE832()
+N48 M9
+N50 G0 SUPA Z0 D0
+N52 G0 SUPA X0 Y0
+N54 M30
+"""
+
+
+def test_a_cam_post_program_runs_with_its_cycles_as_no_ops() -> None:
+    env = DictEnvironment(offsets={"G54": {"X": 200.0, "Y": 100.0, "Z": -300.0}},
+                          tool_lengths={("FLAT10", 1): 80.0})
+    result = run(CAM_POST, env)
+    assert result.alarm is None and result.events[-1] == ProgramEnd(30)
+    assert [block.number for block in result.blocks][:3] == ["N10", "N12", "N14"]
+    moves = result.moves
+    assert moves[0].target_mm == {"X": 194.65, "Y": 112.5}
+    assert moves[1].target_mm == {"Z": -300.0 + 15.0 + 80.0}
+    arc = moves[4]
+    assert isinstance(arc, Arc) and not arc.clockwise
+    assert arc.centre_mm == pytest.approx({"X": 200.5, "Y": 112.5})
+    assert moves[6].centre_mm == pytest.approx({"X": 245.0, "Y": 111.65})  # type: ignore[union-attr]
+    assert moves[-2].target_mm == {"Z": 0.0} and moves[-1].target_mm == {"X": 0.0, "Y": 0.0}
+    assert [event.code for event in result.of(MFunction)] == [6, 8, 9, 30]

@@ -108,3 +108,91 @@ def run_guarded(text: str) -> None:
         assert "cannot interpret the block" not in str(alarm), alarm
     finally:
         events.close()
+
+
+# --- control flow against a Python reference ---------------------------------------------------------
+
+def structures(depth: int = 0) -> st.SearchStrategy:
+    """A list of statements: ("add", k) | ("for", n, body) | ("repeat", n, body) | ("if", then, else)."""
+    add = st.tuples(st.just("add"), st.integers(-3, 5))
+    if depth >= 3:
+        return st.lists(add, min_size=1, max_size=3)
+    inner = st.deferred(lambda: structures(depth + 1))
+    statement = st.one_of(
+        add,
+        st.tuples(st.just("for"), st.integers(0, 3), inner),
+        st.tuples(st.just("repeat"), st.integers(1, 3), inner),
+        st.tuples(st.just("if"), inner, st.one_of(st.none(), inner)),
+    )
+    return st.lists(statement, min_size=1, max_size=3)
+
+
+def render(statements: list, depth: int = 0) -> list[str]:
+    lines: list[str] = []
+    counter = f"CNT{depth}"
+    for statement in statements:
+        kind = statement[0]
+        if kind == "add":
+            lines.append(f"R1 = R1 + {statement[1]}")
+        elif kind == "for":
+            lines += [f"FOR {counter} = 1 TO {statement[1]}", *render(statement[2], depth + 1), "ENDFOR"]
+        elif kind == "repeat":
+            lines += [f"{counter} = 0", "REPEAT", *render(statement[2], depth + 1), f"{counter} = {counter} + 1",
+                      f"UNTIL {counter} >= {statement[1]}"]
+        else:
+            lines += ["IF R1 MOD 2 == 0", *render(statement[1], depth + 1)]
+            if statement[2] is not None:
+                lines += ["ELSE", *render(statement[2], depth + 1)]
+            lines.append("ENDIF")
+    return lines
+
+
+def reference(statements: list, r1: float = 0.0) -> float:
+    for statement in statements:
+        kind = statement[0]
+        if kind == "add":
+            r1 += statement[1]
+        elif kind == "for":
+            for _ in range(statement[1]):
+                r1 = reference(statement[2], r1)
+        elif kind == "repeat":
+            for _ in range(statement[1]):
+                r1 = reference(statement[2], r1)
+        elif math.fmod(r1, 2) == 0:
+            r1 = reference(statement[1], r1)
+        elif statement[2] is not None:
+            r1 = reference(statement[2], r1)
+    return r1
+
+
+@given(structures())
+def test_nested_control_structures_equal_python(program: list) -> None:
+    text = "\n".join(["DEF INT CNT0, CNT1, CNT2, CNT3", *render(program), "M30"])
+    env = DictEnvironment()
+    for _ in Interpreter(env, MAIN, text).events():
+        pass
+    assert env.r_parameter(1) == reference(program)
+
+
+# --- real programs, damaged -------------------------------------------------------------------------
+
+def real_programs() -> list[str]:
+    from tests.conftest import SHARED
+
+    folder = SHARED / "programs"
+    if not folder.is_dir():
+        return ["G1 X10 F100\nIF R1 == 0\nR2 = SIN(30)\nENDIF\nM30"]
+    return [path.read_text() for path in sorted(folder.rglob("*")) if path.suffix.upper() in (".MPF", ".SPF")]
+
+
+REAL = real_programs()
+
+
+@given(st.sampled_from(REAL), st.lists(st.tuples(st.integers(0, 10_000), st.sampled_from(
+    list("XYZ=()[];\"\n0123456789.-+*/<>:,$_ ") + ["IF", "ENDIF", "GOTOB", "FOR", "DEF", "PROC", "M17"])),
+    min_size=1, max_size=6))
+def test_damaged_real_programs_give_events_or_an_alarm(program: str, edits: list[tuple[int, str]]) -> None:
+    for position, text in edits:
+        at = position % (len(program) + 1)
+        program = program[:at] + text + program[at + 1:]
+    run_guarded(program)

@@ -219,6 +219,9 @@ class Settings:
     # Bytes of part-program text the NCK's program store holds; a transfer that would exceed it is
     # refused with "store full". Assumed default (3 MiB; no source gives an NCU's figure).
     program_store_bytes: int = 3 * 1024 * 1024
+    # NC program download: the window the NCK announces and after which it pushes "continue
+    # download" (inferred from libnodave, which waits after 8 blocks; docs/programs-transfer.md).
+    nc_download_window: int = 8
 
 
 @dataclass(frozen=True)
@@ -515,7 +518,10 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         szl_index0_python_snap7=_get(settings_table, "szl_index0_python_snap7", bool, "settings.", source, True),
         c840_refuse_p0_at_zero=_get(settings_table, "c840_refuse_p0_at_zero", bool, "settings.", source, False),
         program_store_bytes=_get(settings_table, "program_store_bytes", int, "settings.", source, 3 * 1024 * 1024),
+        nc_download_window=_get(settings_table, "nc_download_window", int, "settings.", source, 8),
     )
+    if not 1 <= settings.nc_download_window <= 255:
+        raise NckConfigError("expected 1..255 telegrams", path=source, field="settings.nc_download_window")
     if settings.program_store_bytes < 0:
         raise NckConfigError("expected a size in bytes >= 0", path=source, field="settings.program_store_bytes")
     for name in ("szl_unknown_id_error", "szl_unknown_index_error", "userdata_not_served_error",

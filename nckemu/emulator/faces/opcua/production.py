@@ -33,11 +33,11 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from asyncua import Server, ua
 
-from nckemu.emulator.faces.opcua import nodesets
+from nckemu.emulator.faces.opcua import asyncua_internals, nodesets
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import Made, Types
 from nckemu.emulator.faces.opcua.program_states import (
@@ -48,8 +48,19 @@ from nckemu.emulator.faces.opcua.program_states import (
     events_between,
 )
 
-if TYPE_CHECKING:
-    from nckemu.emulator.faces.opcua.umati import MachineToolInstance
+
+class MachineToolHost(Protocol):
+    """What the state machines need of the umati instance they belong to (typed here, not as the
+    instance, so that umati and production do not import each other)."""
+
+    @property
+    def models(self) -> Any: ...
+
+    @property
+    def face(self) -> Any: ...
+
+    @property
+    def maker(self) -> Any: ...
 
 log = logging.getLogger("nckemu.emulator.opcua.production")
 
@@ -248,7 +259,7 @@ class ProgramTracker:
 class Production:
     """The ActiveProgram's and Job1's state machines of one MachineTool instance, and their events."""
 
-    def __init__(self, instance: MachineToolInstance) -> None:
+    def __init__(self, instance: MachineToolHost) -> None:
         self.instance = instance
         self.models = instance.models
         self.face = instance.face
@@ -331,7 +342,7 @@ class Production:
     async def _concrete(self, server: Server, abstract: ua.NodeId, name: str) -> ua.NodeId:
         """A concrete subtype of an abstract event type, in the instance namespace (once per address space)."""
         nodeid = ua.NodeId(name, self.models.instance_namespace)
-        if nodeid in server.iserver.aspace._nodes:
+        if nodeid in asyncua_internals.nodes(server.iserver.aspace):
             return nodeid
         made = await server.get_node(abstract).add_object_type(nodeid, ua.QualifiedName(name, nodeid.NamespaceIndex))
         return made.nodeid  # type: ignore[no-any-return]

@@ -13,7 +13,7 @@ import weakref
 from collections.abc import Callable
 
 from nckemu.emulator.faces.s7.datastore import NckDatastore, PlcDatastore
-from nckemu.emulator.faces.s7.nc_transfer import DEFAULT_STORE_BYTES, NcTransfers
+from nckemu.emulator.faces.s7.nc_transfer import DEFAULT_STORE_BYTES, DOWNLOAD_WINDOW, NcTransfers
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.emulator.machine.nck.programs import Programs
@@ -144,11 +144,13 @@ class Dispatcher:
                  userdata_not_served_error: int = USERDATA_NOT_SERVED,
                  unsupported_function_error: int = HeaderError.NOT_IMPLEMENTED,
                  drive_transport_size: int = NCK_TRANSPORT_SIZE,
-                 programs: Programs | None = None, program_store_bytes: int = DEFAULT_STORE_BYTES) -> None:
+                 programs: Programs | None = None, program_store_bytes: int = DEFAULT_STORE_BYTES,
+                 nc_download_window: int = DOWNLOAD_WINDOW) -> None:
         self.nck = nck
         # The program store NC transfers read and write (None: the NC programming group is not served).
         self.programs = programs
         self.program_store_bytes = program_store_bytes
+        self.nc_download_window = nc_download_window
         # The transport size of answers from the drive areas V and H (the machine's [drives]
         # answer_transport_size: 0x09 as all NCK answers, or 0x07 REAL; docs/assumptions.md).
         self.drive_transport_size = drive_transport_size
@@ -183,7 +185,8 @@ class Dispatcher:
                              unsupported_function_error=settings.unsupported_function_error,
                              drive_transport_size=emulator.machine.drive_settings.answer_transport_size,
                              programs=emulator.nck.programs,
-                             program_store_bytes=getattr(settings, "program_store_bytes", DEFAULT_STORE_BYTES))
+                             program_store_bytes=getattr(settings, "program_store_bytes", DEFAULT_STORE_BYTES),
+                             nc_download_window=getattr(settings, "nc_download_window", DOWNLOAD_WINDOW))
             _BY_MACHINE[emulator] = dispatcher
         return dispatcher
 
@@ -336,7 +339,7 @@ class Dispatcher:
         if self.programs is None:
             return None
         return NcTransfers(self.programs, store_bytes=self.program_store_bytes, stored=self.retained_changed,
-                           now=self.plc.now, peer=peer)
+                           now=self.plc.now, peer=peer, download_window=self.nc_download_window)
 
     def pi_service(self, request: pi.PiServiceRequest, ctx: AccessContext) -> bytes:
         service = request.service

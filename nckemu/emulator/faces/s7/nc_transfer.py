@@ -42,7 +42,8 @@ ERROR_BAD_CONTENT = ncprog.ERROR_BAD_CONTENT
 ERROR_SEQUENCE = ncprog.ERROR_SEQUENCE
 
 # Telegrams a client may send before waiting (announced in the answer to request download, and the
-# count after which the NC pushes "continue download"; libnodave uses 8 after the first window).
+# count after which the NC pushes "continue download"; libnodave uses 8 after the first window). The
+# machine file's settings.nc_download_window overrides it.
 DOWNLOAD_WINDOW = 8
 # Store capacity when the machine file sets none (bytes of program text; assumed, see machine_file).
 DEFAULT_STORE_BYTES = 3 * 1024 * 1024
@@ -89,9 +90,10 @@ class NcTransfers:
 
     def __init__(self, programs: Programs, *, store_bytes: int = DEFAULT_STORE_BYTES,
                  stored: Callable[[], None] | None = None, now: Callable[[], datetime] = datetime.now,
-                 peer: str = "") -> None:
+                 peer: str = "", download_window: int = DOWNLOAD_WINDOW) -> None:
         self.programs = programs
         self.store_bytes = store_bytes
+        self.download_window = download_window
         self._stored = stored
         self._now = now
         self.peer = peer
@@ -126,7 +128,7 @@ class NcTransfers:
             return self._continue_upload(pdu.pdu_ref, parameter)
         if parameter.type == ncprog.NC_REQUEST:
             return [self._answer(pdu.pdu_ref, sub, parameter.sequence, error=ERROR_SEQUENCE)]
-        log.info("NC programming %s from %s ignored", ncprog.describe(parameter), self.peer)
+        log.debug("NC programming %s from %s ignored", ncprog.describe(parameter), self.peer)
         return []
 
     @staticmethod
@@ -152,7 +154,7 @@ class NcTransfers:
         sequence = self._next_sequence()
         self._download = _Download(sequence, name)
         log.info("NC download of %s from %s begins (sequence %d)", name, self.peer, sequence)
-        return self._answer(pdu_ref, sub, sequence, ncprog.build_window(ncprog.Window(DOWNLOAD_WINDOW)))
+        return self._answer(pdu_ref, sub, sequence, ncprog.build_window(ncprog.Window(self.download_window)))
 
     def _download_block(self, pdu_ref: int, parameter: NcParameter, payload: bytes) -> list[s7.S7Pdu]:
         download = self._download
@@ -169,10 +171,10 @@ class NcTransfers:
             download.pieces.clear()
         if not download.error:
             download.pieces.append(chunk)
-        if parameter.is_last or download.blocks % DOWNLOAD_WINDOW:
+        if parameter.is_last or download.blocks % self.download_window:
             return []
         return [self._answer(pdu_ref, NcSubfunction.CONTINUE_DOWNLOAD, download.sequence,
-                             ncprog.build_window(ncprog.Window(DOWNLOAD_WINDOW)), kind=ncprog.NC_PUSH)]
+                             ncprog.build_window(ncprog.Window(self.download_window)), kind=ncprog.NC_PUSH)]
 
     def _room(self) -> int:
         return self.store_bytes - self.programs.stored_bytes()

@@ -21,7 +21,10 @@ Policy for bad input, in order of how much of the frame we could understand:
   the same TCP write) is ignored, as C snap7 does: no answer, the connection stays open;
 * an answer longer than the negotiated TPDU size goes out in several DTs (COTP segmentation);
 * a job before setup communication: 0x84/0x01 ("invalid service sequence");
-* more jobs outstanding than the granted AMQ: the extras get 0x83/0x02 (no resources).
+* more jobs outstanding than the granted AMQ: the extras get 0x83/0x02 (no resources);
+* NC program transfers (userdata group "NC programming", and 0x1D..0x1F naming an NC file) are the
+  connection's ``NcTransfers`` (nc_transfer.py): a download block or continue upload is a telegram,
+  not a job (no answer, not counted against the AMQ); an upload's pushes follow its answer.
 """
 
 from __future__ import annotations

@@ -19,7 +19,9 @@ class ProgramEnvironment:
     # instance can override them; documented defaults).
     reset_motion: int = 0          # MD20150 group 1 after reset: 0 = G0 (UNCONFIRMED default), 1 = G1
     reset_inch: bool = False       # MD10240 SCALING_SYSTEM_IS_METRIC TRUE: G71 (mm) after reset
+    reset_plane: str = "G17"       # MD20150 group 6 after reset (a lathe: G18)
     tool_change_mode: int = 1      # MD22550 TOOL_CHANGE_MODE: 1 = T preselects and M6 changes; 0 = T changes
+    subprogram_end_returns: bool = True  # M2/M30 in a subprogram return like M17 (UNCONFIRMED); False: end all
 
     def __init__(self, axes: Sequence[str] = ("X", "Y", "Z"), r_parameters: int = 100) -> None:
         self.axes = tuple(axes)

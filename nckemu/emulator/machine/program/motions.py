@@ -97,7 +97,8 @@ class Message:
 
 @dataclass(frozen=True, slots=True)
 class ProgramEnd:
-    """The main program ended (M2, M30, or its last block); ``code`` 2, 30, or 0 for the last block."""
+    """The main program ended (M2, M30, or its last block); ``code`` 2, 30, or 0 for the last block
+    (17 for M17 and 0 for RET written in a main program)."""
 
     code: int
 

@@ -13,7 +13,7 @@ import re
 from typing import Any
 
 from ..motions import ALARM_SYNTAX, ProgramAlarm
-from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, evaluate, is_dynamic
+from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, is_dynamic
 
 # block kinds
 WORDS, IF, ELSE, ENDIF, WHILE, ENDWHILE, FOR, ENDFOR, REPEAT, UNTIL, LOOP, ENDLOOP = range(12)
@@ -34,7 +34,7 @@ WORD_ADDRESSES = frozenset({"CR", "TURN", "AR", "AP", "RP", "PW", "SD", "PL", "L
 # Addresses taking an extension as digits before '=' (M1=3: spindle 1, M3)
 EXTENDED = frozenset("MSHTD")
 FRAME_WORDS = frozenset({"TRANS", "ATRANS", "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR"})
-JUMPS = frozenset({"GOTOF", "GOTOB", "GOTO", "GOTOC"})
+JUMPS = frozenset({"GOTOF", "GOTOB", "GOTO", "GOTOC", "GOTOS"})
 # Per-axis settings written as NAME[axis]=value; kept so a program can read them back (ACC[X]).
 AXIS_SETTINGS = frozenset({"ACC", "FA", "FL", "FGREF", "OVRA", "VELOLIM", "JERKLIM", "POS", "POSA"})
 
@@ -53,6 +53,9 @@ NO_OP_WORDS = frozenset({
 })
 SPLINES = frozenset({"ASPLINE", "BSPLINE", "CSPLINE", "POLY"})
 
+# X=IC(..) incremental, AC absolute; for rotary axes DC/ACP/ACN (shortest way, positive, negative
+# direction) and CIC are absolute/incremental positions here (the direction is not modelled)
+_DIMENSION_MODES = {"IC": "IC", "AC": "AC", "DC": "AC", "ACP": "AC", "ACN": "AC", "CIC": "IC"}
 _ADDRESS_WORD = re.compile(r"([A-Z]+?)(\d+)")
 
 
@@ -79,6 +82,13 @@ class BlockCompiler:
     def __init__(self, axes: tuple[str, ...], resolver: Any) -> None:
         self.axes = frozenset(axis.upper() for axis in axes)
         self.resolver = resolver
+        # letters of a STRAIGHT block in either case -> (kind, upper-case name); kind 0 axis, 1 G, 2 F, 3 N
+        self._straight_words: dict[str, tuple[int, str]] = {}
+        for axis in self.axes:
+            self._straight_words[axis] = self._straight_words[axis.lower()] = (0, axis)
+        for kind, letter in ((1, "G"), (2, "F"), (3, "N")):
+            if letter not in self.axes:
+                self._straight_words[letter] = self._straight_words[letter.lower()] = (kind, letter)
 
     def compile_simple(self, text: str) -> Compiled | None:
         """The fast way for a block of constant address words, or None (then :meth:`compile`)."""
@@ -116,26 +126,29 @@ class BlockCompiler:
 
     def _straight(self, words: list[tuple[str, str]], text: str) -> Compiled | None:
         """A STRAIGHT block (only modal G of STRAIGHT_G, each axis once, F), or None."""
-        axes = self.axes
+        known = self._straight_words
         g_codes: list[int] = []
         axis_words: list[tuple[str, float]] = []
         seen: set[str] = set()
         feed = None
         number = ""
         for index, (letters, digits) in enumerate(words):
-            letters = letters.upper()
-            if letters in axes:
-                if letters in seen:
+            entry = known.get(letters)
+            if entry is None:
+                return None
+            kind, name = entry
+            if kind == 0:
+                if name in seen:
                     return None
-                seen.add(letters)
-                axis_words.append((letters, float(digits)))
-            elif letters == "G":
+                seen.add(name)
+                axis_words.append((name, float(digits)))
+            elif kind == 1:
                 if not digits.isdigit() or int(digits) not in STRAIGHT_G:
                     return None
                 g_codes.append(int(digits))
-            elif letters == "F" and feed is None:
+            elif kind == 2 and feed is None:
                 feed = float(digits)
-            elif letters == "N" and index == 0 and digits.isdigit():
+            elif kind == 3 and index == 0 and digits.isdigit():
                 number = "N" + digits
             else:
                 return None
@@ -214,6 +227,8 @@ class BlockCompiler:
         if token is None or token[0] != NAME or token[1] not in JUMPS:
             raise ProgramAlarm(ALARM_SYNTAX, "GOTOF, GOTOB, GOTO or GOTOC expected")
         parser.pos += 1
+        if token[1] == "GOTOS":  # back to the program's start: no target
+            return token[1], ""
         return token[1], self._target(parser)
 
     def _target(self, parser: Parser) -> Any:
@@ -250,10 +265,12 @@ class BlockCompiler:
             branches.append((value, self._jump(parser)))
         return selector, branches, default
 
-    def _def(self, parser: Parser) -> list[tuple[str, str, tuple, Any]]:
+    def _def(self, parser: Parser) -> list[tuple[str, str, tuple, Any, bool]]:
         token = parser.peek()
+        shared = False  # DEF NCK/CHAN: a global variable (GUD), seen by every program of the run
         if token is not None and token[0] == NAME and token[1] in ("NCK", "CHAN"):
             parser.pos += 1
+            shared = True
             token = parser.peek()
         if token is None or token[0] != NAME or token[1] not in ("INT", "REAL", "BOOL", "STRING", "CHAR", "AXIS"):
             found = token[1] if token else "end of block"
@@ -283,7 +300,7 @@ class BlockCompiler:
             if parser.at_op("="):
                 parser.pos += 1
                 init = self._initialiser(parser)
-            declarations.append((name, kind, dims, init))
+            declarations.append((name, kind, dims, init, shared))
             if parser.at_op(","):
                 parser.pos += 1
                 continue
@@ -300,9 +317,6 @@ class BlockCompiler:
             if not args or any(arg is None for arg in args) or (which == "REP" and len(args) != 1):
                 raise ProgramAlarm(ALARM_SYNTAX, f"{which}(...) needs values")
             return which, args
-        if parser.at_op("("):
-            # DEF AXIS A1 = (X)
-            pass
         return "value", parser.expression()
 
     def proc_header(self, parser: Parser) -> tuple[str, list[tuple[str, str, bool, tuple]]]:
@@ -386,13 +400,13 @@ class BlockCompiler:
         """An axis value and its dimension mode (None, "IC", "AC")."""
         if frac is None and parser.at_op("="):
             token = parser.tokens[parser.pos + 1] if parser.pos + 1 < len(parser.tokens) else None
-            if token is not None and token[0] == NAME and token[1] in ("IC", "AC") and \
+            if token is not None and token[0] == NAME and token[1] in _DIMENSION_MODES and \
                     parser.pos + 2 < len(parser.tokens) and parser.tokens[parser.pos + 2][1] == "(":
                 parser.pos += 2
                 args = parser.arguments()
                 if len(args) != 1 or args[0] is None:
                     raise ProgramAlarm(ALARM_SYNTAX, f"{token[1]}(...) takes one value")
-                return args[0], token[1]
+                return args[0], _DIMENSION_MODES[token[1]]
         value = self._value_after(parser, "", frac)
         if value is None:
             raise ProgramAlarm(ALARM_SYNTAX, "axis value expected")
@@ -463,7 +477,7 @@ class BlockCompiler:
             if frac is not None:
                 raise ProgramAlarm(ALARM_SYNTAX, f"unexpected {name}{frac}")
             if name in JUMPS:
-                items.append((I_JUMP, name, self._target(parser), None))
+                items.append((I_JUMP, name, "" if name == "GOTOS" else self._target(parser), None))
                 continue
             if name == "MSG":
                 args = parser.arguments()
@@ -576,6 +590,3 @@ class BlockCompiler:
                 break
         return pairs
 
-
-def constant_value(expr: Any, ev: Any) -> Any:
-    return evaluate(expr, ev)

@@ -92,12 +92,11 @@ class _Frame:
 class Interpreter:
     """Runs the program ``text`` at NC path ``path`` against ``env`` (see the package docstring)."""
 
-    def __init__(self, env: ProgramEnvironment, path: str, text: str) -> None:
+    def __init__(self, env: ProgramEnvironment, path: str, text: str | bytes) -> None:
         self.env = env
         self.path = path
-        self._main = ProgramSource(path, text)
+        self._main = ProgramSource(path, _as_text(text))
         self._sources: dict[str, ProgramSource] = {path: self._main}
-        self._caches: dict[int, dict[int, Compiled]] = {}
         self._axes = tuple(axis.upper() for axis in env.axes)
         self._compiler = BlockCompiler(self._axes, self._resolve)
         self._globals: dict[str, Variable] = {}
@@ -106,13 +105,14 @@ class Interpreter:
         self._stack: list[_Frame] = []
         self._frame: _Frame | None = None
         self._modal_call: tuple[Any, Any] | None = None
+        self._r_count = int(getattr(env, "r_count", 100))
         self._reset_modal()
 
     # --- modal state ------------------------------------------------------------------------------
     def _reset_modal(self) -> None:
         env = self.env
         self.motion = 1 if env.reset_motion == 1 else 0
-        self.plane = "G17"
+        self.plane = env.reset_plane if env.reset_plane in _PLANES else "G17"
         self.absolute = True
         self.inch_geometry = bool(env.reset_inch)
         self.inch_feed = False
@@ -202,6 +202,10 @@ class Interpreter:
                                line=max(frame.line - 1, 1) if frame else 0) from None
 
     def _run(self) -> Iterator[Event]:
+        if self._stack:  # events() called again: the program from its start, the modal state reset
+            self._reset_modal()
+            self._settings.clear()
+            self._modal_call = None
         frame = _Frame(self._main, 0, 1, 0)
         self._stack = [frame]
         self._frame = frame
@@ -222,8 +226,8 @@ class Interpreter:
             line = frame.line
             frame.pos = end + 1
             frame.line = line + 1
-            cache = self._caches.get(id(source))
-            compiled = cache.get(pos) if cache is not None else None
+            cache = source.compiled
+            compiled = cache.get(pos)
             if compiled is None:
                 raw = text[pos:end]
                 try:
@@ -240,8 +244,6 @@ class Interpreter:
                 if compiled is None:
                     continue
                 if source.subprogram or source.has_jumps or source.in_loop(pos):
-                    if cache is None:
-                        cache = self._caches[id(source)] = {}
                     if len(cache) >= MAX_CACHED_BLOCKS:
                         cache.clear()
                     cache[pos] = compiled
@@ -327,7 +329,7 @@ class Interpreter:
         position = number(index)
         if position.__class__ is float:
             position = int(position)
-        if not 0 <= position < self.env.r_count:
+        if not 0 <= position < self._r_count:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name R{position} not defined")
         return position
 
@@ -350,7 +352,14 @@ class Interpreter:
         try:
             value = self.env.system_variable(name, indices)
         except UndefinedName:
-            value = self._builtin_system(name, indices)
+            try:
+                value = self._builtin_system(name, indices)
+            except ProgramAlarm:
+                raise
+            except Exception as exc:
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined ({exc})") from None
+        except ProgramAlarm:
+            raise
         except Exception as exc:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined ({exc})") from None
         if isinstance(value, bool | int | float | str):
@@ -432,6 +441,9 @@ class Interpreter:
         return partner
 
     def _jump(self, frame: _Frame, kind: str, target: str, pos: int) -> None:
+        if kind == "GOTOS":
+            frame.pos, frame.line = 0, 1
+            return
         direction = {"GOTOF": "F", "GOTOB": "B"}.get(kind, "")
         offset = frame.source.find_target(target, pos, direction)
         if offset is None:
@@ -562,7 +574,7 @@ class Interpreter:
         return self._read_var(name, tuple(evaluate(i, self) for i in indices))
 
     def _define(self, declarations: list, frame: _Frame) -> None:
-        for name, kind, dims, init in declarations:
+        for name, kind, dims, init, shared in declarations:
             if name in self._axes or len(name) == 1 or re.fullmatch(r"R\d+", name) or name in b.WORD_ADDRESSES:
                 raise ProgramAlarm(ALARM_SYNTAX, f"DEF {name}: the name is taken by the control")
             variable = Variable(name, kind, dims)
@@ -576,7 +588,7 @@ class Interpreter:
                         variable.set((), evaluated)
                 else:
                     variable.fill((), [evaluate(item, self) for item in value], repeat=which == "REP")
-            frame.vars[name] = variable
+            (self._globals if shared else frame.vars)[name] = variable
 
     # --- subprograms ------------------------------------------------------------------------------
     def _call(self, name_expr: Any, args: list | None, repeat: Any, frame: _Frame) -> list[Event] | None:
@@ -595,14 +607,13 @@ class Interpreter:
             if args is None:
                 raise undefined(name)
             raise ProgramAlarm(ALARM_PROGRAM_NOT_FOUND, f"program {name} not existing")
-        path, text = found
+        path, text = found[0], _as_text(found[1])
         if frame.depth + 1 > MAX_CALL_DEPTH:
             raise ProgramAlarm(ALARM_CALL_DEPTH, f"{name}: subprograms nested deeper than {MAX_CALL_DEPTH} levels")
         source = self._sources.get(path)
         if source is None or source.text != text.replace("\r\n", "\n"):
             source = ProgramSource(path, text, subprogram=True)
             self._sources[path] = source
-            self._caches.pop(id(source), None)
         values = tuple(None if arg is None else evaluate(arg, self) for arg in (args or ()))
         refs = tuple(getattr(arg, "lvalue", None) for arg in (args or ()))
         count = 1 if repeat is None else int(number(evaluate(repeat, self)))
@@ -654,7 +665,7 @@ class Interpreter:
             self._assign(ref, frame.vars[param].get(()))
         if frame.saved_modal is not None:
             self._restore_modal(frame.saved_modal)
-        if frame.repeat_left > 0:
+        if frame.repeat_left > 0 and frame.source.has_blocks:  # repeating an empty one would never yield
             values, refs = frame.call_args
             self._enter(frame.source, values, refs, frame.repeat_left - 1)
 
@@ -798,7 +809,7 @@ class Interpreter:
         if moved and self._modal_call is not None and call is None:
             call = (self._modal_call[0], self._modal_call[1], None)
         if end_code is not None or ret:
-            if frame.depth == 0:
+            if frame.depth == 0 or (end_code in (2, 30) and not self.env.subprogram_end_returns):
                 events.append(ProgramEnd(end_code if end_code is not None else 0))
                 return events
             self._return()
@@ -913,51 +924,67 @@ class Interpreter:
 
     def _arc(self, targets: dict, programmed: dict, start: dict, address: dict, flags: dict,
              exact_stop: bool) -> Arc:
+        if "AR" in address or "AP" in address or "RP" in address:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "AR/AP/RP circles are not supported by the emulator")
         first, second, _ = _PLANES[self.plane]
         if first not in start or second not in start:
             raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"{self.plane}: the plane's axes are not in this channel")
-        inch = INCH_MM if self.inch_geometry else 1.0
-        end = {axis: targets.get(axis, start[axis]) for axis in (first, second)}
-        base = {axis: (0.0 if flags.get("supa") else self.shift.get(axis, 0.0)) for axis in (first, second)}
+        unit = INCH_MM if self.inch_geometry else 1.0
+        start_first, start_second = start[first], start[second]
+        end_first, end_second = targets.get(first, start_first), targets.get(second, start_second)
         clockwise = self.motion == 2
         if "CR" in address:
-            radius = float(number(address["CR"])) * inch
-            centre = _centre_from_radius(start, end, radius, clockwise, first, second)
+            radius = float(number(address["CR"])) * unit
+            centre = _centre_from_radius(start_first, start_second, end_first, end_second, radius, clockwise)
         else:
-            words = [_CENTRE_WORD.get(first), _CENTRE_WORD.get(second)]
-            if not any(word in address for word in words if word):
+            first_word = address.get(_CENTRE_WORD.get(first, ""))
+            second_word = address.get(_CENTRE_WORD.get(second, ""))
+            if first_word is None and second_word is None:
                 raise ProgramAlarm(ALARM_CIRCLE_END_POINT, "circle without centre (I, J, K) or radius (CR=)")
-            centre = {}
-            for axis, word in zip((first, second), words, strict=True):
-                value, mode = address.get(word, (0.0, None)) if word else (0.0, None)
-                value = float(number(value)) * inch
-                centre[axis] = value + base[axis] if mode == "AC" else start[axis] + value
-            radius_start = math.dist((start[first], start[second]), (centre[first], centre[second]))
-            radius_end = math.dist((end[first], end[second]), (centre[first], centre[second]))
+            supa = bool(flags.get("supa"))
+            centre = (self._centre(first_word, first, start_first, unit, supa),
+                      self._centre(second_word, second, start_second, unit, supa))
+            radius_start = math.hypot(start_first - centre[0], start_second - centre[1])
+            radius_end = math.hypot(end_first - centre[0], end_second - centre[1])
             tolerance = max(CIRCLE_ERROR_CONST_MM, CIRCLE_ERROR_FACTOR * max(radius_start, radius_end))
             if abs(radius_start - radius_end) > tolerance:
                 raise ProgramAlarm(ALARM_CIRCLE_END_POINT,
                                    f"error in end point of circle (radii {radius_start:.4f} and {radius_end:.4f} mm)")
-        turns = int(number(address.get("TURN", 0)))
-        if "AR" in address or "AP" in address or "RP" in address:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "AR/AP/RP circles are not supported by the emulator")
-        return Arc(targets, centre, clockwise, self.plane, self.feed_mm, self.feed_mode,  # type: ignore[arg-type]
-                   turns, exact_stop, programmed)
+        turns = int(number(address["TURN"])) if "TURN" in address else 0
+        return Arc(targets, {first: centre[0], second: centre[1]}, clockwise, self.plane,  # type: ignore[arg-type]
+                   self.feed_mm, self.feed_mode, turns, exact_stop, programmed)  # type: ignore[arg-type]
+
+    def _centre(self, word: tuple | None, axis: str, start: float, unit: float, supa: bool) -> float:
+        """One centre coordinate (machine mm) from I/J/K: incremental from the start, or =AC(...)."""
+        if word is None:
+            return start
+        value, mode = word
+        offset = (value if value.__class__ is float else float(number(value))) * unit
+        if mode == "AC":
+            return offset + (0.0 if supa else self.shift.get(axis, 0.0))
+        return start + offset
 
 
-def _centre_from_radius(start: dict, end: dict, radius: float, clockwise: bool, first: str,
-                        second: str) -> dict[str, float]:
-    dx = end[first] - start[first]
-    dy = end[second] - start[second]
+def _centre_from_radius(start_first: float, start_second: float, end_first: float, end_second: float,
+                        radius: float, clockwise: bool) -> tuple[float, float]:
+    dx = end_first - start_first
+    dy = end_second - start_second
     chord = math.hypot(dx, dy)
     size = abs(radius)
     if chord == 0 or size == 0 or chord > 2 * size + CIRCLE_ERROR_CONST_MM:
-        raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"error in end point of circle (CR={radius / 1:.4f} mm)")
+        raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"error in end point of circle (CR={radius:.4f} mm)")
     height = math.sqrt(max(size * size - chord * chord / 4, 0.0))
     # counter-clockwise with the short arc (CR > 0): centre on the left of the chord
     side = 1.0 if (not clockwise) == (radius > 0) else -1.0
-    return {first: start[first] + dx / 2 - side * height * dy / chord,
-            second: start[second] + dy / 2 + side * height * dx / chord}
+    return (start_first + dx / 2 - side * height * dy / chord,
+            start_second + dy / 2 + side * height * dx / chord)
+
+
+def _as_text(text: str | bytes) -> str:
+    """A program's text; bytes (as the program store keeps them) are read as UTF-8, bad bytes replaced."""
+    if isinstance(text, bytes | bytearray):
+        return bytes(text).decode("utf-8", errors="replace")
+    return text
 
 
 def _m_code(value: Any) -> int:

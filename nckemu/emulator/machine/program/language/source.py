@@ -9,12 +9,13 @@ the text in the jump's direction) and remembered per jump.
 from __future__ import annotations
 
 import re
+from typing import Any
 
 _PREFIX = r"^[ \t]*(?:/\d?[ \t]*)?(?:[N:]\d+[ \t]*)?(?:[A-Z_][A-Z0-9_]*:[ \t]*)?"
 _STRUCTURE = re.compile(
-    _PREFIX + r"(IF|ELSE|ENDIF|WHILE|ENDWHILE|FOR|ENDFOR|REPEAT|UNTIL|LOOP|ENDLOOP)\b",
+    _PREFIX + r"(IF|ELSE|ENDIF|WHILE|ENDWHILE|FOR|ENDFOR|REPEAT|UNTIL|LOOP|ENDLOOP)\b(?![ \t]*:)",
     re.IGNORECASE | re.MULTILINE)
-_JUMP_IN_LINE = re.compile(r"\bGOTO[FBC]?\b", re.IGNORECASE)
+_JUMP_IN_LINE = re.compile(r"\bGOTO[FBCS]?\b", re.IGNORECASE)
 _PROC = re.compile(_PREFIX + r"PROC\b", re.IGNORECASE | re.MULTILINE)
 
 _OPENERS = {"IF": "ENDIF", "WHILE": "ENDWHILE", "FOR": "ENDFOR", "REPEAT": "UNTIL", "LOOP": "ENDLOOP"}
@@ -37,9 +38,24 @@ class ProgramSource:
         self.loop_spans: list[tuple[int, int]] = []
         self.jump_cache: dict[tuple[int, str, str], int | None] = {}
         self.line_of: dict[int, int] = {0: 1}
-        self.has_jumps = _JUMP_IN_LINE.search(text) is not None
-        self._scan()
-        self.proc_offset = self._find_proc()
+        # blocks kept compiled, by line offset (the interpreter fills it for lines that can run again)
+        self.compiled: dict[int, Any] = {}
+        # Plain substring tests on an upper-case copy (freed at once) decide which regex scans are
+        # needed: a CAM program without control structures costs a few passes at C speed.
+        upper = text.upper()
+        self.has_jumps = "GOTO" in upper
+        structures = any(word in upper for word in ("IF", "ELSE", "WHILE", "FOR", "REPEAT", "UNTIL", "LOOP"))
+        has_proc = "PROC" in upper
+        del upper
+        if structures:
+            self._scan()
+        self.proc_offset = self._find_proc() if has_proc else -1
+        body_from = 0
+        if self.proc_offset >= 0:
+            end = text.find("\n", self.proc_offset)
+            body_from = len(text) if end < 0 else end + 1
+        # a line that is a block (not blank, not only a comment, not a % header)
+        self.has_blocks = re.compile(r"^[ \t]*[^ \t;%\n]", re.MULTILINE).search(text, body_from) is not None
 
     def _scan(self) -> None:
         text = self.text
