@@ -161,8 +161,8 @@ def run_program_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary))
     else:
-        print(f"{target}: {result.outcome} after {result.t_s:.1f} s simulated ({result.blocks} blocks, "
-              f"net time {result.net_time_s:.1f} s)" + "".join(f"\n  alarm: {text}" for text in result.alarms))
+        print(f"{target}: {result.outcome} after {result.net_time_s:.1f} s simulated ({result.blocks} blocks, "
+              f"{result.parts:g} parts)" + "".join(f"\n  alarm: {text}" for text in result.alarms))
     return 0 if result.outcome == "ended" else 1
 
 

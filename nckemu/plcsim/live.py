@@ -148,6 +148,7 @@ class LiveMachine:
         emulator.cycle_steps.append(self._step)
         self._stats = PacerStats()
         self._first_k: int | None = None
+        self._started = False
         self._interface: list[tuple[int, bytearray, int]] | None = None
         self._sent: dict[int, bytes] = {}
         # The first line after the first minute (the ready line comes first).
@@ -185,6 +186,7 @@ class LiveMachine:
             self._plc_connection = mine[0] if len(mine) == 1 else None
         # A cycle the server started before this machine existed starts over with this machine's cycle.
         await self.emulator.stop_cycle()
+        self._started = True
         await self.emulator.start_cycle()
         return self
 
@@ -203,7 +205,10 @@ class LiveMachine:
 
     # ------------------------------------------------------------------ one cycle
     async def _step(self, k_pacer: int, t_s: float) -> None:
-        # The emulator's pacer may have run before this machine started: its cycles count from here.
+        # The emulator's pacer may run before this machine has started (its PLC client connected):
+        # nothing of it runs until then, and its cycles count from its first.
+        if not self._started:
+            return
         if self._first_k is None:
             self._first_k = k_pacer
         k = k_pacer - self._first_k

@@ -107,6 +107,11 @@ class LiveClock:
         """Simulated seconds the held clock is behind the free-running one."""
         return max(0.0, self.free_s() - self.now_s())
 
+    def settle(self) -> None:
+        """Run on from the time shown now (a pacer that stops: the time its cycles reached, not the
+        free-running time it was catching up with)."""
+        self._reanchor()
+
     def slip(self) -> None:
         """Give up the lag: simulated time goes on from where it stands (the machine could not keep up)."""
         self._reanchor()

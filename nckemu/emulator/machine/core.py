@@ -24,6 +24,9 @@ from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckAddress
 from nckemu.protocol.values import decode_nck_values
 
+# A served machine's ticker (no living machine) when nothing runs: it wakes on any channel change.
+IDLE_TICK_S = 1.0
+
 # Loggers keep their names from before the 0.2 layout, so logs and users' log filters stay as they were.
 log = logging.getLogger("nckemu.emulator.core")
 
@@ -115,14 +118,31 @@ class Emulator:
                 await ticker
 
     async def _tick(self) -> None:
+        # Idle (no program, no heat left), the ticker sleeps up to IDLE_TICK_S and any change of a
+        # channel's state wakes it: a fleet of idle machines costs next to nothing.
+        wake = asyncio.Event()
+
+        def changed(_channel: object) -> None:
+            wake.set()
+
+        for channel in self.nck.channels.values():
+            channel.state_listeners.append(changed)
         k = 0
-        while True:
-            try:
-                await self._step(k, self.clock.now_s())
-            except Exception:  # a step that fails is logged; the machine serves on
-                log.exception("the machine's cycle failed at %.1f s", self.clock.now_s())
-            k += 1
-            await asyncio.sleep(self.cycle_s)
+        try:
+            while True:
+                try:
+                    await self._step(k, self.clock.now_s())
+                except Exception:  # a step that fails is logged; the machine serves on
+                    log.exception("the machine's cycle failed at %.1f s", self.clock.now_s())
+                k += 1
+                busy = any(channel.run is not None for channel in self.nck.channels.values()) or self.heat.warm
+                wake.clear()
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(wake.wait(), self.cycle_s if busy else max(self.cycle_s, IDLE_TICK_S))
+        finally:
+            for channel in self.nck.channels.values():
+                if changed in channel.state_listeners:
+                    channel.state_listeners.remove(changed)
 
     def identify(self, name: str, number: int) -> None:
         """This is the machine ``name``, the ``number``-th (from 1) of a fleet: its own name and serial

@@ -72,6 +72,7 @@ class CyclePacer:
                 await task
             except asyncio.CancelledError:
                 pass
+        self.clock.settle()
         self.clock.release()
 
     async def _run(self) -> None:

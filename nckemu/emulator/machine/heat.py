@@ -40,6 +40,24 @@ class Heat:
                 path_m_min += channel.state.path_feed_mm_min * M_PER_MM
         return spindle_rpm, path_m_min
 
+    @property
+    def warm(self) -> bool:
+        """Whether any sensor still carries heat of a program (it decays in the cycle)."""
+        return any(abs(value) > 1e-6 for value in self.nck.sensors.heat_C.values())
+
+    def thermal_error_um(self, axis: int) -> float:
+        """The error the heat makes on machine axis ``axis`` now (its thermal_um_per_K)."""
+        spec = self.machine.axis(axis)
+        if spec is None:
+            return 0.0
+        heat = self.nck.sensors.heat_C
+        return sum(k * heat.get(name, 0.0) for name, k in spec.thermal_um_per_K.items())
+
+    def measured_error_um(self, axis: int) -> float:
+        """What a gauge reads on ``axis``: the heat's error less what the compensation moves the axis by."""
+        sign = self.machine.settings.compensation_sign
+        return self.thermal_error_um(axis) + sign * self.nck.compensation_mm(axis) * 1000.0
+
     def step(self, t_s: float) -> None:
         last, self._last_s = self._last_s, t_s
         if last is None or t_s <= last:

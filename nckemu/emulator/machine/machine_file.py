@@ -36,6 +36,9 @@ class Axis:
     # The axis letter of this axis in a recording (pos_<letter>_mm, err_<letter>_um, sim_<letter>_um);
     # `recording = "Z"` in the machine file, by default the first letter of the name ("" for none).
     recording: str = ""
+    # The thermal error a running program's heat makes on this axis: µm per K that each named sensor has
+    # risen by that heat (emulator/machine/heat.py; `program run --out` writes it as err_<axis>_um).
+    thermal_um_per_K: dict[str, float] = field(default_factory=dict)
 
 
 # The default allocation of SD42960's components to geometry axes, by the first letter of the axis name.
@@ -285,7 +288,7 @@ _KNOWN_KEYS: dict[str, frozenset[str]] = {
     # every setting the dataclass has (a new setting needs no second list)
     "settings.": frozenset(setting.name for setting in fields(Settings)),
     "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
-                       "tool_temp_comp_component", "recording"}),
+                       "tool_temp_comp_component", "recording", "thermal_um_per_K"}),
     "sensor": frozenset({"name", "temperature_C", "plc_input", "raw_offset", "raw_per_C", "profile",
                          "heat_spindle_K_per_krpm", "heat_axes_K_per_m_min", "heat_time_constant_s"}),
     "program.": frozenset(setting.name for setting in fields(ProgramSettings)),
@@ -446,7 +449,13 @@ def _axis(table: dict[str, Any], index: int, source: str) -> Axis:
     if not isinstance(recording, str) or (recording and not recording.isidentifier()):
         raise NckConfigError("expected the axis letter of a recording, e.g. \"Z\"", path=source,
                              field=f"{where}recording")
+    thermal = table.get("thermal_um_per_K", {})
+    if not isinstance(thermal, dict) or not all(isinstance(k, str) and isinstance(v, int | float)
+                                                  and not isinstance(v, bool) and math.isfinite(v)
+                                                  for k, v in thermal.items()):
+        raise NckConfigError("expected { <sensor name> = <µm per K> }", path=source, field=f"{where}thermal_um_per_K")
     return Axis(number=number, name=name, recording=recording,
+                thermal_um_per_K={str(k): float(v) for k, v in thermal.items()},
                 travel_min_mm=float(travel[0]), travel_max_mm=float(travel[1]), rotary=rotary,
                 spindle=spindle, referenced=_get(table, "referenced", bool, where, source, True),
                 position_mm=position, tool_temp_comp_component=component)
@@ -526,6 +535,11 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
     if len(set(numbers)) != len(numbers):
         raise NckConfigError("two axes with one number", path=source, field="axis.number")
     sensors = tuple(_sensor(t, i, source) for i, t in enumerate(data.get("sensor", [])))
+    for index, axis in enumerate(axes):
+        for name in axis.thermal_um_per_K:
+            if all(sensor.name != name for sensor in sensors):
+                raise NckConfigError(f"no [[sensor]] named {name!r} (sensors: {', '.join(s.name for s in sensors)})",
+                                     path=source, field=f"axis[{index}].thermal_um_per_K")
     plc = data.get("plc", {})
     _check_keys(plc, "plc.", "plc.", source)
     blocks_raw = plc.get("data_blocks", {})

@@ -396,3 +396,30 @@ def test_warm_up_moves_the_piw_word() -> None:
     assert emu.nck.sensor_temperature_C("spindle") == pytest.approx(20.0 + 10.0 * (1 - math.exp(-3.0)), abs=0.3)
     assert emu.plc.read(S7Area.P, 0, 256, 2) != before
     assert channel.state.program_status in (PROG_RUNNING, PROG_ABORTED)
+
+
+def test_the_environment_reads_the_nck() -> None:
+    emu, clock = emulator()
+    channel = emu.nck.channels[1]
+    channel.state.actual_parts = 7.0
+    emu.nck.frames.shifts_mm[1][1][1] = 10.0                        # G54 shifts X by 10 mm
+    channel.select(store(emu, "ENV.MPF", "G54\nG0 X25\nR1=$AA_IM[X]\nR2=$AC_ACTUAL_PARTS\n"
+                                         "$AC_REQUIRED_PARTS=3\nM30\n"))
+    channel.start()
+    run(emu, clock, 5.0)
+    r = emu.nck.store.spec("R")
+    assert emu.nck.store.read_lines(r, 1, 2, 2) == [35.0, 7.0]          # G54 + X25: machine X 35
+    assert channel.state.required_parts == 3.0 and channel.state.actual_parts == 8.0
+
+
+def test_a_subprogram_is_found_in_the_subprogram_directory() -> None:
+    emu, clock = emulator()
+    channel = emu.nck.channels[1]
+    store(emu, "MOVE_TWICE.SPF", "PROC MOVE_TWICE(REAL DIST)\nG1 X=DIST F6000\nG1 X=2*DIST\nRET\n")
+    channel.select(store(emu, "CALLER.MPF", "EXTERN MOVE_TWICE(REAL)\nMOVE_TWICE(30)\nM30\n"))
+    blocks = []
+    channel.block_listeners.append(blocks.append)
+    channel.start()
+    run(emu, clock, 10.0)
+    assert channel.state.status == CHAN_RESET and emu.nck.axes.positions_mm[1] == 60.0
+    assert {b.program for b in blocks} == {"/_N_MPF_DIR/_N_CALLER_MPF", "/_N_SPF_DIR/_N_MOVE_TWICE_SPF"}

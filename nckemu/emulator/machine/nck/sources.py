@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.nck.alarms import alarm_number
 from nckemu.emulator.machine.nck.drives import DRIVE_READERS
-from nckemu.errors import NckAccessDenied, NckAddressOutOfRange
+from nckemu.errors import NckAccessDenied, NckAddressOutOfRange, NckPiStateError
 
 if TYPE_CHECKING:
     from nckemu.emulator.machine.nck.channel import Channel, Spindle
@@ -188,13 +188,20 @@ def _set_settable_shift(model: NckParts, unit: int, line: int, value: object) ->
 
 
 def _set_channel_command(model: NckParts, unit: int, _line: int, value: object) -> None:
-    _channel(model, unit).command(int(value))  # type: ignore[call-overload]
+    try:
+        _channel(model, unit).command(int(value))  # type: ignore[call-overload]
+    except NckPiStateError as exc:  # NC start refused (JOG, an alarm): the item's error, the alarm on the list
+        raise NckAccessDenied(str(exc)) from None
 
 
 def _set_mode(model: NckParts, _unit: int, _line: int, value: object) -> None:
-    """opMode of the mode group: every channel of it (one mode group) takes the mode."""
+    """opMode of the mode group: every channel of it (one mode group) takes the mode. Refused while a
+    program runs: the item answers "access denied" (0x03), the control's alarm is on the list."""
     for channel in model.channels.values():
-        channel.set_mode(int(value))  # type: ignore[call-overload]
+        try:
+            channel.set_mode(int(value))  # type: ignore[call-overload]
+        except NckPiStateError as exc:
+            raise NckAccessDenied(str(exc)) from None
 
 
 def _channel_value(attribute: str) -> Source:

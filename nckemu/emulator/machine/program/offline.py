@@ -3,9 +3,12 @@
 ``run_offline(emulator, path)`` selects and starts ``path`` on channel 1 of an emulator built with a
 :class:`~nckemu.emulator.machine.clock.SimulatedClock` and steps the machine's cycle
 (:meth:`Emulator.step_machine`) until the program ends, raises an alarm or ``max_time_s`` has passed.
-An M0 (or M1 with optional stop) is answered with NC start at once: offline nobody presses it.
+An M0 (or M1 with optional stop) is answered with NC start at once: offline nobody presses it. The
+cycle is 1 s by default, as a served living machine's (``serve --speed``, ``--cycle 1s``): the time a
+program takes does not depend on the cycle; the heat's inputs are taken once a cycle.
 What the run would have recorded is sampled every ``sample_s``: the columns of a recording
-(``t_s``, ``temp_<sensor>_C``, ``spindle_rpm``, ``pos_<axis>_mm``).
+(``t_s``, ``temp_<sensor>_C``, ``spindle_rpm``, ``pos_<axis>_mm``, and ``err_<axis>_um``: the error
+the heat makes on the axis, less the compensation, as a gauge would read it).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ if TYPE_CHECKING:
     from nckemu.emulator.machine.core import Emulator
 
 DEFAULT_MAX_TIME_S = 7 * 24 * 3600.0
+OFFLINE_CYCLE_S = 1.0
 
 
 @dataclass
@@ -41,6 +45,7 @@ def recording_columns(emulator: Emulator) -> list[str]:
     if any(axis.spindle for axis in machine.axes):
         columns.append("spindle_rpm")
     columns += [f"pos_{axis.recording}_mm" for axis in machine.axes if not axis.spindle and axis.recording]
+    columns += [f"err_{axis.recording}_um" for axis in machine.axes if not axis.spindle and axis.recording]
     return columns
 
 
@@ -50,6 +55,8 @@ def sample(emulator: Emulator, t_s: float) -> list[float]:
     if any(axis.spindle for axis in emulator.machine.axes):
         row.append(nck.channels[1].spindle_speed_rpm(1) if nck.channels[1].state.spindles else 0.0)
     row += [nck.actual_position_mm(axis.number) for axis in emulator.machine.axes
+            if not axis.spindle and axis.recording]
+    row += [emulator.heat.measured_error_um(axis.number) for axis in emulator.machine.axes
             if not axis.spindle and axis.recording]
     return row
 
@@ -62,7 +69,7 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
     clock = emulator.clock
     if not isinstance(clock, SimulatedClock):
         raise NckConfigError("an offline run needs an emulator built with clock=SimulatedClock()")
-    cycle = cycle_s or emulator.machine.program.cycle_s
+    cycle = cycle_s or OFFLINE_CYCLE_S
     channel = emulator.nck.channels[1]
     last: list[BlockRecord | None] = [None]
 

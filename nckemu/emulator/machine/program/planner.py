@@ -99,6 +99,10 @@ class Planner:
     def __init__(self, limits: MotionLimits) -> None:
         self.limits = limits
         self.moving = False
+        # (mm/s, mm/s²) by axis, computed once: the planner runs once per block
+        self._axes = {name: (axis.velocity_mm_s, axis.accel_mm_s2) for name, axis in limits.axes.items()}
+        default = AxisLimits()
+        self._default = (default.velocity_mm_s, default.accel_mm_s2)
 
     def reset(self) -> None:
         self.moving = False
@@ -163,8 +167,8 @@ class Planner:
         self.moving = False  # G0 always ends at standstill before and after (no look-ahead into a rapid)
         if factor <= 0.0:
             return Timed(math.inf, 0.0, length)
-        slowest = max(ramp_time_s(abs(delta), self.limits.axis(axis).velocity_mm_s * factor,
-                                  self.limits.axis(axis).accel_mm_s2, 2)
+        axes, default = self._axes, self._default
+        slowest = max(ramp_time_s(abs(delta), axes.get(axis, default)[0] * factor, axes.get(axis, default)[1], 2)
                       for axis, delta in deltas.items())
         return Timed(slowest, S_PER_MIN * length / slowest if slowest > 0 else 0.0, length)
 
@@ -181,13 +185,16 @@ class Planner:
             speed_mm_s = feed / S_PER_MIN
         speed_mm_s *= factor
         accel = math.inf
+        axes, default = self._axes, self._default
         for axis, share in shares.items():
             part = abs(share) / length
             if part <= 0.0:
                 continue
-            limits = self.limits.axis(axis)
-            speed_mm_s = min(speed_mm_s, limits.velocity_mm_s / part)
-            accel = min(accel, limits.accel_mm_s2 / part)
+            velocity, acceleration = axes.get(axis, default)
+            if velocity < speed_mm_s * part:
+                speed_mm_s = velocity / part
+            if acceleration < accel * part:
+                accel = acceleration / part
         if speed_mm_s <= 0.0:
             return Timed(math.inf, 0.0, length)
         duration = ramp_time_s(length, speed_mm_s, accel, self._ramps(exact_stop))

@@ -177,13 +177,9 @@ class NckEnvironment(ProgramEnvironment):
         state = self._channel.state
         if key == "$AC_TIME":  # time since the start of the block (s)
             return max(0.0, self._run.t_s - self._run.block_start_s)
-        if key in ("$AA_IM", "$AA_IW", "$P_EP", "$AA_MM") and indices:
-            axis = str(indices[0]).upper()
-            position = self.machine_position_mm(axis)
-            if key in ("$AA_IW", "$P_EP"):
-                number = self._axes[axis]
-                position -= self._parts.frames.active_shift_mm(self._channel.number, number)
-            return position
+        if key in ("$AA_IM", "$AA_MM") and len(indices) == 1 and str(indices[0]).upper() in self._axes:
+            # the actual machine position, with the compensation ($P_EP, $AA_IW: the interpreter's own)
+            return self._parts.actual_position_mm(self._axes[str(indices[0]).upper()])
         counters = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
                     "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
         if key in counters:
@@ -309,8 +305,9 @@ class ProgramRun:
                 self._motion = None
                 state.path_feed_mm_min = 0.0
             if blocks >= max_blocks:
-                # The control spends time on blocks too: a cycle's worth of blocks takes the cycle.
-                self.t_s = max(self.t_s, until_s)
+                # Blocks take no simulated time of their own: a long computation runs on in the next
+                # cycle at the same simulated time (so the time does not depend on the cycle), and the
+                # cycle returns, so the faces are served meanwhile.
                 return "running"
             try:
                 event = next(self._events)
@@ -387,14 +384,19 @@ class ProgramRun:
         if feed_move and self.parts.machine.program.wait_for_spindle:
             start_s = max(start_s, self._spindle_ready_s)
         spindle_rpm = self._spindle_rpm(start_s)
-        start_mm = {name: self.parts.axes.positions_mm[number] for name, number in self.axes.items()}
-        targets = {self._axis_name(axis): value for axis, value in event.target_mm.items()}
+        positions, axes = self.parts.axes.positions_mm, self.axes
+        targets = event.target_mm
+        if not all(axis in axes for axis in targets):  # names as the interpreter wrote them: ours are upper case
+            targets = {self._axis_name(axis): value for axis, value in targets.items()}
         self._check_travel(targets)
         if isinstance(event, Arc):
+            start_mm = {name: positions[number] for name, number in axes.items()}
             centre = {self._axis_name(axis): value for axis, value in event.centre_mm.items()}
             timed = self.planner.arc(start_mm, _with(event, targets, centre), overrides, spindle_rpm)
         else:
-            timed = self.planner.move(start_mm, _with(event, targets), overrides, spindle_rpm)
+            start_mm = {name: positions[axes[name]] for name in targets}
+            move = event if targets is event.target_mm else _with(event, targets)
+            timed = self.planner.move(start_mm, move, overrides, spindle_rpm)
         if math.isinf(timed.duration_s):
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity is zero (F0, or G95 with the "
                                                 "spindle standing)", program=self.channel.state.program,
@@ -418,9 +420,10 @@ class ProgramRun:
         return name
 
     def _check_travel(self, targets: dict[str, float]) -> None:
+        specs, axes = self.parts.axes.specs, self.axes
         for name, value in targets.items():
-            spec = self.parts.axes.specs[self.axes[name]]
-            if not spec.rotary and not spec.travel_min_mm <= value <= spec.travel_max_mm:
+            spec = specs[axes[name]]
+            if not spec.travel_min_mm <= value <= spec.travel_max_mm and not spec.rotary:
                 state = self.channel.state
                 raise ProgramAlarm(self.parts.machine.program.travel_alarm,
                                    f"axis {spec.name}: {value:.3f} mm beyond its travel {spec.travel_min_mm:g}.."
