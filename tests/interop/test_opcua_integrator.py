@@ -359,3 +359,35 @@ def test_the_siemens_machine_axis_path_reads_the_extension_row(faces: tuple[Emul
             emulator.call(lambda: axes.set_position(4, 0.0))
     assert siemens == extension == ua_siemens == ua_extension
     assert siemens[3] == pytest.approx(-12.5)
+
+
+@needs_models
+def test_identification_equals_the_s7_face_and_build_info_names_nckemu(faces: tuple[EmulatorThread, OpcUaFace]
+                                                                       ) -> None:
+    import nckemu
+    from nckemu.clients import NckClient
+
+    emulator, face = faces
+    with NckClient("127.0.0.1", emulator.port) as s7:
+        md18030, md18040 = s7.get("MD18030", "MD18040[u1,1]")
+
+    async def read() -> tuple[dict[str, Any], Any, str]:
+        client = await connect(face)
+        try:
+            namespaces = await client.get_namespace_array()
+            machines = await client.nodes.objects.get_child(f"{namespaces.index(nodesets.MACHINERY)}:Machines")
+            (tool,) = await machines.get_children()
+            identification = await _child(client, tool, "Identification")
+            values = {name: await (await _child(client, identification, name)).read_value()
+                      for name in ("SerialNumber", "SoftwareRevision", "ProductInstanceUri", "Manufacturer")}
+            build = await client.get_node(ua.NodeId(ua.ObjectIds.Server_ServerStatus_BuildInfo)).read_value()
+            return values, build, (await tool.read_browse_name()).Name
+        finally:
+            await client.disconnect()
+
+    values, build, name = run(read())
+    assert values["SerialNumber"] == str(md18030).rstrip() == emulator.emulator.serial_number
+    assert values["SoftwareRevision"] == str(md18040).rstrip() == "06.00.00.00.000"
+    assert values["ProductInstanceUri"] == f"urn:nckemu:{name.replace(' ', '-')}:{values['SerialNumber']}"
+    assert (build.ProductName, build.ManufacturerName, build.SoftwareVersion, build.ProductUri) \
+        == ("nckemu", "nckemu", nckemu.__version__, "urn:nckemu")

@@ -168,3 +168,51 @@ def test_browses_machines_to_the_umati_instance_then_reads_and_subscribes(faces:
     finally:
         process.kill()
     assert _result(out.splitlines())[1]["values"] == [100.0, 55.0, 65.0, 75.0]
+
+
+CNC = "http://opcfoundation.org/UA/CNC"
+# A declared DataType's built-in type -> the variant types a value of it may travel as: Enumeration as
+# Int32, Structure as ExtensionObject; the abstract BaseDataType, Number, Integer, UInteger as any.
+_ANY = {24, 26, 27, 28}
+_TRAVELS_AS = {29: {6}, 22: {22}}
+
+
+def test_node_opcua_reads_every_instance_variable_as_declared(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """node-opcua walks the MachineTool and CncInterface instances and reads every variable: a good status, a
+    value of its declared DataType (as the built-in type that DataType comes from) and ValueRank, and every
+    EngineeringUnits a UNECE common code whose UnitId is its letters."""
+    from .test_opcua_integrator import RECOMMENDATION_20, UNECE, code_of, unit_id_of
+
+    _, face = faces
+    if not face.models.on:
+        pytest.skip("the umati/CNC NodeSets are not installed (make nodesets)")
+    results = node_client(face, [{"browse": [[MACHINERY, "Machines"], "*"]}, {"walk": "$browsed"},
+                                 {"browse": [[CNC, "CncInterface"]]}, {"walk": "$browsed"}])
+    assert "error" not in results, results
+    variables = results[1]["variables"] + results[3]["variables"]
+    assert len(variables) > 300
+    problems = []
+    units = 0
+    for entry in variables:
+        where = entry["path"]
+        if entry["status"] != "Good":
+            problems.append(f"{where}: {entry['status']}")
+            continue
+        base, variant = entry["base"], entry["variant"]
+        if base is None:
+            problems.append(f"{where}: DataType {entry['dataType']} comes from no built-in type")
+        elif base not in _ANY and variant is not None and variant not in _TRAVELS_AS.get(base, {base}):
+            problems.append(f"{where}: DataType {entry['dataType']} (built-in {base}), value as variant type {variant}")
+        if entry["valueRank"] == -1 and entry["array"]:
+            problems.append(f"{where}: ValueRank -1, an array value")
+        if entry["valueRank"] >= 1 and entry["array"] is False:
+            problems.append(f"{where}: ValueRank {entry['valueRank']}, a scalar value")
+        if where.endswith("/EngineeringUnits"):
+            units += 1
+            unit = entry.get("eu") or {}
+            code = code_of(int(unit.get("unitId", 0)))
+            if unit.get("namespaceUri") != UNECE or unit_id_of(code) != unit.get("unitId") \
+                    or RECOMMENDATION_20.get(code) != (unit.get("displayName"), unit.get("description")):
+                problems.append(f"{where}: {unit}")
+    assert problems == []
+    assert units > 20

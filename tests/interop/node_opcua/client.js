@@ -7,10 +7,72 @@
 //      {"browse": [["http://opcfoundation.org/UA/Machinery/", "Machines"], "*", [uri, "Monitoring"]]}
 //          (from Objects by browse names, "*" the only child; later ops may name the node found "$browsed";
 //           the result has its node id and type definition)
+//      {"walk": "$browsed"}   (every variable below the node, depth first: its browse path, status, DataType
+//          and the built-in type that DataType comes from, ValueRank, the value's variant type and array-ness,
+//          and its EngineeringUnits property decoded, if it has one)
 // optional: "security": "Basic256Sha256", "mode": "SignAndEncrypt" (or "Sign"), "pki": a folder for the client's own certificate
 // Prints one line "RESULT <json>" (node-opcua logs on stdout too): a list with one result per op ({"status": "Good", "value": ...}).
 "use strict";
 const opcua = require("node-opcua-client");
+
+// The built-in type a DataType comes from (its own id for a built-in one, 29 Enumeration, 22 Structure),
+// following inverse HasSubtype references up the type tree.
+async function builtInOf(session, dataType, cache) {
+  const key = dataType.toString();
+  if (cache.has(key)) return cache.get(key);
+  let base = null;
+  if (dataType.namespace === 0 && dataType.value <= 29) {
+    base = dataType.value;
+  } else {
+    const up = await session.browse({
+      nodeId: dataType, referenceTypeId: "HasSubtype", includeSubtypes: false,
+      browseDirection: opcua.BrowseDirection.Inverse, resultMask: 63,
+    });
+    const parent = (up.references || [])[0];
+    base = parent ? await builtInOf(session, parent.nodeId, cache) : null;
+  }
+  cache.set(key, base);
+  return base;
+}
+
+async function walk(session, start) {
+  const found = [];
+  const cache = new Map();
+  const visit = async (nodeId, path, depth) => {
+    if (depth > 12) return;
+    const result = await session.browse({
+      nodeId, referenceTypeId: "HierarchicalReferences", includeSubtypes: true,
+      browseDirection: opcua.BrowseDirection.Forward, resultMask: 63,
+    });
+    for (const ref of result.references || []) {
+      const where = path + "/" + ref.browseName.name;
+      if (ref.nodeClass === opcua.NodeClass.Variable) {
+        const [value, dataType, valueRank] = await session.read([
+          { nodeId: ref.nodeId, attributeId: opcua.AttributeIds.Value },
+          { nodeId: ref.nodeId, attributeId: opcua.AttributeIds.DataType },
+          { nodeId: ref.nodeId, attributeId: opcua.AttributeIds.ValueRank },
+        ]);
+        const entry = {
+          path: where, status: value.statusCode.name, dataType: dataType.value.value.toString(),
+          base: await builtInOf(session, dataType.value.value, cache), valueRank: valueRank.value.value,
+          variant: value.value ? value.value.dataType : null,
+          array: value.value ? value.value.arrayType !== opcua.VariantArrayType.Scalar : null,
+        };
+        if (ref.browseName.name === "EngineeringUnits" && value.value && value.value.value) {
+          const unit = value.value.value;
+          entry.eu = { namespaceUri: unit.namespaceUri, unitId: unit.unitId,
+                       displayName: unit.displayName.text, description: unit.description.text };
+        }
+        found.push(entry);
+      }
+      if (ref.nodeClass === opcua.NodeClass.Object || ref.nodeClass === opcua.NodeClass.Variable) {
+        await visit(ref.nodeId, where, depth + 1);
+      }
+    }
+  };
+  await visit(start, "", 0);
+  return found;
+}
 
 async function main() {
   const job = JSON.parse(process.argv[2]);
@@ -33,7 +95,7 @@ async function main() {
   try {
     for (const raw of job.ops) {
       const op = Object.assign({}, raw);
-      for (const key of ["read", "subscribe", "events"]) if (op[key]) op[key] = resolve(op[key]);
+      for (const key of ["read", "subscribe", "events", "walk"]) if (op[key]) op[key] = resolve(op[key]);
       if (op.browse) {
         const namespaces = await session.readNamespaceArray();
         let nodeId = "i=85";
@@ -53,6 +115,8 @@ async function main() {
         browsed = nodeId;
         const typeNode = await session.read({ nodeId: typeDefinition, attributeId: opcua.AttributeIds.BrowseName });
         results.push({ status: "Good", nodeId, typeDefinition: typeNode.value.value.name });
+      } else if (op.walk) {
+        results.push({ status: "Good", variables: await walk(session, op.walk) });
       } else if (op.read) {
         const dv = await session.read({ nodeId: op.read, attributeId: opcua.AttributeIds.Value });
         let value = dv.value ? dv.value.value : null;
