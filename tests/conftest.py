@@ -1,9 +1,13 @@
-"""Shared test settings: hypothesis profiles and the location of ../shared."""
+"""Shared test settings: hypothesis profiles, the location of ../shared, results computed once per run."""
 
 from __future__ import annotations
 
+import fcntl
 import os
+import pickle
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -53,3 +57,28 @@ def shared_dir() -> Path:
 @pytest.fixture
 def fixtures_dir() -> Path:
     return FIXTURES
+
+
+@pytest.fixture(scope="session")
+def once_per_run(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, Callable[[], Any]], Any]:
+    """``once_per_run(name, produce)``: an expensive result that tests only read, computed once in a test
+    run. Under pytest-xdist the first worker to ask computes it and pickles it into the run's temporary
+    directory (shared by the workers, fresh each run); the others wait for it and load it."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent
+    loaded: dict[str, Any] = {}
+
+    def get(name: str, produce: Callable[[], Any]) -> Any:
+        if name not in loaded:
+            stored = root / f"once-{name}.pickle"
+            with open(root / f"once-{name}.lock", "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                if stored.is_file():
+                    loaded[name] = pickle.loads(stored.read_bytes())
+                else:
+                    loaded[name] = produce()
+                    stored.write_bytes(pickle.dumps(loaded[name]))
+        return loaded[name]
+
+    return get
