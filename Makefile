@@ -63,8 +63,11 @@ nodesets: $(VENV)/.installed
 	else echo "npm is missing: the OPC UA face serves without the umati/CNC models"; fi
 	@$(PY) -m nckemu.emulator.faces.opcua.prepare
 
+# The suite on every core (JOBS=1 for one process); a test file stays on one worker (--dist loadfile)
+# so that its module-scoped servers start once. The slowest 15 are printed to see where the time goes.
+JOBS ?= auto
 test: $(VENV)/.installed-test tshark chromium npm nodesets lint
-	$(PY) -m pytest
+	$(PY) -m pytest -n $(JOBS) --dist loadfile --durations=15
 
 # The slow suite (tests marked slow: seeds, run families, the README tour), two workers at once.
 slow: $(VENV)/.installed-test

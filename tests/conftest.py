@@ -1,9 +1,14 @@
-"""Shared test settings: hypothesis profiles and the location of ../shared."""
+"""Shared test settings: hypothesis profiles, the location of ../shared, results computed once per run."""
 
 from __future__ import annotations
 
+import fcntl
 import os
+import pickle
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -53,3 +58,47 @@ def shared_dir() -> Path:
 @pytest.fixture
 def fixtures_dir() -> Path:
     return FIXTURES
+
+
+def _run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The test run's temporary directory: under pytest-xdist the one its workers share."""
+    root = tmp_path_factory.getbasetemp()
+    return root.parent if os.environ.get("PYTEST_XDIST_WORKER") else root
+
+
+@pytest.fixture(scope="session")
+def fixed_ports(tmp_path_factory: pytest.TempPathFactory) -> Callable[[], AbstractContextManager[None]]:
+    """``with fixed_ports(): ...`` around a server whose ports are written in the example it runs (a fleet
+    file, ``--base-port 21001``): one such server at a time among the run's xdist workers."""
+    lock_path = _run_dir(tmp_path_factory) / "fixed-ports.lock"
+
+    @contextmanager
+    def held() -> Iterator[None]:
+        with open(lock_path, "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            yield
+
+    return held
+
+
+@pytest.fixture(scope="session")
+def once_per_run(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, Callable[[], Any]], Any]:
+    """``once_per_run(name, produce)``: an expensive result that tests only read, computed once in a test
+    run. Under pytest-xdist the first worker to ask computes it and pickles it into the run's temporary
+    directory (shared by the workers, fresh each run); the others wait for it and load it."""
+    root = _run_dir(tmp_path_factory)
+    loaded: dict[str, Any] = {}
+
+    def get(name: str, produce: Callable[[], Any]) -> Any:
+        if name not in loaded:
+            stored = root / f"once-{name}.pickle"
+            with open(root / f"once-{name}.lock", "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                if stored.is_file():
+                    loaded[name] = pickle.loads(stored.read_bytes())
+                else:
+                    loaded[name] = produce()
+                    stored.write_bytes(pickle.dumps(loaded[name]))
+        return loaded[name]
+
+    return get

@@ -33,7 +33,8 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -265,7 +266,7 @@ def _run_server(line: str, site: Site) -> str:
         process.wait(timeout=30)
 
 
-def run_example(example: Example, site: Site) -> str:
+def run_example(example: Example, site: Site, fixed_ports: Callable[[], AbstractContextManager[None]]) -> str:
     """Runs the example; its output, or an AssertionError naming the command that failed."""
     output = []
     script: list[str] = []
@@ -287,7 +288,11 @@ def run_example(example: Example, site: Site) -> str:
         line = with_ports(line, site.ports)
         if _is_server(line):
             flush()
-            output.append(_run_server(line, site))
+            if line.split()[1] == "fleet":  # a fleet file's ports are its own: one such server at a time
+                with fixed_ports():
+                    output.append(_run_server(line, site))
+            else:
+                output.append(_run_server(line, site))
         else:
             script.append(line)
     flush()
@@ -308,13 +313,14 @@ def _marks(example: Example) -> list[pytest.MarkDecorator]:
 @pytest.mark.timeout(1800)
 @pytest.mark.parametrize("example", [pytest.param(e, marks=_marks(e), id=f"{e.source} {e.lines[0][:50]}")
                                      for e in EXAMPLES])
-def test_example_runs_as_written(example: Example, site: Site) -> None:
+def test_example_runs_as_written(example: Example, site: Site,
+                                 fixed_ports: Callable[[], AbstractContextManager[None]]) -> None:
     if example.text in REFUSALS:
         done = subprocess.run(["bash", "-c", with_ports(example.text, site.ports)], cwd=site.workdir, env=site.env,
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
         assert done.returncode == 1 and REFUSALS[example.text] in done.stdout, done.stdout
         return
-    out = run_example(example, site)
+    out = run_example(example, site, fixed_ports)
     bad = [line for line in out.splitlines() if "does not exist" in line]
     assert not bad, f"{example.source}: {bad[:3]}"
 

@@ -291,6 +291,9 @@ def test_a_session_that_times_out_is_closed_without_a_traceback(
     assert on_loop(faces, still_served(faces[1]))
 
 
+# ~50 s of one core: a search, not a check; each fault it found has its smallest message as a test above,
+# so the default suite keeps those and the slow suite (CI runs it too) the search.
+@pytest.mark.slow
 def test_the_fuzz_run_small(tmp_path: Any) -> None:
     """bench/fuzz_opcua.py at its small size: mutated messages of every type and the named attacks, a
     python-snap7 and an asyncua client served throughout, no crash, no traceback, no stuck connection."""

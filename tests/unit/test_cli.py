@@ -11,8 +11,9 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -116,14 +117,18 @@ def _prepare(argv: list[str], workdir: Path, port: int, capture_path: Path) -> l
 
 @pytest.mark.parametrize(("prog", "argv"), HELP_EXAMPLES, ids=[" ".join(a)[:60] for _, a in HELP_EXAMPLES])
 def test_help_example_runs(prog: str, argv: list[str], tmp_path: Path, capture: Path, capsys,
-                           monkeypatch: pytest.MonkeyPatch) -> None:
+                           monkeypatch: pytest.MonkeyPatch, fixed_ports: Callable[[], Any]) -> None:
     os.symlink(FIXTURES, tmp_path / "fixtures")
     (tmp_path / "capture.pcapng").write_bytes(capture.read_bytes())
     write_recording(tmp_path / "rec.csv", make_scenario("thermal_gradient").recording)
     with EmulatorThread() as emu:
         argv = _prepare(argv, tmp_path, emu.port, capture)
-        if argv[0] in ("serve", "fleet"):  # servers: started, seen ready, stopped
+        if argv[0] == "serve":  # servers: started, seen ready, stopped
             _run_serve_example(argv, tmp_path)
+            return
+        if argv[0] == "fleet":  # its ports are the example's own: one such server at a time
+            with fixed_ports():
+                _run_serve_example(argv, tmp_path)
             return
         monkeypatch.chdir(tmp_path)
         code = main(argv)

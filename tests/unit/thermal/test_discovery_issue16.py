@@ -14,7 +14,7 @@ from nckemu.thermal.discover import Discovery, discover
 from nckemu.thermal.recording import load_recording
 from nckemu.thermal.report import write_report
 from nckemu.thermal.scenarios import ALL_SCENARIOS, VARIANTS, make_scenario, make_variant, scaled_scenario
-from nckemu.thermal.terms import Term, ThermalModel, parse_model
+from nckemu.thermal.terms import Term, ThermalModel
 
 LAG_PARAMETERS = {"tau_s", "tau_heat_s", "tau_cool_s"}
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
@@ -107,12 +107,8 @@ def test_nothing_is_flagged_on_clean_sensors() -> None:
     assert discover(scenario.recording, model=scenario.baseline).data_quality == []
 
 
-def test_fl_thermal_ch3_glitches_of_t16_do_not_become_spikes(shared_dir: Path) -> None:
-    recording = load_recording(shared_dir / "data" / "fl_thermal" / "recording.csv")
-    recording = recording.slice(np.arange(len(recording.t_s)) % 4 == 0)
-    model = parse_model('axis = "ch3"\n[[term]]\neffect = "offset"\nvalue_um = 0.0\n[[term]]\n'
-                        'effect = "temperature"\nsensor = "t5"\nt_ref_C = 30.0\ncoeff_um_per_K = -2.0\n')
-    result = discover(recording, model=model)
+def test_fl_thermal_ch3_glitches_of_t16_do_not_become_spikes(fl_thermal_ch3_discovery: Discovery) -> None:
+    result = fl_thermal_ch3_discovery
     assert any(note.startswith("temp_t16_C:") for note in result.data_quality)
     hours = result.series["t_s"] / 3600
     improved = result.series["improved_um"]
