@@ -10,13 +10,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from nckemu.catalogue.edges import TOOL_OFFSETS
 from nckemu.catalogue.names import PlcVariable, Variable, parse_item
 from nckemu.cliutil import default_host, default_port, port_number
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckArea, NckType
 from nckemu.protocol.codes import describe_return_code
 
-from .async_client import AsyncNckClient, ItemResult
+from .async_client import MAX_VARIABLES, AsyncNckClient, ItemResult
 from .channel840c import Channel840C
 
 
@@ -213,9 +214,95 @@ async def _machine_context(client: AsyncNckClient, variable: Variable) -> str:
                 return f"channel {variable.address.unit} has no spindle"
             return (f"channel {variable.address.unit} has {count} spindle{'s' if count > 1 else ''}: "
                     f"SP1{f'..SP{count}' if count > 1 else ''}")
+        if spec.name == TOOL_OFFSETS:
+            return await _tool_context(client, variable)
+        if variable.address.area in (NckArea.V, NckArea.H):
+            return await _unit_context(client, spec, variable, "drive", "drives")
+        if variable.address.area == NckArea.C:
+            (count,) = await client.get("numChannels")
+            count = int(count)
+            return (f"this machine has {count} channel{'s' if count != 1 else ''}: C1"
+                    f"{f'..C{count}' if count > 1 else ''} (NC) or u1{f'..{count}' if count > 1 else ''} (BTSS)")
     except (NckError, ValueError, TypeError):
         return ""
     return ""
+
+
+PROBED_UNITS = 31        # a unit's five bits
+PROBED_TOOLS = 32        # T numbers probed for a refused tool (a real TO unit may have more)
+
+
+def _spans(numbers: list[int]) -> list[tuple[int, int]]:
+    spans: list[tuple[int, int]] = []
+    for number in numbers:
+        if spans and spans[-1][1] == number - 1:
+            spans[-1] = (spans[-1][0], number)
+        else:
+            spans.append((number, number))
+    return spans
+
+
+def _ranges(numbers: list[int], prefix: str) -> str:
+    """``V1..V4`` / ``col1, col2``: numbers as the fewest ranges."""
+    return ", ".join(f"{prefix}{a}" if a == b else f"{prefix}{a}..{prefix}{b}" for a, b in _spans(numbers))
+
+
+async def _answering(client: AsyncNckClient, variables: list[Variable]) -> list[bool]:
+    """Which of ``variables`` the controller answers, 8 to a job (what a tool would probe by hand)."""
+    answered: list[bool] = []
+    for first in range(0, len(variables), MAX_VARIABLES):
+        results = await client.get_items(*variables[first:first + MAX_VARIABLES])
+        answered += [result.ok for result in results]
+    return answered
+
+
+def _at(variable: Variable, **changes: int) -> Variable:
+    from dataclasses import replace
+
+    address = replace(variable.address, line_count=1, **changes)
+    return replace(variable, address=address)
+
+
+async def _unit_context(client: AsyncNckClient, spec: Any, variable: Variable, what: str, plural: str) -> str:
+    """The units (drives) of an area that answer the same variable: ``drives V1..V4 (NC) or u1..4``."""
+    probes = [_at(variable, unit=unit, line=spec_first_line(variable)) for unit in range(1, PROBED_UNITS + 1)]
+    units = [unit for unit, ok in zip(range(1, PROBED_UNITS + 1), await _answering(client, probes), strict=True)
+             if ok]
+    letter = NckArea(variable.address.area).name
+    if not units:
+        return f"this machine has no {what} answering {spec.name}"
+    return (f"this machine has {len(units)} {what if len(units) == 1 else plural}: {_ranges(units, letter)} (NC) "
+            f"or {_ranges(units, 'u')} (BTSS)")
+
+
+def spec_first_line(variable: Variable) -> int:
+    return max(1, variable.address.line)
+
+
+async def _tool_context(client: AsyncNckClient, variable: Variable) -> str:
+    """Which TO unit, tool or edge a refused tool offset lacks, with the machine's tools and edges."""
+    from nckemu.catalogue.edges import describe_line
+
+    address = variable.address
+    (per_edge,) = await client.get("numCuttEdgeParams")
+    per_edge = max(1, int(per_edge))
+    probes = [_at(variable, unit=1, column=tool, line=1) for tool in range(1, PROBED_TOOLS + 1)]
+    tools = [tool for tool, ok in zip(range(1, PROBED_TOOLS + 1), await _answering(client, probes), strict=True)
+             if ok]
+    listed = (f"its tools among T1..T{PROBED_TOOLS} are {_ranges(tools, 'col')} (NC) or "
+              f"{_ranges(tools, 'c')} (BTSS)") if tools else f"it has no tools among T1..T{PROBED_TOOLS}"
+    if address.unit != 1:
+        return (f"no TO unit {address.unit}: T{address.unit} names the TO unit, not the tool (the tool is colN); "
+                f"this machine has TO unit 1 (T1 / u1), where {listed}")
+    if address.column not in tools:
+        return f"no tool {address.column} (col{address.column} / c{address.column}) in TO unit 1: {listed}"
+    edge_probes = [_at(variable, line=(edge - 1) * per_edge + 1) for edge in range(1, 10)]
+    edges = [edge for edge, ok in zip(range(1, 10), await _answering(client, edge_probes), strict=True) if ok]
+    last = len(edges) * per_edge
+    asked = describe_line(address.line + address.line_count - 1, per_edge)
+    return (f"tool {address.column} has {len(edges)} cutting edge{'s' if len(edges) != 1 else ''} "
+            f"({_ranges(edges, 'D')}) of {per_edge} parameters: lines 1..{last} (BTSS) or indices 0..{last - 1} "
+            f"(NC); {asked} is past them")
 
 
 def _record(result: ItemResult) -> dict[str, Any]:
@@ -286,10 +373,35 @@ def run_get(args: argparse.Namespace) -> int:
     async def go() -> tuple[list[ItemResult], dict[int, str]]:
         async with _client(args) as client:
             results = await client.get_items(*variables)
-            return results, await _contexts(client, results)
+            return await _with_edge_units(client, results), await _contexts(client, results)
 
     results, contexts = asyncio.run(go())
     return _print_results(results, args.json, contexts=contexts)
+
+
+async def _with_edge_units(client: AsyncNckClient, results: list[ItemResult]) -> list[ItemResult]:
+    """Tool offsets carry each parameter's own unit (mm for lengths and radii, none for the type or a
+    count), which needs the machine's numCuttEdgeParams to tell the parameter from the line."""
+    from dataclasses import replace
+
+    from nckemu.catalogue.edges import STANDARD_EDGE_PARAMS, lines_unit
+
+    edges = [index for index, result in enumerate(results)
+             if isinstance(result.variable, Variable) and (spec := _spec(result.variable)) is not None
+             and spec.name == TOOL_OFFSETS]
+    if not edges:
+        return results
+    try:
+        (per_edge,) = await client.get("numCuttEdgeParams")
+        per_edge = max(1, int(per_edge))
+    except (NckError, ValueError, TypeError):
+        per_edge = STANDARD_EDGE_PARAMS
+    changed = list(results)
+    for index in edges:
+        variable = results[index].variable
+        unit = lines_unit(variable.address.line, variable.address.line_count, per_edge)
+        changed[index] = replace(results[index], variable=replace(variable, unit_of_measure=unit))
+    return changed
 
 
 _INTEGER_RANGES = {NckType.BOOL: (0, 1), NckType.BYTE: (0, 0xFF), NckType.WORD: (0, 0xFFFF),

@@ -1,0 +1,60 @@
+"""Tool addresses with one meaning, and refusals that name what this machine has (issue 44, items 1-2),
+through the real CLI against a real emulator."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from nckemu.catalogue.edges import lines_unit, parameter_unit
+from nckemu.cli import main
+from nckemu.emulator.runner import EmulatorThread
+
+
+@pytest.fixture(scope="module")
+def port() -> Iterator[int]:
+    with EmulatorThread() as emu:
+        yield emu.port
+
+
+def _get(port: int, name: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(["get", "--port", str(port), name])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_an_edge_parameter_carries_its_own_unit(port: int, capsys) -> None:
+    code, out, _ = _get(port, "cuttEdgeParam[0,T1,col1]", capsys)  # P1: the tool type, a number
+    assert code == 0 and out.strip().endswith("= 120.000000")
+    _, out, _ = _get(port, "cuttEdgeParam[2,T1,col1]", capsys)      # P3: length 1
+    assert out.strip().endswith("= 125.000000 mm")
+    for index in (25, 33):                                            # H number, number of teeth
+        _, out, _ = _get(port, f"cuttEdgeParam[{index},T1,col1]", capsys)
+        assert not out.strip().endswith("mm"), out
+    assert parameter_unit(6) == "mm" and parameter_unit(2) == "" and lines_unit(1, 6, 35) == ""
+
+
+@pytest.mark.parametrize(("name", "says"), [
+    ("cuttEdgeParam[2,T1]", ["needs its tool: colN", "Tn the TO unit", "0..314", "1..315"]),
+    ("/Tool/Compensation/cuttEdgeParam[u1,3]", ["needs its tool: cN"]),
+    ("cuttEdgeParam[2,T1,col3]", ["no tool 3", "col1..col2 (NC)", "c1..c2 (BTSS)"]),
+    ("cuttEdgeParam[2,T2,col1]", ["no TO unit 2", "names the TO unit, not the tool"]),
+    ("cuttEdgeParam[40,T1,col1]", ["tool 1 has 1 cutting edge", "lines 1..35 (BTSS)", "indices 0..34 (NC)"]),
+    ("r0035[V5]", ["4 drives: V1..V4 (NC) or u1..u4 (BTSS)"]),
+    ("r0035[V0]", ["unit 0 outside 1..31", "V1..V31", "u1..31"]),
+    ("r0035[V40]", ["unit 40 outside 1..31"]),
+    ("progStatus[C3]", ["1 channel: C1 (NC) or u1 (BTSS)"]),
+    ("R100", ["R0..R99", "R[u1,1..100]"]),
+])
+def test_a_refusal_names_the_range_on_this_machine(port: int, name: str, says: list[str], capsys) -> None:
+    code, _, err = _get(port, name, capsys)
+    assert code == 1
+    for text in says:
+        assert text in err, err
+
+
+def test_pi_select_of_a_missing_program_says_no_such_program(port: int, capsys) -> None:
+    code = main(["pi", "--port", str(port), "_N_SELECT", "201", "/_N_MPF_DIR/_N_NOPE_MPF"])
+    err = capsys.readouterr().err
+    assert code == 1 and "no such program" in err and "syntax error" not in err
