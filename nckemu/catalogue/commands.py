@@ -133,6 +133,12 @@ def format_table(specs: Iterable[VariableSpec]) -> str:
                      for row in rows)
 
 
+def _searchable(pattern: str, named: VariableSpec) -> bool:
+    """A plain word (letters and digits) that is not the row's own name or number: searched as well."""
+    word = pattern.strip()
+    return word.isalnum() and word.lower() not in (named.name.lower(), named.number.lower())
+
+
 def run_vars(args: argparse.Namespace) -> int:
     specs = machine_file_table(args.machine) if args.machine else load_table()
     # A catalogue number given whole (r0032: a drive parameter on every drive object that has it) lists
@@ -140,6 +146,10 @@ def run_vars(args: argparse.Namespace) -> int:
     numbered = [spec for spec in specs if spec.number.lower() == args.pattern.strip().lower()]
     named = None if numbered else pattern_row(args.pattern, specs)
     chosen = numbered or ([named] if named is not None else [spec for spec in specs if matches(spec, args.pattern)])
+    if named is not None and _searchable(args.pattern, named):
+        # a name that is also the start of other rows' numbers (r00: R parameter 0, and the drive
+        # parameters r0021, r0035, ...): the row it names, then every name and number containing it
+        chosen = [spec for spec in specs if spec is named or matches(spec, args.pattern)]
     if args.json:
         print(json.dumps([describe(spec) for spec in chosen], indent=1))
         return 0

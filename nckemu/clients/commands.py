@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import logging
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from nckemu.catalogue.edges import TOOL_OFFSETS
 from nckemu.catalogue.names import PlcVariable, Variable, parse_item
@@ -19,6 +20,9 @@ from nckemu.protocol.codes import describe_return_code
 
 from .async_client import MAX_VARIABLES, AsyncNckClient, ItemResult
 from .channel840c import Channel840C
+
+log = logging.getLogger(__name__)
+T = TypeVar("T")
 
 
 def _connection_options(parser: argparse.ArgumentParser) -> None:
@@ -42,7 +46,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
              "  S7 names PLC memory: DB130.DBW0, M5.0, MB10, PIW420, DB130.DBD0:REAL")
     get = subparsers.add_parser(
         "get", help="read NCK variables (FB2 GET) and PLC memory (S7ANY)", formatter_class=raw,
-        description=f"Read 1..8 NCK variables or PLC addresses in one job.\n\n{names}",
+        description=f"Read NCK variables or PLC addresses: up to 8 in one job (FB2's NumVar), more in several "
+                    f"jobs one after the other (-v says so).\n\n{names}",
         epilog="examples:\n  nckemu get --port 1102 SD43900[AX4] SD43910[AX4] R5\n"
                "  nckemu get --port 1102 '/Channel/State/progStatus[u1]' "
                "'/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'\n"
@@ -56,13 +61,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
     put = subparsers.add_parser(
         "put", help="write NCK variables and PLC memory in one job (FB3 PUT, S7ANY)", formatter_class=raw,
-        description=f"Write 1..8 NCK variables or PLC addresses in one job; an array takes comma-separated "
-                    f"values.\n\n{names}",
+        description=f"Write NCK variables or PLC addresses: up to 8 in one job (FB3's NumVar), more in several "
+                    f"jobs one after the other (-v says so; a refused item does not stop the later jobs); an "
+                    f"array takes comma-separated values.\n\n{names}",
         epilog="examples:\n  nckemu put --port 1102 SD43900[AX4]=0.3 SD43920[AX4]=0\n"
                "  nckemu put --port 1102 'R[u1,1,#3]=1,2,3' DB130.DBW0=7 M5.0=1\n")
     put.add_argument("assignments", nargs="+", metavar="VAR=VALUE",
                      help="e.g. SD43900[AX4]=0.3 (a value in the variable's unit: mm, degC, ...) or DB130.DBW0=7; "
-                          "all in one job")
+                          "up to 8 in one job")
     put.add_argument("--password", help="log in first (_N_LOGIN_), e.g. EVENING for machine data")
     put.add_argument("--real32", action="store_true", help="round REAL8 values through a 32-bit REAL, as a PLC")
     _connection_options(put)
@@ -367,12 +373,24 @@ async def _contexts(client: AsyncNckClient, results: list[ItemResult],
     return contexts
 
 
+def _jobs(items: list[T], verb: str) -> list[list[T]]:
+    """Items in jobs of at most 8 (NumVar of FB2/FB3, and what a controller takes in one job), in
+    order; -v says when there is more than one."""
+    jobs = [items[first:first + MAX_VARIABLES] for first in range(0, len(items), MAX_VARIABLES)]
+    if len(jobs) > 1:
+        log.info("%d names %s in %d jobs of up to %d (one job takes at most %d)", len(items), verb, len(jobs),
+                 MAX_VARIABLES, MAX_VARIABLES)
+    return jobs
+
+
 def run_get(args: argparse.Namespace) -> int:
     variables = [_parse(v) for v in args.variables]
 
     async def go() -> tuple[list[ItemResult], dict[int, str]]:
         async with _client(args) as client:
-            results = await client.get_items(*variables)
+            results = []
+            for chunk in _jobs(variables, "read"):
+                results += await client.get_items(*chunk)
             return await _with_edge_units(client, results), await _contexts(client, results)
 
     results, contexts = asyncio.run(go())
@@ -467,7 +485,9 @@ def run_put(args: argparse.Namespace) -> int:
         async with _client(args) as client:
             if args.password:
                 await client.login(args.password)
-            results = await client.put_items(pairs)
+            results = []
+            for chunk in _jobs(pairs, "written"):
+                results += await client.put_items(chunk)
             return results, await _contexts(client, results, [v for _, v in pairs])
 
     results, contexts = asyncio.run(go())

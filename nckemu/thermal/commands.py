@@ -20,8 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     simulate = subparsers.add_parser(
         "simulate", help="the model's prediction on a recording's inputs", formatter_class=raw,
         epilog="example: nckemu simulate --model fixtures/thermal/baseline_spindle_bed.toml "
-               "--inputs rec.csv --out sim.csv\n"
-               "  (rec.csv: t_s, temp_<sensor>_C for the model's sensors, spindle_rpm, pos_<axis>_mm, err_<axis>_um)\n")
+               "--inputs fixtures/thermal/runs/day1.csv --out sim.csv\n"
+               "  (a recording: t_s, temp_<sensor>_C for the model's sensors, spindle_rpm, pos_<axis>_mm, err_<axis>_um)\n")
     simulate.add_argument("--model", required=True, help="model TOML (a sum of named terms)")
     simulate.add_argument("--inputs", required=True, help="recording CSV with the model's sensors")
     simulate.add_argument("--out", help="write the recording with a sim_<axis>_um column (default: stdout)")

@@ -58,3 +58,21 @@ def test_pi_select_of_a_missing_program_says_no_such_program(port: int, capsys) 
     code = main(["pi", "--port", str(port), "_N_SELECT", "201", "/_N_MPF_DIR/_N_NOPE_MPF"])
     err = capsys.readouterr().err
     assert code == 1 and "no such program" in err and "syntax error" not in err
+
+
+def test_more_than_eight_names_go_in_several_jobs_and_v_says_so(port: int, capsys) -> None:
+    names = [f"R{number}" for number in range(11)]
+    assert main(["put", "--port", str(port), *[f"{name}={index}" for index, name in enumerate(names)]]) == 0
+    capsys.readouterr()
+    assert main(["-v", "get", "--port", str(port), *names]) == 0
+    out, err = capsys.readouterr()
+    assert [line.rsplit("= ", 1)[1] for line in out.splitlines()] == [f"{index}.000000" for index in range(11)]
+    assert "11 names read in 2 jobs of up to 8" in err
+
+
+def test_vars_searches_names_and_numbers(capsys) -> None:
+    assert main(["vars", "r00"]) == 0
+    out = capsys.readouterr().out
+    assert "r0035" in out and "r0021" in out and "R0..R99" in out  # the drive rows, and R0 it also names
+    assert main(["vars", "R"]) == 0
+    assert "r0035" not in capsys.readouterr().out                   # a row's own name lists that row
