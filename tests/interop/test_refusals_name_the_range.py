@@ -76,3 +76,16 @@ def test_vars_searches_names_and_numbers(capsys) -> None:
     assert "r0035" in out and "r0021" in out and "R0..R99" in out  # the drive rows, and R0 it also names
     assert main(["vars", "R"]) == 0
     assert "r0035" not in capsys.readouterr().out                   # a row's own name lists that row
+
+
+def test_trace_show_words_a_header_error_for_its_service(tmp_path, capsys) -> None:
+    from nckemu.clients import NckClient
+    from nckemu.errors import NckError
+
+    path = tmp_path / "pi.pcapng"
+    with EmulatorThread(record_path=path) as emu, NckClient("127.0.0.1", emu.port) as client:
+        with pytest.raises(NckError, match="no such program"):
+            client.pi_service("_N_SELECT", "201", "/_N_MPF_DIR/_N_NOPE_MPF")
+    assert main(["trace", "show", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "no such program or file (header error 0xD201)" in out and "syntax error" not in out
