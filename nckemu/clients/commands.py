@@ -227,6 +227,8 @@ async def _machine_context(client: AsyncNckClient, variable: Variable) -> str:
         if variable.address.area == NckArea.C:
             (count,) = await client.get("numChannels")
             count = int(count)
+            if 1 <= variable.address.unit <= count and spec.lines > 1 and kind is None:
+                return await _lines_context(client, spec, variable)
             return (f"this machine has {count} channel{'s' if count != 1 else ''}: C1"
                     f"{f'..C{count}' if count > 1 else ''} (NC) or u1{f'..{count}' if count > 1 else ''} (BTSS)")
     except (NckError, ValueError, TypeError):
@@ -279,6 +281,27 @@ async def _unit_context(client: AsyncNckClient, spec: Any, variable: Variable, w
         return f"this machine has no {what} answering {spec.name}"
     return (f"this machine has {len(units)} {what if len(units) == 1 else plural}: {_ranges(units, letter)} (NC) "
             f"or {_ranges(units, 'u')} (BTSS)")
+
+
+async def _lines_context(client: AsyncNckClient, spec: Any, variable: Variable) -> str:
+    """The lines this machine answers of a row (a machine file may give R fewer than the catalogue's
+    100): the highest line that reads, found by halving."""
+    from nckemu.catalogue.grammar import btss_base
+    from nckemu.catalogue.table import short_name
+
+    low, high = 0, spec.lines  # line ``low`` reads (0: none known), ``high + 1`` does not
+    while low < high:
+        middle = (low + high + 1) // 2
+        if (await _answering(client, [_at(variable, line=middle)]))[0]:
+            low = middle
+        else:
+            high = middle - 1
+    if low == 0:
+        return f"this machine answers no line of {spec.name}"
+    name = short_name(spec)
+    nc = f"R0..R{low - 1}" if spec.name == "R" else f"{name}[0..{low - 1}]"
+    return (f"this machine has {low} line{'s' if low != 1 else ''}: {nc} (NC) or "
+            f"{btss_base(spec)}[u{variable.address.unit},1..{low}] (BTSS)")
 
 
 def spec_first_line(variable: Variable) -> int:

@@ -89,3 +89,12 @@ def test_trace_show_words_a_header_error_for_its_service(tmp_path, capsys) -> No
     assert main(["trace", "show", str(path)]) == 0
     out = capsys.readouterr().out
     assert "no such program or file (header error 0xD201)" in out and "syntax error" not in out
+
+
+def test_an_r_parameter_past_this_machines_names_its_count(tmp_path, capsys) -> None:
+    machine = tmp_path / "few_r.toml"
+    machine.write_text('name = "few R"\n\n[[var]]\nname = "R"\nnumber = "R"\nmodule = 0x15\ncolumn = 1\n'
+                       'areas = ["C"]\ntype = "REAL8"\nlines = 50\nwrite_level = 7\n', encoding="utf-8")
+    with EmulatorThread(machine) as emu:
+        code, _, err = _get(emu.port, "R60", capsys)
+    assert code == 1 and "this machine has 50 lines: R0..R49 (NC) or /Channel/Parameter/R[u1,1..50] (BTSS)" in err
