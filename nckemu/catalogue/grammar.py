@@ -12,7 +12,7 @@ NC syntax, as in part programs: a number in brackets is an array index counted f
   MD32700[1,AX4]                      index 1 of axis 4
   actToolBasePos[AX4]  actSpeed[SP1]  a row whose lines are machine axes or spindles (table.LINE_KINDS):
                                       AXn / SPn is the line; actToolBasePos[3] is the same line by index
-  cuttEdgeParam[2,T1,col7,x25]        index 2, unit T1, column (T number) 7, 25 lines from there
+  cuttEdgeParam[2,T1,col7,x25]        index 2 (D1 P3), TO unit T1, tool T7 (the column), 25 lines from there
   NAME[C1,l2,x3]                      Cn/Nn/Bn/Tn/Vn/Hn: unit of that area; l: the line itself; x: lines
   SSP2 actSpeed[SP1,C1]               the display: number, name and brackets (pasted back, it reads)
 BTSS, the controller's paths and the NC-Var selector's lines: a number is a line counted from 1. A
@@ -20,7 +20,7 @@ BTSS, the controller's paths and the NC-Var selector's lines: a number is a line
   /Channel/Parameter/R[u1,5]  /Channel/Parameter/rpa[u1,5]  R[u1,5]   R4: unit 1, line 5
   R[u1,1,5]  R[u1,1,#5]               lines 1..5, or 5 lines from line 1: an array
   MD10000[u1,2]  TEMP_COMP_ABS_VALUE[u4]   by number or name
-  /Tool/Compensation/cuttEdgeParam[u1, c7, 3]   column (T number) 7, line 3
+  /Tool/Compensation/cuttEdgeParam[u1, c7, 3]   TO unit 1, tool T7 (the column), line 3 (D1 P3)
 SINUMERIK OPC UA node ids (``ns=2;s=`` in front is optional): the BTSS paths, and machine and setting
 data, in whose ``/NC/`` ids a number is the NC index counted from 0 (as the controller's MD and GUD ids):
   /NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]   /NC/_N_AX_TEA_ACX/$MA_ENC_COMP_ENABLE[1,u4]
