@@ -11,6 +11,7 @@ from collections.abc import Iterable
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckArea, NckType
 
+from .edges import EDGE_PARAMETER_UNITS, TOOL_OFFSETS, units_text
 from .grammar import NcNodeName, PlcNodeName, index_ranges, node_paths, parse_name
 from .table import READ_ONLY, VariableSpec, load_table, machine_table
 
@@ -105,6 +106,8 @@ def describe(spec: VariableSpec) -> dict[str, object]:
         "description": spec.description,
         "names": {"nc": ranges.nc, "nc_index": ranges.nc_index or ranges.nc, "btss": ranges.btss,
                   "opcua": ranges.node_id},
+        **({"parameter_units": {f"P{number}": unit for number, unit in sorted(EDGE_PARAMETER_UNITS.items())}}
+           if spec.name == TOOL_OFFSETS else {}),
     }
 
 
@@ -157,6 +160,9 @@ def run_vars(args: argparse.Namespace) -> int:
         where = "path or node id" if args.pattern.startswith("/") else "name or number"
         raise NckConfigError(f"no NCK variable {where} matches {args.pattern!r}")
     print(format_table(chosen))
+    if any(spec.name == TOOL_OFFSETS for spec in chosen):
+        print(f"{TOOL_OFFSETS}: Tn the TO unit, colN the tool, index (D-1)*numCuttEdgeParams + P-1; units by "
+              f"parameter P: {units_text()}; the others (type, edge position, H number, teeth) have none")
     print(f"{len(chosen)} of {len(specs)} variables; NC syntax counts indices from 0 (R4 = BTSS line 5), "
           f"AXn is an axis, SPn a spindle; r/w = access level to read / write (0 highest, 7 lowest, - read only)")
     return 0
