@@ -98,3 +98,26 @@ def test_an_r_parameter_past_this_machines_names_its_count(tmp_path, capsys) -> 
     with EmulatorThread(machine) as emu:
         code, _, err = _get(emu.port, "R60", capsys)
     assert code == 1 and "this machine has 50 lines: R0..R49 (NC) or /Channel/Parameter/R[u1,1..50] (BTSS)" in err
+
+
+def test_every_pi_service_of_the_table_words_its_refusal_for_the_service(port: int) -> None:
+    """Each NC PI service the controller offers, given a program, file or password that does not exist:
+    a refusal is worded for a PI service (protocol/codes.py), never Wireshark's generic text."""
+    from nckemu.catalogue.pi_services import NC_SERVICE_ARGUMENTS
+    from nckemu.clients import NckClient
+    from nckemu.errors import NckError
+    from nckemu.protocol.codes import SERVICE_HEADER_ERROR_TEXTS
+
+    worded = set(SERVICE_HEADER_ERROR_TEXTS[0x28].values())
+    refused = []
+    with NckClient("127.0.0.1", port) as client:
+        for service, count in NC_SERVICE_ARGUMENTS.items():
+            arguments = ["201", *["/_N_MPF_DIR/_N_NOPE_MPF"] * (count - 1)]
+            try:
+                client.pi_service(service, *arguments)
+            except NckError as exc:
+                text = str(exc)
+                assert any(wording in text for wording in worded), (service, text)
+                assert "syntax error in block name" not in text, (service, text)
+                refused.append(service)
+    assert {"_N_SELECT", "_N_F_DELE", "_N_LOGIN_"} <= set(refused)
