@@ -11,7 +11,7 @@ import argparse
 import json
 import os
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -84,10 +84,24 @@ def write_json(document: Any, path: str | None) -> None:
     if path == "-":
         sys.stdout.write(text)
         return
+    write_atomically(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+
+
+def write_atomically(path: str | Path, write: Callable[[Path], object]) -> None:
+    """A file written whole or not at all: ``write`` fills a temporary file beside ``path``, which
+    replaces ``path`` once it is complete (a failure or an interruption leaves the old file, or none)."""
+    target = Path(path)
+    if str(target) in ("-", "/dev/stdout") or (target.exists() and not target.is_file()):
+        write(target)  # a stream or a device: nothing to rename
+        return
+    temporary = target.with_name(f".{target.name}.partial")
     try:
-        Path(path).write_text(text, encoding="utf-8")
+        write(temporary)
+        temporary.replace(target)
     except OSError as exc:
-        raise NckConfigError(f"cannot write: {exc.strerror}", path=path) from None
+        raise NckConfigError(f"cannot write: {exc.strerror}", path=str(path)) from None
+    finally:
+        temporary.unlink(missing_ok=True)
 
 
 def progress(items: Iterable[T], *, total: int | None = None, description: str = "",

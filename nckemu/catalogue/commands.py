@@ -11,6 +11,7 @@ from collections.abc import Iterable
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckArea, NckType
 
+from .edges import EDGE_PARAMETER_UNITS, TOOL_OFFSETS, units_text
 from .grammar import NcNodeName, PlcNodeName, index_ranges, node_paths, parse_name
 from .table import READ_ONLY, VariableSpec, load_table, machine_table
 
@@ -105,6 +106,8 @@ def describe(spec: VariableSpec) -> dict[str, object]:
         "description": spec.description,
         "names": {"nc": ranges.nc, "nc_index": ranges.nc_index or ranges.nc, "btss": ranges.btss,
                   "opcua": ranges.node_id},
+        **({"parameter_units": {f"P{number}": unit for number, unit in sorted(EDGE_PARAMETER_UNITS.items())}}
+           if spec.name == TOOL_OFFSETS else {}),
     }
 
 
@@ -133,6 +136,12 @@ def format_table(specs: Iterable[VariableSpec]) -> str:
                      for row in rows)
 
 
+def _searchable(pattern: str, named: VariableSpec) -> bool:
+    """A plain word (letters and digits) that is not the row's own name or number: searched as well."""
+    word = pattern.strip()
+    return word.isalnum() and word.lower() not in (named.name.lower(), named.number.lower())
+
+
 def run_vars(args: argparse.Namespace) -> int:
     specs = machine_file_table(args.machine) if args.machine else load_table()
     # A catalogue number given whole (r0032: a drive parameter on every drive object that has it) lists
@@ -140,6 +149,10 @@ def run_vars(args: argparse.Namespace) -> int:
     numbered = [spec for spec in specs if spec.number.lower() == args.pattern.strip().lower()]
     named = None if numbered else pattern_row(args.pattern, specs)
     chosen = numbered or ([named] if named is not None else [spec for spec in specs if matches(spec, args.pattern)])
+    if named is not None and _searchable(args.pattern, named):
+        # a name that is also the start of other rows' numbers (r00: R parameter 0, and the drive
+        # parameters r0021, r0035, ...): the row it names, then every name and number containing it
+        chosen = [spec for spec in specs if spec is named or matches(spec, args.pattern)]
     if args.json:
         print(json.dumps([describe(spec) for spec in chosen], indent=1))
         return 0
@@ -147,6 +160,9 @@ def run_vars(args: argparse.Namespace) -> int:
         where = "path or node id" if args.pattern.startswith("/") else "name or number"
         raise NckConfigError(f"no NCK variable {where} matches {args.pattern!r}")
     print(format_table(chosen))
+    if any(spec.name == TOOL_OFFSETS for spec in chosen):
+        print(f"{TOOL_OFFSETS}: Tn the TO unit, colN the tool, index (D-1)*numCuttEdgeParams + P-1; units by "
+              f"parameter P: {units_text()}; the others (type, edge position, H number, teeth) have none")
     print(f"{len(chosen)} of {len(specs)} variables; NC syntax counts indices from 0 (R4 = BTSS line 5), "
           f"AXn is an axis, SPn a spindle; r/w = access level to read / write (0 highest, 7 lowest, - read only)")
     return 0

@@ -12,7 +12,7 @@ NC syntax, as in part programs: a number in brackets is an array index counted f
   MD32700[1,AX4]                      index 1 of axis 4
   actToolBasePos[AX4]  actSpeed[SP1]  a row whose lines are machine axes or spindles (table.LINE_KINDS):
                                       AXn / SPn is the line; actToolBasePos[3] is the same line by index
-  cuttEdgeParam[2,T1,col7,x25]        index 2, unit T1, column (T number) 7, 25 lines from there
+  cuttEdgeParam[2,T1,col7,x25]        index 2 (D1 P3), TO unit T1, tool T7 (the column), 25 lines from there
   NAME[C1,l2,x3]                      Cn/Nn/Bn/Tn/Vn/Hn: unit of that area; l: the line itself; x: lines
   SSP2 actSpeed[SP1,C1]               the display: number, name and brackets (pasted back, it reads)
 BTSS, the controller's paths and the NC-Var selector's lines: a number is a line counted from 1. A
@@ -20,7 +20,7 @@ BTSS, the controller's paths and the NC-Var selector's lines: a number is a line
   /Channel/Parameter/R[u1,5]  /Channel/Parameter/rpa[u1,5]  R[u1,5]   R4: unit 1, line 5
   R[u1,1,5]  R[u1,1,#5]               lines 1..5, or 5 lines from line 1: an array
   MD10000[u1,2]  TEMP_COMP_ABS_VALUE[u4]   by number or name
-  /Tool/Compensation/cuttEdgeParam[u1, c7, 3]   column (T number) 7, line 3
+  /Tool/Compensation/cuttEdgeParam[u1, c7, 3]   TO unit 1, tool T7 (the column), line 3 (D1 P3)
 SINUMERIK OPC UA node ids (``ns=2;s=`` in front is optional): the BTSS paths, and machine and setting
 data, whose ``/NC/`` ids count lines from 1 too (the controller's GUD ids do: ARRAY[0] is ARRAY[1]):
   /NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]   /NC/_N_AX_TEA_ACX/$MA_ENC_COMP_ENABLE[2,u4] (index 1)
@@ -45,6 +45,7 @@ from functools import lru_cache
 from nckemu.errors import NckNodeIdUnknown, NckNodeNotConfigured
 from nckemu.protocol.addresses import NckAddress, NckArea, S7Area
 
+from .edges import TOOL_OFFSETS
 from .table import (
     LINE_PREFIXES,
     R_PARAMETER_LINE_OFFSET,
@@ -255,6 +256,8 @@ def index_ranges(spec: VariableSpec) -> IndexRanges:
     ``actSpeed[SP1..SP8]`` / ``/Channel/Spindle/actSpeed[u1,1..8]``. Units other than axes are not
     ranged (unit 1 is the default; a machine has as many channels as it has)."""
     axis = NckArea.A in spec.areas
+    drive = bool(spec.areas & {NckArea.V, NckArea.H}) and not axis  # a drive's unit is the drive
+    drive_letter = NckArea(min(spec.areas)).name
     last_column = spec.column + spec.columns - 1
     columns = [f"col{spec.column}..{last_column}"] if spec.columns > 1 else []
     kind = line_kind(spec)
@@ -263,14 +266,14 @@ def index_ranges(spec: VariableSpec) -> IndexRanges:
         nc = f"R0..R{spec.lines - 1}"
     else:
         index = [f"0..{spec.lines - 1}"] if spec.lines > 1 else []
-        rest = (["AX1..AX31"] if axis else []) + columns
+        rest = (["AX1..AX31"] if axis else [f"{drive_letter}1..{drive_letter}{MAX_UNIT}"] if drive else []) + columns
         if kind is not None:
             prefix = LINE_PREFIXES[kind]
             nc_index = f"{short_name(spec)}[{','.join(index + rest)}]"
             index = [f"{prefix}1..{prefix}{spec.lines}"]
         parts = index + rest
         nc = f"{short_name(spec)}[{','.join(parts)}]" if parts else short_name(spec)
-    unit = f"u1..{MAX_UNIT}" if axis else "u1"
+    unit = f"u1..{MAX_UNIT}" if axis or drive else "u1"
     btss_parts = [unit] + ([f"c{spec.column}..{last_column}"] if spec.columns > 1 else []) + \
         ([f"1..{spec.lines}"] if spec.lines > 1 else [])
     btss = f"{btss_base(spec)}[{','.join(btss_parts)}]"
@@ -443,7 +446,7 @@ def _resolve_nc(text: str, spec: VariableSpec,
                 tokens: list[tuple[str, int]]) -> tuple[int, int, int, int, int, bool]:
     area, unit, column, count = min(spec.areas), 1, spec.column, 1
     line: int | None = None
-    unit_given = False
+    unit_given = column_given = False
     kind = line_kind(spec)
 
     def set_line(value: int, what: str) -> None:
@@ -486,7 +489,7 @@ def _resolve_nc(text: str, spec: VariableSpec,
                                            f"{wanted.name}: its unit is written {letter}n")
             set_unit(wanted, number)
         elif prefix == "col":
-            column = number
+            column, column_given = number, True
         elif prefix == "x":
             count = number
         elif prefix in ("u", "#"):
@@ -494,7 +497,25 @@ def _resolve_nc(text: str, spec: VariableSpec,
         else:
             raise NckNodeIdUnknown(f"{text!r}: cannot read index part {prefix}{number} "
                                    f"({_vocabulary('nc')})")
+    if spec.columns > 1 and not column_given:
+        # as an axis variable needs its axis: the column is the tool, never silently the first one
+        raise NckNodeNotConfigured(f"{text!r}: {spec.name} needs its {_column_word(spec)}: colN, e.g. "
+                                   f"{spec.name}[2,T1,col{spec.column}] ({_column_meaning(spec)}); it takes "
+                                   f"{index_ranges(spec)}")
     return area, unit, column, 1 if line is None else line, count, count > 1
+
+
+def _column_word(spec: VariableSpec) -> str:
+    return "tool" if spec.name == TOOL_OFFSETS else "column"
+
+
+def _column_meaning(spec: VariableSpec) -> str:
+    """What each index of a row with several columns means (the tool offsets: TO unit, tool, edge and
+    parameter; catalogue/edges.py)."""
+    if spec.name == TOOL_OFFSETS:
+        return ("index (D-1)*numCuttEdgeParams + P-1 for parameter P of edge D, Tn the TO unit, colN the "
+                "tool's T number")
+    return f"colN the column {spec.column}..{spec.column + spec.columns - 1}"
 
 
 def _resolve_btss(text: str, spec: VariableSpec, tokens: list[tuple[str, int]]) -> tuple[int, int, int, int, int, bool]:
@@ -515,6 +536,9 @@ def _resolve_btss(text: str, spec: VariableSpec, tokens: list[tuple[str, int]]) 
                                    f"{_vocabulary('btss')}")
     if len(numbers) > 2 or (count is not None and len(numbers) != 1):
         raise NckNodeIdUnknown(f"{text!r}: expected [uN, line], [uN, first, last] or [uN, first, #count]")
+    if spec.columns > 1 and tokens and not any(prefix == "c" for prefix, _ in tokens):
+        raise NckNodeNotConfigured(f"{text!r}: {spec.name} needs its {_column_word(spec)}: cN, e.g. "
+                                   f"{btss_base(spec)}[u1,c{spec.column},3] ({_column_meaning(spec)})")
     line = numbers[0] if numbers else 1
     if len(numbers) == 2:
         count = numbers[1] - line + 1
@@ -538,9 +562,11 @@ def _check(text: str, spec: VariableSpec, area: int, unit: int, column: int, lin
                                    f"{index_ranges(spec)}")
     if not spec.column <= column < spec.column + spec.columns:
         raise NckNodeNotConfigured(f"{text!r}: {spec.name} has columns {spec.column}.."
-                                   f"{spec.column + spec.columns - 1}")
-    if not 0 <= unit <= MAX_UNIT:
-        raise NckNodeNotConfigured(f"{text!r}: unit {unit} outside 0..{MAX_UNIT}")
+                                   f"{spec.column + spec.columns - 1} ({_column_meaning(spec)})")
+    if not 1 <= unit <= MAX_UNIT:
+        what = "TO unit" if spec.name == TOOL_OFFSETS else "unit"
+        raise NckNodeNotConfigured(f"{text!r}: {what} {unit} outside 1..{MAX_UNIT} (units count from 1): "
+                                   f"{spec.name} takes {index_ranges(spec)}")
     if area not in spec.areas:
         raise NckNodeNotConfigured(f"{text!r}: {spec.name} is an area {_where(spec)} variable")
 

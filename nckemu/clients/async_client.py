@@ -45,7 +45,12 @@ from nckemu.errors import (
 )
 from nckemu.protocol import pi, s7
 from nckemu.protocol.addresses import NckType, S7AnyAddress, S7TransportSize
-from nckemu.protocol.codes import HEADER_ERROR_TEXTS, describe_return_code
+from nckemu.protocol.codes import (
+    HEADER_ERROR_TEXTS,
+    SERVICE_HEADER_ERROR_TEXTS,
+    describe_return_code,
+    describe_service_header_error,
+)
 from nckemu.protocol.errors import NckProtocolError
 from nckemu.protocol.values import NCK_TRANSPORT_SIZE, decode_nck_values, encode_nck_values
 
@@ -179,9 +184,12 @@ class AsyncNckClient:
         answer = s7.parse_pdu(bytes(raw))
         if answer.error_class or answer.error_code:
             code = (answer.error_class << 8) | answer.error_code
-            text = HEADER_ERROR_TEXTS.get(code, "an error without a known text")
+            if code in SERVICE_HEADER_ERROR_TEXTS.get(parameter[0], {}):
+                text = describe_service_header_error(parameter[0], answer.error_class, answer.error_code)
+            else:
+                text = f"{HEADER_ERROR_TEXTS.get(code, 'an error without a known text')} (header error 0x{code:04X})"
             raise service_error_for(answer.error_class, answer.error_code,
-                                    f"the controller refused the job: {text} (header error 0x{code:04X})")
+                                    f"the controller refused the job: {text}")
         if answer.parameter[:1] != parameter[:1]:
             raise NckProtocolError(f"answer to function 0x{parameter[0]:02X} carries function "
                                    f"0x{answer.parameter[0] if answer.parameter else 0:02X}")

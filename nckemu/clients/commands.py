@@ -5,19 +5,24 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import logging
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
+from nckemu.catalogue.edges import TOOL_OFFSETS
 from nckemu.catalogue.names import PlcVariable, Variable, parse_item
 from nckemu.cliutil import default_host, default_port, port_number
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import NckArea, NckType
 from nckemu.protocol.codes import describe_return_code
 
-from .async_client import AsyncNckClient, ItemResult
+from .async_client import MAX_VARIABLES, AsyncNckClient, ItemResult
 from .channel840c import Channel840C
+
+log = logging.getLogger(__name__)
+T = TypeVar("T")
 
 
 def _connection_options(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +46,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
              "  S7 names PLC memory: DB130.DBW0, M5.0, MB10, PIW420, DB130.DBD0:REAL")
     get = subparsers.add_parser(
         "get", help="read NCK variables (FB2 GET) and PLC memory (S7ANY)", formatter_class=raw,
-        description=f"Read 1..8 NCK variables or PLC addresses in one job.\n\n{names}",
+        description=f"Read NCK variables or PLC addresses: up to 8 in one job (FB2's NumVar), more in several "
+                    f"jobs one after the other (-v says so).\n\n{names}",
         epilog="examples:\n  nckemu get --port 1102 SD43900[AX4] SD43910[AX4] R5\n"
                "  nckemu get --port 1102 '/Channel/State/progStatus[u1]' "
                "'/NC/_N_AX_SEA_ACX/$SA_TEMP_COMP_ABS_VALUE[u4]'\n"
@@ -55,13 +61,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
     put = subparsers.add_parser(
         "put", help="write NCK variables and PLC memory in one job (FB3 PUT, S7ANY)", formatter_class=raw,
-        description=f"Write 1..8 NCK variables or PLC addresses in one job; an array takes comma-separated "
-                    f"values.\n\n{names}",
+        description=f"Write NCK variables or PLC addresses: up to 8 in one job (FB3's NumVar), more in several "
+                    f"jobs one after the other (-v says so; a refused item does not stop the later jobs); an "
+                    f"array takes comma-separated values.\n\n{names}",
         epilog="examples:\n  nckemu put --port 1102 SD43900[AX4]=0.3 SD43920[AX4]=0\n"
                "  nckemu put --port 1102 'R[u1,1,#3]=1,2,3' DB130.DBW0=7 M5.0=1\n")
     put.add_argument("assignments", nargs="+", metavar="VAR=VALUE",
                      help="e.g. SD43900[AX4]=0.3 (a value in the variable's unit: mm, degC, ...) or DB130.DBW0=7; "
-                          "all in one job")
+                          "up to 8 in one job")
     put.add_argument("--password", help="log in first (_N_LOGIN_), e.g. EVENING for machine data")
     put.add_argument("--real32", action="store_true", help="round REAL8 values through a 32-bit REAL, as a PLC")
     _connection_options(put)
@@ -213,9 +220,118 @@ async def _machine_context(client: AsyncNckClient, variable: Variable) -> str:
                 return f"channel {variable.address.unit} has no spindle"
             return (f"channel {variable.address.unit} has {count} spindle{'s' if count > 1 else ''}: "
                     f"SP1{f'..SP{count}' if count > 1 else ''}")
+        if spec.name == TOOL_OFFSETS:
+            return await _tool_context(client, variable)
+        if variable.address.area in (NckArea.V, NckArea.H):
+            return await _unit_context(client, spec, variable, "drive", "drives")
+        if variable.address.area == NckArea.C:
+            (count,) = await client.get("numChannels")
+            count = int(count)
+            if 1 <= variable.address.unit <= count and spec.lines > 1 and kind is None:
+                return await _lines_context(client, spec, variable)
+            return (f"this machine has {count} channel{'s' if count != 1 else ''}: C1"
+                    f"{f'..C{count}' if count > 1 else ''} (NC) or u1{f'..{count}' if count > 1 else ''} (BTSS)")
     except (NckError, ValueError, TypeError):
         return ""
     return ""
+
+
+PROBED_UNITS = 31        # a unit's five bits
+PROBED_TOOLS = 32        # T numbers probed for a refused tool (a real TO unit may have more)
+
+
+def _spans(numbers: list[int]) -> list[tuple[int, int]]:
+    spans: list[tuple[int, int]] = []
+    for number in numbers:
+        if spans and spans[-1][1] == number - 1:
+            spans[-1] = (spans[-1][0], number)
+        else:
+            spans.append((number, number))
+    return spans
+
+
+def _ranges(numbers: list[int], prefix: str) -> str:
+    """``V1..V4`` / ``col1, col2``: numbers as the fewest ranges."""
+    return ", ".join(f"{prefix}{a}" if a == b else f"{prefix}{a}..{prefix}{b}" for a, b in _spans(numbers))
+
+
+async def _answering(client: AsyncNckClient, variables: list[Variable]) -> list[bool]:
+    """Which of ``variables`` the controller answers, 8 to a job (what a tool would probe by hand)."""
+    answered: list[bool] = []
+    for first in range(0, len(variables), MAX_VARIABLES):
+        results = await client.get_items(*variables[first:first + MAX_VARIABLES])
+        answered += [result.ok for result in results]
+    return answered
+
+
+def _at(variable: Variable, **changes: int) -> Variable:
+    from dataclasses import replace
+
+    address = replace(variable.address, line_count=1, **changes)
+    return replace(variable, address=address)
+
+
+async def _unit_context(client: AsyncNckClient, spec: Any, variable: Variable, what: str, plural: str) -> str:
+    """The units (drives) of an area that answer the same variable: ``drives V1..V4 (NC) or u1..4``."""
+    probes = [_at(variable, unit=unit, line=spec_first_line(variable)) for unit in range(1, PROBED_UNITS + 1)]
+    units = [unit for unit, ok in zip(range(1, PROBED_UNITS + 1), await _answering(client, probes), strict=True)
+             if ok]
+    letter = NckArea(variable.address.area).name
+    if not units:
+        return f"this machine has no {what} answering {spec.name}"
+    return (f"this machine has {len(units)} {what if len(units) == 1 else plural}: {_ranges(units, letter)} (NC) "
+            f"or {_ranges(units, 'u')} (BTSS)")
+
+
+async def _lines_context(client: AsyncNckClient, spec: Any, variable: Variable) -> str:
+    """The lines this machine answers of a row (a machine file may give R fewer than the catalogue's
+    100): the highest line that reads, found by halving."""
+    from nckemu.catalogue.grammar import btss_base
+    from nckemu.catalogue.table import short_name
+
+    low, high = 0, spec.lines  # line ``low`` reads (0: none known), ``high + 1`` does not
+    while low < high:
+        middle = (low + high + 1) // 2
+        if (await _answering(client, [_at(variable, line=middle)]))[0]:
+            low = middle
+        else:
+            high = middle - 1
+    if low == 0:
+        return f"this machine answers no line of {spec.name}"
+    name = short_name(spec)
+    nc = f"R0..R{low - 1}" if spec.name == "R" else f"{name}[0..{low - 1}]"
+    return (f"this machine has {low} line{'s' if low != 1 else ''}: {nc} (NC) or "
+            f"{btss_base(spec)}[u{variable.address.unit},1..{low}] (BTSS)")
+
+
+def spec_first_line(variable: Variable) -> int:
+    return max(1, variable.address.line)
+
+
+async def _tool_context(client: AsyncNckClient, variable: Variable) -> str:
+    """Which TO unit, tool or edge a refused tool offset lacks, with the machine's tools and edges."""
+    from nckemu.catalogue.edges import describe_line
+
+    address = variable.address
+    (per_edge,) = await client.get("numCuttEdgeParams")
+    per_edge = max(1, int(per_edge))
+    probes = [_at(variable, unit=1, column=tool, line=1) for tool in range(1, PROBED_TOOLS + 1)]
+    tools = [tool for tool, ok in zip(range(1, PROBED_TOOLS + 1), await _answering(client, probes), strict=True)
+             if ok]
+    listed = (f"its tools among T1..T{PROBED_TOOLS} are {_ranges(tools, 'col')} (NC) or "
+              f"{_ranges(tools, 'c')} (BTSS)") if tools else f"it has no tools among T1..T{PROBED_TOOLS}"
+    if address.unit != 1:
+        return (f"no TO unit {address.unit}: T{address.unit} names the TO unit, not the tool (the tool is colN); "
+                f"this machine has TO unit 1 (T1 / u1), where {listed}")
+    if address.column not in tools:
+        return f"no tool {address.column} (col{address.column} / c{address.column}) in TO unit 1: {listed}"
+    edge_probes = [_at(variable, line=(edge - 1) * per_edge + 1) for edge in range(1, 10)]
+    edges = [edge for edge, ok in zip(range(1, 10), await _answering(client, edge_probes), strict=True) if ok]
+    last = len(edges) * per_edge
+    asked = describe_line(address.line + address.line_count - 1, per_edge)
+    return (f"tool {address.column} has {len(edges)} cutting edge{'s' if len(edges) != 1 else ''} "
+            f"({_ranges(edges, 'D')}) of {per_edge} parameters: lines 1..{last} (BTSS) or indices 0..{last - 1} "
+            f"(NC); {asked} is past them")
 
 
 def _record(result: ItemResult) -> dict[str, Any]:
@@ -280,16 +396,53 @@ async def _contexts(client: AsyncNckClient, results: list[ItemResult],
     return contexts
 
 
+def _jobs(items: list[T], verb: str) -> list[list[T]]:
+    """Items in jobs of at most 8 (NumVar of FB2/FB3, and what a controller takes in one job), in
+    order; -v says when there is more than one."""
+    jobs = [items[first:first + MAX_VARIABLES] for first in range(0, len(items), MAX_VARIABLES)]
+    if len(jobs) > 1:
+        log.info("%d names %s in %d jobs of up to %d (one job takes at most %d)", len(items), verb, len(jobs),
+                 MAX_VARIABLES, MAX_VARIABLES)
+    return jobs
+
+
 def run_get(args: argparse.Namespace) -> int:
     variables = [_parse(v) for v in args.variables]
 
     async def go() -> tuple[list[ItemResult], dict[int, str]]:
         async with _client(args) as client:
-            results = await client.get_items(*variables)
-            return results, await _contexts(client, results)
+            results = []
+            for chunk in _jobs(variables, "read"):
+                results += await client.get_items(*chunk)
+            return await _with_edge_units(client, results), await _contexts(client, results)
 
     results, contexts = asyncio.run(go())
     return _print_results(results, args.json, contexts=contexts)
+
+
+async def _with_edge_units(client: AsyncNckClient, results: list[ItemResult]) -> list[ItemResult]:
+    """Tool offsets carry each parameter's own unit (mm for lengths and radii, none for the type or a
+    count), which needs the machine's numCuttEdgeParams to tell the parameter from the line."""
+    from dataclasses import replace
+
+    from nckemu.catalogue.edges import STANDARD_EDGE_PARAMS, lines_unit
+
+    edges = [index for index, result in enumerate(results)
+             if isinstance(result.variable, Variable) and (spec := _spec(result.variable)) is not None
+             and spec.name == TOOL_OFFSETS]
+    if not edges:
+        return results
+    try:
+        (per_edge,) = await client.get("numCuttEdgeParams")
+        per_edge = max(1, int(per_edge))
+    except (NckError, ValueError, TypeError):
+        per_edge = STANDARD_EDGE_PARAMS
+    changed = list(results)
+    for index in edges:
+        variable = results[index].variable
+        unit = lines_unit(variable.address.line, variable.address.line_count, per_edge)
+        changed[index] = replace(results[index], variable=replace(variable, unit_of_measure=unit))
+    return changed
 
 
 _INTEGER_RANGES = {NckType.BOOL: (0, 1), NckType.BYTE: (0, 0xFF), NckType.WORD: (0, 0xFFFF),
@@ -355,7 +508,9 @@ def run_put(args: argparse.Namespace) -> int:
         async with _client(args) as client:
             if args.password:
                 await client.login(args.password)
-            results = await client.put_items(pairs)
+            results = []
+            for chunk in _jobs(pairs, "written"):
+                results += await client.put_items(chunk)
             return results, await _contexts(client, results, [v for _, v in pairs])
 
     results, contexts = asyncio.run(go())

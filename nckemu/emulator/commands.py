@@ -65,7 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.set_defaults(func=run_serve)
 
     machine = subparsers.add_parser(
-        "machine", help="show a machine: axes, sensors, PLC memory, passwords",
+        "machine", help="show a machine: axes, drives, tools, sensors, PLC memory, access, OPC UA",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  nckemu machine show\n  nckemu machine show --machine fixtures/machines/bed_ramp.toml\n")
     machine_commands = machine.add_subparsers(dest="machine_command", metavar="COMMAND")
@@ -80,38 +80,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 
 def run_machine_show(args: argparse.Namespace) -> int:
-    from nckemu.emulator.machine.machine_file import load_machine
-    from nckemu.emulator.machine.plc.memory import AREA_BYTES
-    from nckemu.protocol.db41 import CHANNEL_DB
+    from nckemu.emulator.machine_check import checked_machine
+    from nckemu.emulator.machine_show import machine_document, print_machine
 
-    machine = load_machine(args.machine)
-    blocks = dict(sorted({**machine.data_blocks, CHANNEL_DB: machine.data_blocks.get(CHANNEL_DB, 64)}.items()))
-    document = {
-        "name": machine.name, "source": machine.source,
-        "axes": [{"number": a.number, "name": a.name, "travel_mm": [a.travel_min_mm, a.travel_max_mm],
-                  "rotary": a.rotary, "spindle": a.spindle, "referenced": a.referenced} for a in machine.axes],
-        "sensors": [{"name": s.name, "plc_input": s.plc_input, "temperature_C": s.temperature_C}
-                    for s in machine.sensors],
-        "plc": {"data_blocks": {str(n): size for n, size in blocks.items()},
-                "inputs_bytes": AREA_BYTES, "outputs_bytes": AREA_BYTES, "flags_bytes": AREA_BYTES},
-        "passwords": machine.passwords, "connection_access_level": machine.connection_access_level,
-    }
+    # Built as serve builds it: what serve refuses, show refuses (file, line, field).
+    emulator, opcua = checked_machine(args.machine)
+    document = machine_document(emulator.machine, opcua)
     if args.json:
         print(json.dumps(document))
         return 0
-    print(f"machine '{machine.name}' ({machine.source})")
-    for axis in machine.axes:
-        kind = "spindle" if axis.spindle else "rotary" if axis.rotary else \
-            f"travel {axis.travel_min_mm:g}..{axis.travel_max_mm:g} mm"
-        print(f"  axis {axis.number} {axis.name}: {kind}{'' if axis.referenced else ', not referenced'}")
-    for sensor in machine.sensors:
-        print(f"  sensor {sensor.name}: {sensor.plc_input or 'no PLC input'}, {sensor.temperature_C:g} degC")
-    print("  PLC data blocks (number: bytes): "
-          + ", ".join(f"DB{n}: {size}" for n, size in blocks.items()) + "; any other DB does not exist")
-    print(f"  PLC inputs, outputs, flags: {AREA_BYTES} bytes each (I/Q/M 0..{AREA_BYTES - 1})")
-    print(f"  access level of a new connection: {machine.connection_access_level}; passwords: "
-          + ", ".join(f"{name} -> {level}" for name, level in machine.passwords.items()))
-    print("  NCK variables: the variable table (README, Variables); e.g. nckemu get SD43900[AX4]")
+    print_machine(document)
     return 0
 
 
@@ -162,6 +140,10 @@ def run_serve(args: argparse.Namespace, *, clock: Clock | None = None, faces: Se
         built.append(WebFace(emulator, server, host=args.host, port=args.http))
     if getattr(args, "opcua", None) is not None:
         from nckemu.emulator.faces.opcua import OpcUaFace
+        from nckemu.emulator.machine_check import opcua_settings
+
+        # the [opcua] table refused with its line, as machine show refuses it (one path for both)
+        opcua_settings(emulator.machine)
 
         built.append(OpcUaFace(emulator, args.host, args.opcua))
     try:

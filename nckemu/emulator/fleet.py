@@ -13,6 +13,7 @@ fault on one machine's connection closes that connection only.
 
 from __future__ import annotations
 
+import asyncio
 import errno
 import ipaddress
 import logging
@@ -370,7 +371,9 @@ class Fleet:
 
     @staticmethod
     async def _stop(machines: list[RunningMachine]) -> None:
-        for machine in machines:
+        # All at once: an OPC UA face takes about 0.7 s to stop (asyncua waits for its sessions and
+        # subscriptions to end), so one after another 20 machines took 10-15 s after SIGTERM.
+        async def stop_one(machine: RunningMachine) -> None:
             try:
                 if machine.opcua is not None:
                     await machine.opcua.stop()
@@ -379,3 +382,5 @@ class Fleet:
                 await machine.server.stop()
             except Exception:  # noqa: BLE001 - a machine's fault must not leave the others running
                 log.exception("machine %r did not stop cleanly", machine.entry.name)
+
+        await asyncio.gather(*(stop_one(machine) for machine in machines))

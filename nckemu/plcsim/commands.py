@@ -9,7 +9,7 @@ import logging
 import math
 from typing import Any
 
-from nckemu.cliutil import add_json_options, check_output, working
+from nckemu.cliutil import add_json_options, check_output, working, write_atomically
 from nckemu.errors import NckConfigError
 
 
@@ -121,8 +121,8 @@ def write_stubs(args: argparse.Namespace) -> int:
     try:
         target.mkdir(parents=True, exist_ok=True)
         written = []
-        for source in STUB_SOURCES:
-            shutil.copyfile(source, target / source.name)
+        for source in STUB_SOURCES:  # each whole or not at all
+            write_atomically(target / source.name, lambda path, source=source: shutil.copyfile(source, path))
             written.append(str(target / source.name))
     except OSError as exc:
         raise NckConfigError(f"cannot write the stub sources: {exc.strerror}",

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from nckemu.cliutil import write_atomically
 from nckemu.emulator.machine.machine_file import Axis, Machine, load_machine
 from nckemu.thermal import stats
 from nckemu.thermal.discover import Discovery, discover
@@ -316,7 +317,7 @@ program: {result.heldout_rms_after_um:.3f} um on held-out blocks ({result.rms_af
 <table><tr><th>block</th><th>your program [um RMS]</th><th>generated [um RMS]</th></tr>{folds}</table>
 <details><summary>Generated STL</summary><pre>{html.escape(result.program.text)}</pre></details>
 </body></html>"""
-    Path(path).write_text(page, encoding="utf-8")
+    write_atomically(path, lambda target: target.write_text(page, encoding="utf-8"))
 
 
 def _parameters_text(parameters: dict[str, object]) -> str:

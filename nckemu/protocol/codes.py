@@ -7,7 +7,8 @@ from enum import IntEnum
 from nckemu.errors import HeaderError, ReturnCode
 
 __all__ = ["HeaderError", "ReturnCode", "ErrorClass", "AREA_LETTERS", "NCK_MODULE_NAMES", "RETURN_CODE_TEXTS", "HEADER_ERROR_TEXTS",
-           "describe_return_code", "describe_header_error", "describe_module"]
+           "describe_return_code", "describe_header_error", "describe_module",
+           "SERVICE_HEADER_ERROR_TEXTS", "describe_service_header_error"]
 
 
 RETURN_CODE_TEXTS: dict[int, str] = {
@@ -79,3 +80,41 @@ def describe_header_error(error_class: int, error_code: int) -> str:
 
 def describe_module(module: int) -> str:
     return NCK_MODULE_NAMES.get(module, f"0x{module:02X}")
+
+
+# What a header error means to the service that got it. Wireshark's texts (above) are one per code
+# across every service; a controller reuses some codes with a service's own meaning: 0xD201, "syntax
+# error in block name", is how a PI service or a file transfer says the program or file named does not
+# exist. The function codes: 0x28 PI service; 0x1A..0x1C download, 0x1D..0x1F upload (files).
+_PI_TEXTS: dict[int, str] = {
+    HeaderError.BLOCK_NAME_SYNTAX: "no such program or file",
+    HeaderError.PI_PARAMETER_SYNTAX: "wrong number or form of arguments for this PI service",
+    HeaderError.WRONG_PASSWORD: "incorrect password entered",
+    HeaderError.ACCESS_REFUSED: "the connection's access level is too low for this service (log in first)",
+    HeaderError.OBJECT_STATE: "the service cannot run now: the program or file is in use (running or selected)",
+    HeaderError.NOT_IMPLEMENTED: "service not implemented on the module: the controller has no such PI service",
+    HeaderError.WRONG_FRAMES: "the PI job does not parse (malformed parameters)",
+    HeaderError.INVALID_SEQUENCE: "a job before setup communication",
+    HeaderError.NO_RESOURCES: "more jobs outstanding than the connection allows",
+}
+_FILE_TEXTS: dict[int, str] = {
+    HeaderError.BLOCK_NAME_SYNTAX: "no such file (or a file name the controller cannot read)",
+    HeaderError.ACCESS_REFUSED: "access to the file refused (access level too low)",
+    HeaderError.OBJECT_STATE: "the file is in use (running or selected) or the transfer is in the wrong step",
+    HeaderError.NOT_IMPLEMENTED: "the controller does not offer this file transfer",
+    HeaderError.WRONG_FRAMES: "the transfer job does not parse (malformed parameters)",
+    HeaderError.INVALID_SEQUENCE: "a job before setup communication, or a transfer step out of order",
+    HeaderError.NO_RESOURCES: "more jobs or transfers outstanding than the controller allows",
+}
+SERVICE_HEADER_ERROR_TEXTS: dict[int, dict[int, str]] = {
+    0x28: _PI_TEXTS, **dict.fromkeys((0x1A, 0x1B, 0x1C, 0x1D, 0x1E, 0x1F), _FILE_TEXTS),
+}
+
+
+def describe_service_header_error(function: int, error_class: int, error_code: int) -> str:
+    """A header error worded for the service (S7 function code) that got it, then Wireshark's code."""
+    combined = (error_class << 8) | error_code
+    text = SERVICE_HEADER_ERROR_TEXTS.get(function, {}).get(combined)
+    if text is None:
+        return describe_header_error(error_class, error_code)
+    return f"{text} (header error 0x{combined:04X})"

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from nckemu.cliutil import check_output, working, write_json
+from nckemu.cliutil import check_output, working, write_atomically, write_json
 from nckemu.errors import NckConfigError
 
 # numpy/scipy and the modules on them load when a command runs, not for every `nckemu` call
@@ -20,8 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     simulate = subparsers.add_parser(
         "simulate", help="the model's prediction on a recording's inputs", formatter_class=raw,
         epilog="example: nckemu simulate --model fixtures/thermal/baseline_spindle_bed.toml "
-               "--inputs rec.csv --out sim.csv\n"
-               "  (rec.csv: t_s, temp_<sensor>_C for the model's sensors, spindle_rpm, pos_<axis>_mm, err_<axis>_um)\n")
+               "--inputs fixtures/thermal/runs/day1.csv --out sim.csv\n"
+               "  (a recording: t_s, temp_<sensor>_C for the model's sensors, spindle_rpm, pos_<axis>_mm, err_<axis>_um)\n")
     simulate.add_argument("--model", required=True, help="model TOML (a sum of named terms)")
     simulate.add_argument("--inputs", required=True, help="recording CSV with the model's sensors")
     simulate.add_argument("--out", help="write the recording with a sim_<axis>_um column (default: stdout)")
@@ -80,11 +80,13 @@ def run_simulate(args: argparse.Namespace) -> int:
     check_output(args.out, "--out")
     model = load_model(args.model)
     recording = load_recording(args.inputs)
-    prediction = model.predict_um(recording)
+    # the model's sums carry float noise past any meaning (0.06899999999999551 um): 12 digits are a
+    # femtometre at a millimetre's error, and the file then says 0.069
+    prediction = np.array([float(f"{value:.12g}") for value in model.predict_um(recording).tolist()])
     out = Recording(recording.source, recording.t_s, recording.temperatures_C, recording.spindle_rpm,
                     recording.positions_mm, recording.errors_um, {**recording.simulated_um, model.axis: prediction})
     if args.out:
-        write_recording(args.out, out)
+        write_atomically(args.out, lambda path: write_recording(path, out))
     if args.json:
         print(json.dumps({"axis": model.axis, "samples": len(prediction), "min_um": float(np.min(prediction)),
                           "max_um": float(np.max(prediction)), "out": args.out}))
@@ -180,7 +182,8 @@ def _write_model_and_json(args: argparse.Namespace, document: dict[str, Any], re
     from .terms import render_model
 
     if args.write_model:
-        Path(args.write_model).write_text(note + render_model(result.improved_model), encoding="utf-8")
+        text = note + render_model(result.improved_model)
+        write_atomically(args.write_model, lambda path: path.write_text(text, encoding="utf-8"))
     if args.json:
         print(json.dumps(document))
         return None

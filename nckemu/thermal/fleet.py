@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from nckemu.cliutil import write_atomically
 from nckemu.errors import NckConfigError, NckError
 
 RUN_SUFFIXES = (".csv", ".parquet", ".pq")
@@ -286,6 +287,6 @@ a worker was lost.</p>
 {''.join(machine_rows)}</table></body></html>
 """
     try:
-        Path(path).write_text(page, encoding="utf-8")
+        write_atomically(path, lambda target: target.write_text(page, encoding="utf-8"))
     except OSError as exc:
         raise NckConfigError(f"cannot write: {exc.strerror}", path=str(path)) from None

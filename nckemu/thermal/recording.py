@@ -206,8 +206,20 @@ def sniff_csv(text: str) -> CsvDialect:
                 comma += 1
             elif _POINT_DECIMAL.match(cell):
                 point += 1
-    decimal = "," if comma and not point else "." if point else None
+    # the mark most number cells show: one cell written the other way must not flip the file (it is the
+    # one a reader then names, decimal_mark_breaks)
+    decimal = "," if comma > point else "." if point else None
     return CsvDialect(separator, decimal)
+
+
+def decimal_mark_breaks(text: str, decimal: str | None) -> str | None:
+    """The decimal mark a number cell writes where the file's sniffed mark is the other one (``.`` in
+    a ``,`` file or the reverse); None when the cell keeps the convention or shows no fraction."""
+    if decimal == "," and _POINT_DECIMAL.match(text):
+        return "."
+    if decimal == "." and _COMMA_DECIMAL.match(text):
+        return ","
+    return None
 
 
 def parse_number(text: str, decimal: str | None) -> float | None:

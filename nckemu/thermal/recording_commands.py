@@ -37,6 +37,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     imports.add_argument("--out", required=True, metavar="DIR", help="directory for one file per run (created)")
     imports.add_argument("--format", choices=("parquet", "csv"), default="parquet",
                          help="the files written (parquet)")
+    imports.add_argument("--keep-going", action="store_true",
+                         help="write the good runs when some fail (default: all or nothing; the summary says "
+                              "which failed and why)")
     imports.add_argument("--json", action="store_true", help="print the runs written as JSON on stdout")
     imports.set_defaults(func=run_import)
     check = commands.add_parser("check", help="what a recording holds, as the tools understand it",
@@ -82,7 +85,6 @@ def _run_line(document: dict[str, Any]) -> str:
 
 
 def run_import(args: argparse.Namespace) -> int:
-    from .recording import write_recording
     from .recording_map import load_map, read_sources, safe_file_name
 
     recording_map = load_map(args.map)
@@ -98,40 +100,71 @@ def run_import(args: argparse.Namespace) -> int:
             raise NckConfigError(f"runs {names[file_name.lower()]!r} and {run.name!r} would both be written to "
                                  f"{file_name}.{args.format}", path=run.file)
         names[file_name.lower()] = run.name
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise NckConfigError(f"cannot create the directory: {exc.strerror}", path=args.out) from None
-    documents = []
-    failed = 0
-    for run in runs:
-        document = _run_document(run)
-        if run.recording is not None:
-            target = out / f"{safe_file_name(run.name)}.{args.format}"
-            partial = target.with_name(f".{target.name}.partial")
-            try:
-                write_recording(partial, run.recording)
-                partial.replace(target)
-            except OSError as exc:
-                raise NckConfigError(f"cannot write: {exc.strerror}", path=str(target)) from None
-            finally:
-                partial.unlink(missing_ok=True)
-            document["out"] = str(target)
+    failed = [run for run in runs if run.recording is None]
+    if failed and not args.keep_going:
+        documents = [_run_document(run) for run in runs]
+        for run in failed:
+            print(f"nckemu recording import: {run.error}", file=sys.stderr)
+        summary = (f"nothing written to {out}: {len(failed)} of {len(runs)} run{'s' if len(runs) != 1 else ''} "
+                   f"failed ({', '.join(run.name for run in failed)}); --keep-going writes the good ones")
+        if args.json:
+            print(json.dumps({"runs": documents, "written": 0, "failed": len(failed)}))
         else:
-            failed += 1
-        documents.append(document)
+            print(summary)
+        return 1
+    documents = _write_runs(runs, out, args.format)
+    written = len(runs) - len(failed)
     if args.json:
-        print(json.dumps({"runs": documents, "written": len(runs) - failed, "failed": failed}))
+        print(json.dumps({"runs": documents, "written": written, "failed": len(failed)}))
     else:
         for document in documents:
-            line = _run_line(document)
             if "out" in document:
-                print(f"{line} -> {document['out']}")
-            else:
-                print(f"nckemu recording import: {document['error']}", file=sys.stderr)
-        print(f"{len(runs) - failed} run{'s' if len(runs) - failed != 1 else ''} written to {out}"
-              + (f", {failed} failed (nothing written for them)" if failed else ""))
+                print(f"{_run_line(document)} -> {document['out']}")
+        print(f"{written} run{'s' if written != 1 else ''} written to {out}"
+              + (f"; {len(failed)} failed, nothing written for them:" if failed else ""))
+        for run in failed:
+            print(f"  {run.name}: {run.error}")
     return 1 if failed else 0
+
+
+def _write_runs(runs: list[Any], out: Path, file_format: str) -> list[dict[str, Any]]:
+    """Every good run written, all or nothing: into a temporary directory beside ``out``, which becomes
+    ``out`` (or whose files move into an existing ``out``) only once every file is written."""
+    import shutil
+    import tempfile
+
+    from .recording import write_recording
+    from .recording_map import safe_file_name
+
+    parent = out.resolve().parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=parent))
+    except OSError as exc:
+        raise NckConfigError(f"cannot create the directory: {exc.strerror}", path=str(out)) from None
+    documents = []
+    try:
+        for run in runs:
+            document = _run_document(run)
+            if run.recording is not None:
+                name = f"{safe_file_name(run.name)}.{file_format}"
+                try:
+                    write_recording(staging / name, run.recording)
+                except OSError as exc:
+                    raise NckConfigError(f"cannot write: {exc.strerror}", path=str(out / name)) from None
+                document["out"] = str(out / name)
+            documents.append(document)
+        try:
+            if not out.exists():
+                staging.rename(out)
+            else:
+                for written in sorted(staging.iterdir()):
+                    written.replace(out / written.name)
+        except OSError as exc:
+            raise NckConfigError(f"cannot move the written runs into place: {exc.strerror}", path=str(out)) from None
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return documents
 
 
 def _project_columns(recording: Any) -> list[dict[str, str]]:

@@ -21,6 +21,7 @@ import re
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +31,16 @@ from nckemu.errors import NckConfigError
 from nckemu.textfile import read_text
 
 from . import recording as project
-from .recording import MIN_ROWS, Recording, check_runs, column_kind, find_recordings, parse_number, sniff_csv
+from .recording import (
+    MIN_ROWS,
+    Recording,
+    check_runs,
+    column_kind,
+    decimal_mark_breaks,
+    find_recordings,
+    parse_number,
+    sniff_csv,
+)
 
 WORKBOOK_SUFFIXES = (".xlsx", ".xlsm")
 MAPPED_SUFFIXES = (*WORKBOOK_SUFFIXES, ".csv", ".txt", ".tsv", ".parquet", ".pq")
@@ -63,6 +73,25 @@ def convert_value(values: np.ndarray, kind: str, unit: str) -> np.ndarray:
     """``values`` in ``unit`` as the project's unit of a column of ``kind`` (err, sim, pos, temp, rpm)."""
     scale, offset = VALUE_UNITS[kind][unit]
     return values * scale + offset if offset else values * scale
+
+
+def convert_decimal(values: np.ndarray, scale: float, offset: float = 0.0) -> np.ndarray:
+    """``values * scale + offset`` worked in decimal from each value's shortest text, as a person would:
+    -9 um is -0.009 mm, not -0.009000000000000001 (the binary product, which the files would then carry
+    as its ``repr``); 16.66667 h is 60000.012 s, not 60000.012000000004. A value's own digits are kept."""
+    if scale == 1.0 and not offset:
+        return values
+    exact_scale, exact_offset = Decimal(repr(scale)), Decimal(repr(offset))
+
+    def one(value: float) -> float:
+        if value != value or (value and abs(value) < _SMALLEST_NORMAL):  # NaN; a subnormal's text is short
+            return value * scale + offset
+        return float(Decimal(repr(value)) * exact_scale + exact_offset)
+
+    return np.array([one(value) for value in values.tolist()], dtype=float)
+
+
+_SMALLEST_NORMAL = 2.2250738585072014e-308
 
 
 def excel_serial(moment: dt.datetime) -> float:
@@ -459,7 +488,7 @@ def _moment_seconds(cell: Any, time_format: str | None, decimal: str | None) -> 
 def _time_column(table: Table, index: int, rows: Sequence[int], recording_map: RecordingMap) -> np.ndarray:
     unit = recording_map.time.unit
     if unit != DATETIME:
-        return _numbers(table, index, rows, nullable=False) * TIME_UNITS[unit]
+        return convert_decimal(_numbers(table, index, rows, nullable=False), TIME_UNITS[unit])
     column = table.header[index].strip()
     values = np.empty(len(rows))
     for out, row in enumerate(rows):
@@ -535,6 +564,7 @@ def apply_map(table: Table, recording_map: RecordingMap, *, name: str) -> list[R
 def _recording(table: Table, recording_map: RecordingMap, name: str, rows: list[int], time_index: int,
                indices: list[tuple[ColumnMap, int]]) -> Recording:
     time_column = table.header[time_index].strip()
+    _check_decimal_marks(table, rows, [time_index, *(index for _, index in indices)])
     t_s = _time_column(table, time_index, rows, recording_map)
     if len(rows) < MIN_ROWS:
         raise table.refuse(f"run {name!r}: {len(rows)} data row{'s' if len(rows) != 1 else ''}; a run needs at "
@@ -543,8 +573,8 @@ def _recording(table: Table, recording_map: RecordingMap, name: str, rows: list[
     source = table.file if table.sheet is None else f"{table.file}, sheet {table.sheet!r}"
     recording = Recording(source, t_s - t_s[0], name=name)
     for column, index in indices:
-        values = convert_value(_numbers(table, index, rows, nullable=column.kind in ("err", "sim")),
-                               column.kind, column.unit)
+        values = convert_decimal(_numbers(table, index, rows, nullable=column.kind in ("err", "sim")),
+                                 *VALUE_UNITS[column.kind][column.unit])
         key = column.key
         if column.kind == "temp":
             recording.temperatures_C[column.name] = values
@@ -557,6 +587,20 @@ def _recording(table: Table, recording_map: RecordingMap, name: str, rows: list[
         elif column.kind == "sim":
             recording.simulated_um[key] = values
     return recording
+
+
+def _check_decimal_marks(table: Table, rows: list[int], columns: list[int]) -> None:
+    """Refuse the first cell, line by line, that writes the other decimal mark than the file's (sniffed
+    from the marks most cells show), rather than a good cell that only reads wrong beside it."""
+    if table.decimal is None:
+        return
+    for row in rows:
+        for index in columns:
+            cell = table.cells[index][row]
+            if isinstance(cell, str) and (mark := decimal_mark_breaks(cell.strip(), table.decimal)) is not None:
+                raise table.refuse(f"{cell.strip()[:40]!r} writes {mark!r} as the decimal mark, where the file's "
+                                   f"numbers write {table.decimal!r} (the first cell that breaks the file's "
+                                   "convention)", table.rows[row], table.header[index].strip())
 
 
 def _selected_tables(tables: list[Table], recording_map: RecordingMap, source: str) -> list[tuple[Table, bool]]:

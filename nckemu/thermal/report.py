@@ -15,6 +15,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from nckemu.cliutil import write_atomically
+
 from .discover import Discovery  # noqa: E402
 
 
@@ -219,4 +221,4 @@ table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}</style></hea
 <img alt="recording, baseline and improved model" src="data:image/png;base64,{overview}">
 <img alt="residual before and after" src="data:image/png;base64,{residuals}">
 </body></html>"""
-    Path(path).write_text(page, encoding="utf-8")
+    write_atomically(path, lambda target: target.write_text(page, encoding="utf-8"))

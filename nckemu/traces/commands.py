@@ -19,10 +19,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     raw = argparse.RawDescriptionHelpFormatter
     trace = subparsers.add_parser(
         "trace", help="decode and replay field captures (pcap, pcapng)", formatter_class=raw,
-        epilog="examples:\n  nckemu trace show capture.pcapng\n  nckemu trace replay capture.pcapng\n")
+        epilog="examples:\n  nckemu trace show fixtures/traces/session.pcapng\n  nckemu trace replay fixtures/traces/session.pcapng\n")
     commands = trace.add_subparsers(dest="trace_command", metavar="COMMAND")
     show = commands.add_parser("show", help="one line per job/answer, items by variable name", formatter_class=raw,
-                               epilog="example: nckemu trace show capture.pcapng --var SD43900 --json")
+                               epilog="example: nckemu trace show fixtures/traces/session.pcapng --var SD43900 --json")
     show.add_argument("capture", help="pcap or pcapng file (Wireshark, tshark, tcpdump, nckemu serve --record)")
     show.add_argument("--port", type=int, default=102, help="server port in the capture (102)")
     show.add_argument("--var", help="only exchanges with an item whose name contains this")
@@ -31,8 +31,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     show.set_defaults(func=run_show)
     again = commands.add_parser(
         "replay", help="send the recorded jobs to an emulator and diff the answers", formatter_class=raw,
-        epilog="example: nckemu trace replay capture.pcapng --spawn --seed-state\n"
-               "         nckemu trace replay capture.pcapng --emulator 127.0.0.1:1102")
+        epilog="example: nckemu trace replay fixtures/traces/session.pcapng --spawn --seed-state\n"
+               "         nckemu trace replay fixtures/traces/session.pcapng --emulator 127.0.0.1:1102")
     again.add_argument("capture", help="pcap or pcapng file whose client jobs are sent again")
     again.add_argument("--port", type=int, default=102, help="server port in the capture (102)")
     target = again.add_mutually_exclusive_group()

@@ -12,7 +12,12 @@ from nckemu.catalogue.table import display_name, spec_at
 from nckemu.errors import NckError, ReturnCode
 from nckemu.protocol import blocks, cyclic, ncprog, pi, s7, szl, userdata
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType, S7AnyAddress, UnsupportedAddress
-from nckemu.protocol.codes import RETURN_CODE_TEXTS, describe_header_error, describe_module
+from nckemu.protocol.codes import (
+    RETURN_CODE_TEXTS,
+    describe_header_error,
+    describe_module,
+    describe_service_header_error,
+)
 from nckemu.protocol.values import decode_nck_values, nck_value_format, nck_value_reader
 
 from .contents import PUSH as PUSH_STAGE
@@ -655,7 +660,13 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
 def _describe_answer(exchange: Exchange, parsed: s7.S7Pdu, capture: Capture,
                      state: UserdataState | None = None) -> None:
     if parsed.error_class or parsed.error_code:
-        exchange.header_error = describe_header_error(parsed.error_class, parsed.error_code)
+        try:
+            job = s7.parse_pdu(exchange.job.data)
+            function = job.parameter[0] if job.parameter else -1
+        except NckError:
+            function = -1
+        # worded for the service: a PI's or file transfer's 0xD201 is "no such program or file"
+        exchange.header_error = describe_service_header_error(function, parsed.error_class, parsed.error_code)
         return
     try:
         if exchange.function == "read":

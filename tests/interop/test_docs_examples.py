@@ -49,6 +49,7 @@ DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 # Refusals the docs describe as such: the command, then the words its one line must say.
 REFUSALS = {
     "nckemu get SD43900": "is an axis variable: say which axis",
+    "nckemu pi _N_SELECT 201 /_N_MPF_DIR/_N_NOPE_MPF": "no such program or file (header error 0xD201)",
 }
 # Examples that wait on issue 37's address grammar (the other engineer's part): command -> reason.
 PENDING: dict[str, str] = {}

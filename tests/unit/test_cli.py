@@ -118,9 +118,9 @@ def _prepare(argv: list[str], workdir: Path, port: int, capture_path: Path) -> l
 @pytest.mark.parametrize(("prog", "argv"), HELP_EXAMPLES, ids=[" ".join(a)[:60] for _, a in HELP_EXAMPLES])
 def test_help_example_runs(prog: str, argv: list[str], tmp_path: Path, capture: Path, capsys,
                            monkeypatch: pytest.MonkeyPatch, fixed_ports: Callable[[], Any]) -> None:
+    # As written in a fresh clone: the repository's files (fixtures/) and nothing else; the only
+    # change is the port of a server the test starts for examples that need one.
     os.symlink(FIXTURES, tmp_path / "fixtures")
-    (tmp_path / "capture.pcapng").write_bytes(capture.read_bytes())
-    write_recording(tmp_path / "rec.csv", make_scenario("thermal_gradient").recording)
     with EmulatorThread() as emu:
         argv = _prepare(argv, tmp_path, emu.port, capture)
         if argv[0] == "serve":  # servers: started, seen ready, stopped

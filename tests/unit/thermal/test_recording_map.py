@@ -239,7 +239,7 @@ def test_a_foreign_header_without_a_map_gets_one_line_naming_the_way(tmp_path: P
 
 # ------------------------------------------------------------------------------------ bad input
 def _bad(tmp_path: Path, rows: list[list[object]], map_text: str = RUN_MAP,
-         extra: list[list[object]] | None = None) -> tuple[int, str, Path]:
+         extra: list[list[object]] | None = None, options: tuple[str, ...] = ()) -> tuple[int, str, Path]:
     workbook = openpyxl.Workbook()
     good = workbook.active
     good.title = "good"
@@ -253,7 +253,8 @@ def _bad(tmp_path: Path, rows: list[list[object]], map_text: str = RUN_MAP,
     workbook.save(source)
     mapping = write_map(tmp_path / "bad.toml", map_text)
     out = tmp_path / "out"
-    return main(["recording", "import", str(source), "--map", str(mapping), "--out", str(out)]), str(source), out
+    return (main(["recording", "import", str(source), "--map", str(mapping), "--out", str(out), *options]),
+            str(source), out)
 
 
 HEADER = ["Time", "Dia Disp", "Spindle Rear", "Spindle Front"]
@@ -270,13 +271,19 @@ HEADER = ["Time", "Dia Disp", "Spindle Rear", "Spindle Front"]
 ])
 def test_a_bad_run_is_one_line_and_is_not_written(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                   rows: list[list[object]], expected: str) -> None:
-    code, source, out = _bad(tmp_path, rows)
+    code, source, out = _bad(tmp_path, rows)  # all or nothing (issue 44): nothing written at all
     captured = capsys.readouterr()
     assert code == 1
     errors = [line for line in captured.err.splitlines() if line]
     assert len(errors) == 1 and f"{source}, {expected}" in errors[0], captured.err
+    assert not out.exists() and not list(tmp_path.glob(".out.*"))
+    assert "nothing written" in captured.out and "1 of 2 runs failed (bad day)" in captured.out
+    code, source, out = _bad(tmp_path, rows, options=("--keep-going",))  # the good runs, on request
+    captured = capsys.readouterr()
+    assert code == 1
     assert sorted(p.name for p in out.iterdir()) == ["good.parquet"]  # nothing for the failed run
     assert "1 run written" in captured.out and "1 failed" in captured.out
+    assert f"  bad day: {source}, {expected}" in captured.out  # which failed, and why
 
 
 def test_a_header_only_sheet_fails_but_a_blank_one_is_no_run(tmp_path: Path, capsys) -> None:
