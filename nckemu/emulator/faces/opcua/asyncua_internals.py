@@ -56,7 +56,7 @@ from asyncua.server.uaprocessor import UaProcessor
 
 from nckemu.errors import NckConfigError
 
-TESTED = "asyncua >=1.1.0,<1.2 (tested with 1.1.8)"
+TESTED = "asyncua >=1.1.8,<1.2 (the tested range, pinned in pyproject.toml)"
 VERSION = getattr(asyncua, "__version__", "unknown")
 
 # The session methods the face wraps (``override_session``).

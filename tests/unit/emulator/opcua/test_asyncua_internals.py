@@ -45,3 +45,19 @@ def test_no_other_module_of_the_face_names_an_asyncua_private() -> None:
     found = {path.name: private.findall(path.read_text(encoding="utf-8"))
              for path in package.glob("*.py") if path.name != "asyncua_internals.py"}
     assert {name: hits for name, hits in found.items() if hits} == {}
+
+
+def test_serve_on_an_asyncua_of_another_shape_says_so_in_one_line() -> None:
+    """``nckemu serve --opcua`` on an asyncua whose internals moved: exit 1 and one line naming what moved."""
+    import subprocess
+    import sys
+
+    script = ("import sys\n"
+              "import asyncua.server.address_space as space\n"
+              "del space.AddressSpace.load_aspace_shelf\n"
+              "from nckemu.cli import main\n"
+              "sys.exit(main(['serve', '--port', '0', '--opcua', '0']))\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "AddressSpace has no load_aspace_shelf" in lines[0] and "asyncua" in lines[0]
