@@ -269,6 +269,10 @@ def _parse_csv(data: bytes, source: str, need_errors: bool = True) -> Recording:
                                              line=line_number, field=header[index])
                     cells[index].append(math.nan)
                     continue
+                if (mark := decimal_mark_breaks(value_text, dialect.decimal)) is not None:
+                    raise NckConfigError(f"{value_text[:40]!r} writes {mark!r} as the decimal mark, where the file's "
+                                         f"numbers write {dialect.decimal!r} (the first cell that breaks the file's "
+                                         "convention)", path=source, line=line_number, field=header[index])
                 if comma_decimal and "," in value_text:
                     value = parse_number(value_text, ",")
                 else:

@@ -65,3 +65,10 @@ def test_simulate_writes_no_float_noise(tmp_path: Path, capsys) -> None:
         rows = list(csv.DictReader(handle))
     assert all(len(row["sim_Z_um"]) <= 16 for row in rows), max((row["sim_Z_um"] for row in rows), key=len)
     assert not list(tmp_path.glob(".sim.csv.partial"))
+
+
+def test_a_project_format_csv_with_a_mixed_mark_names_the_cell(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "proj.csv"
+    path.write_text("t_s;temp_a_C;err_Z_um\n0;20,5;1,5\n60;20,6;1,6\n120;20.7;1,7\n180;20,8;1,8\n", encoding="utf-8")
+    assert main(["recording", "check", str(path)]) == 1
+    assert "line 4, field 'temp_a_C': '20.7' writes '.' as the decimal mark" in capsys.readouterr().err
