@@ -20,7 +20,7 @@ from nckemu.protocol.codes import describe_return_code
 
 from .async_client import MAX_VARIABLES, AsyncNckClient, ItemResult
 from .channel840c import Channel840C
-from .refusals import lines_context, tool_context, unit_context
+from .refusals import lines_context, ranges, tool_context, unit_context
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -213,7 +213,9 @@ async def _machine_context(client: AsyncNckClient, variable: Variable) -> str:
                 (chunk,) = await client.get(f"MD10000[u1,{first},#{count}]")
                 names += chunk if isinstance(chunk, list) else [chunk]
             axes = [f"AX{number} {name}" for number, name in enumerate(names, start=1) if name]
-            return f"its machine axes are {', '.join(axes)}" if axes else "it has no machine axes"
+            numbers = [number for number, name in enumerate(names, start=1) if name]
+            btss = ranges(numbers, "u") if variable.address.area == NckArea.A else f"lines {ranges(numbers, '')}"
+            return f"its machine axes are {', '.join(axes)} (BTSS {btss})" if axes else "it has no machine axes"
         if kind == "spindle":
             (count,) = await client.get(f"numSpindles[C{variable.address.unit}]")
             count = int(count)

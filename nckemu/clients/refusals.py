@@ -25,7 +25,7 @@ def _spans(numbers: list[int]) -> list[tuple[int, int]]:
     return spans
 
 
-def _ranges(numbers: list[int], prefix: str) -> str:
+def ranges(numbers: list[int], prefix: str) -> str:
     """``V1..V4`` / ``col1, col2``: numbers as the fewest ranges."""
     return ", ".join(f"{prefix}{a}" if a == b else f"{prefix}{a}..{prefix}{b}" for a, b in _spans(numbers))
 
@@ -54,8 +54,8 @@ async def unit_context(client: AsyncNckClient, spec: Any, variable: Variable, wh
     letter = NckArea(variable.address.area).name
     if not units:
         return f"this machine has no {what} answering {spec.name}"
-    return (f"this machine has {len(units)} {what if len(units) == 1 else plural}: {_ranges(units, letter)} (NC) "
-            f"or {_ranges(units, 'u')} (BTSS)")
+    return (f"this machine has {len(units)} {what if len(units) == 1 else plural}: {ranges(units, letter)} (NC) "
+            f"or {ranges(units, 'u')} (BTSS)")
 
 
 async def lines_context(client: AsyncNckClient, spec: Any, variable: Variable) -> str:
@@ -93,8 +93,8 @@ async def tool_context(client: AsyncNckClient, variable: Variable) -> str:
     probes = [_at(variable, unit=1, column=tool, line=1) for tool in range(1, PROBED_TOOLS + 1)]
     tools = [tool for tool, ok in zip(range(1, PROBED_TOOLS + 1), await _answering(client, probes), strict=True)
              if ok]
-    listed = (f"its tools among T1..T{PROBED_TOOLS} are {_ranges(tools, 'col')} (NC) or "
-              f"{_ranges(tools, 'c')} (BTSS)") if tools else f"it has no tools among T1..T{PROBED_TOOLS}"
+    listed = (f"its tools among T1..T{PROBED_TOOLS} are {ranges(tools, 'col')} (NC) or "
+              f"{ranges(tools, 'c')} (BTSS)") if tools else f"it has no tools among T1..T{PROBED_TOOLS}"
     if address.unit != 1:
         return (f"no TO unit {address.unit}: T{address.unit} names the TO unit, not the tool (the tool is colN); "
                 f"this machine has TO unit 1 (T1 / u1), where {listed}")
@@ -105,5 +105,5 @@ async def tool_context(client: AsyncNckClient, variable: Variable) -> str:
     last = len(edges) * per_edge
     asked = describe_line(address.line + address.line_count - 1, per_edge)
     return (f"tool {address.column} has {len(edges)} cutting edge{'s' if len(edges) != 1 else ''} "
-            f"({_ranges(edges, 'D')}) of {per_edge} parameters: lines 1..{last} (BTSS) or indices 0..{last - 1} "
+            f"({ranges(edges, 'D')}) of {per_edge} parameters: lines 1..{last} (BTSS) or indices 0..{last - 1} "
             f"(NC); {asked} is past them")

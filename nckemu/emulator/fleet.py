@@ -302,8 +302,10 @@ class Fleet:
                 from nckemu.emulator.faces.opcua import (
                     OpcUaFace,  # asyncua is imported only by fleets that serve OPC UA
                 )
+                from nckemu.emulator.machine_check import opcua_settings
 
                 try:
+                    opcua_settings(emulator.machine)  # names the machine file's line, as serve does
                     opcua = OpcUaFace(emulator, entry.host, entry.opcua)
                 except NckConfigError as exc:
                     raise NckConfigError(f"machine {entry.name!r}: {exc}", path=spec.source, line=entry.line,

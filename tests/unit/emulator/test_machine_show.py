@@ -49,3 +49,11 @@ def test_show_refuses_exactly_what_serve_refuses(body: str, where: str, tmp_path
     assert main(["serve", "--machine", str(path), "--port", "0", "--opcua", "0"]) == 1
     served = capsys.readouterr().err.strip().removeprefix("nckemu serve: ")
     assert shown == served and where in shown and str(path) in shown
+
+
+def test_a_fleet_names_the_machine_files_line_too(tmp_path: Path, capsys) -> None:
+    (tmp_path / "bad.toml").write_text(f'name = "m"\n\n{BAD[0][0]}', encoding="utf-8")
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text('[[machine]]\nname = "m1"\nport = 1\nopcua = 2\nmachine = "bad.toml"\n', encoding="utf-8")
+    assert main(["fleet", str(fleet)]) == 1
+    assert f"{tmp_path / 'bad.toml'}, {BAD[0][1]}" in capsys.readouterr().err
