@@ -13,9 +13,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from nckemu.thermal.discover import discover  # noqa: E402
-from nckemu.thermal.recording import Recording  # noqa: E402
-from nckemu.thermal.terms import Term, ThermalModel, first_order_lag  # noqa: E402
+from nckemu.thermal.discovery.discover import discover  # noqa: E402
+from nckemu.thermal.model.terms import Term, ThermalModel, first_order_lag  # noqa: E402
+from nckemu.thermal.recordings.recording import Recording  # noqa: E402
 
 
 def recording(hours: float, sensors: int = 10, seed: int = 1) -> Recording:

@@ -24,7 +24,7 @@ COMMAND_MODULES = (
     "nckemu.clients.commands",    # get, put, pi, comp840c, lec
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
-    "nckemu.thermal.recording_commands",  # recording import, recording check
+    "nckemu.thermal.recordings.commands",  # recording import, recording check
     "nckemu.plcsim.commands",     # plc run, plc stubs
     "nckemu.plcsim.fleet_live",   # fleet: living machines (inputs/plc in a [[machine]])
 )

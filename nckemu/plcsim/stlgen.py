@@ -36,8 +36,8 @@ from nckemu.emulator.machine.machine_file import Axis, Machine, Sensor
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import NckType
 from nckemu.protocol.awl import NcVarDb, NcVarEntry, render_ncvar_db
-from nckemu.thermal.plcmodel import why_not_compensable
-from nckemu.thermal.terms import Term, ThermalModel
+from nckemu.thermal.discovery.plcmodel import why_not_compensable
+from nckemu.thermal.model.terms import Term, ThermalModel
 
 from .replay import NCK_SPINDLE, POSITION_DEPENDENT_MARKER, SPINDLE_SPEED_SENSOR, nck_spindle_speed
 

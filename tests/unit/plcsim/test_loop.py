@@ -10,8 +10,8 @@ import pytest
 
 from nckemu.plcsim.loop import run_loop, write_loop_report
 from nckemu.plcsim.replay import run_on_recording, with_simulation
-from nckemu.thermal.recording import Recording, load_recording, write_recording
-from nckemu.thermal.scenarios import LOOP_SPINDLE_TAU_S, make_loop_scenario
+from nckemu.thermal.recordings.recording import Recording, load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import LOOP_SPINDLE_TAU_S, make_loop_scenario
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures"
 LOOP_MILL = FIXTURES / "machines" / "loop_mill.toml"

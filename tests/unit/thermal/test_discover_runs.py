@@ -13,10 +13,10 @@ import pytest
 from nckemu.cli import main
 from nckemu.errors import NckConfigError
 from nckemu.thermal import stats
-from nckemu.thermal.discover import discover, discover_runs
-from nckemu.thermal.recording import load_recording, write_recording
-from nckemu.thermal.scenarios import AXIS, make_run_family, make_scenario, make_variant
-from nckemu.thermal.terms import Term, ThermalModel, load_model
+from nckemu.thermal.discovery.discover import discover, discover_runs
+from nckemu.thermal.model.terms import Term, ThermalModel, load_model
+from nckemu.thermal.recordings.recording import load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import AXIS, make_run_family, make_scenario, make_variant
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
 RUNS = FIXTURES / "runs"

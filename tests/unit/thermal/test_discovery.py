@@ -10,10 +10,10 @@ import pytest
 
 from nckemu.cli import main
 from nckemu.errors import NckConfigError
-from nckemu.thermal.discover import Discoverer, discover
-from nckemu.thermal.recording import load_recording, write_recording
-from nckemu.thermal.scenarios import SCENARIOS, make_scenario, make_variant
-from nckemu.thermal.terms import load_model, parse_model
+from nckemu.thermal.discovery.discover import Discoverer, discover
+from nckemu.thermal.model.terms import load_model, parse_model
+from nckemu.thermal.recordings.recording import load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import SCENARIOS, make_scenario, make_variant
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
 EFFECT_SCENARIOS = [s for s in SCENARIOS if not s.startswith("null")]

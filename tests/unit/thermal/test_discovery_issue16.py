@@ -10,11 +10,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nckemu.thermal.discover import Discovery, discover
-from nckemu.thermal.recording import load_recording
-from nckemu.thermal.report import write_report
-from nckemu.thermal.scenarios import ALL_SCENARIOS, VARIANTS, make_scenario, make_variant, scaled_scenario
-from nckemu.thermal.terms import Term, ThermalModel, parse_model
+from nckemu.thermal.discovery.discover import Discovery, discover
+from nckemu.thermal.discovery.report import write_report
+from nckemu.thermal.model.terms import Term, ThermalModel, parse_model
+from nckemu.thermal.recordings.recording import load_recording
+from nckemu.thermal.synthetic.scenarios import (
+    ALL_SCENARIOS,
+    VARIANTS,
+    make_scenario,
+    make_variant,
+    scaled_scenario,
+)
 
 LAG_PARAMETERS = {"tau_s", "tau_heat_s", "tau_cool_s"}
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"

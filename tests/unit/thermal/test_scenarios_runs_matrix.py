@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from nckemu.thermal.discover import discover_runs
-from nckemu.thermal.scenarios import AXIS, make_run_family
+from nckemu.thermal.discovery.discover import discover_runs
+from nckemu.thermal.synthetic.scenarios import AXIS, make_run_family
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(3600)]
 SEEDS = range(1, 21)

@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nckemu.thermal.discover import discover_runs
-from nckemu.thermal.scenarios import (
+from nckemu.thermal.discovery.discover import discover_runs
+from nckemu.thermal.model.terms import first_order_lag
+from nckemu.thermal.synthetic.scenarios import (
     AXIS,
     PAIR_FRONT_UM_PER_K,
     PAIR_REAR_UM_PER_K,
@@ -17,7 +18,6 @@ from nckemu.thermal.scenarios import (
     TRANSIENT_UM_PER_K,
     make_transient_family,
 )
-from nckemu.thermal.terms import first_order_lag
 
 
 @pytest.mark.parametrize("name", TRANSIENT_FAMILIES)

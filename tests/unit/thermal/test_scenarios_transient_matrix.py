@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nckemu.thermal.discover import discover_runs
-from nckemu.thermal.scenarios import (
+from nckemu.thermal.discovery.discover import discover_runs
+from nckemu.thermal.synthetic.scenarios import (
     AXIS,
     PAIR_FRONT_UM_PER_K,
     PAIR_REAR_UM_PER_K,

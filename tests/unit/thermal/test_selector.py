@@ -7,10 +7,10 @@ import math
 
 import pytest
 
-from nckemu.thermal.discover import Discoverer
-from nckemu.thermal.library import Library
-from nckemu.thermal.scenarios import make_scenario, make_variant
-from nckemu.thermal.selector import Selector, t_critical
+from nckemu.thermal.discovery.discover import Discoverer
+from nckemu.thermal.discovery.library import Library
+from nckemu.thermal.discovery.selector import Selector, t_critical
+from nckemu.thermal.synthetic.scenarios import make_scenario, make_variant
 
 
 def _selector(name: str, seed: int = 1, variant: bool = False) -> Selector:

@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from nckemu.errors import NckConfigError
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording
 
 from .readings import Readings
-from .recording import Recording
-from .terms import Term, ThermalModel
 
 
 @dataclass

@@ -19,8 +19,7 @@ from scipy.signal import lfilter
 
 from nckemu.errors import NckConfigError
 from nckemu.textfile import read_text
-
-from .recording import Recording
+from nckemu.thermal.recordings.recording import Recording
 
 
 @dataclass(frozen=True)

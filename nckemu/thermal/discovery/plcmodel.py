@@ -20,10 +20,9 @@ from typing import Any
 import numpy as np
 
 from nckemu.errors import NckConfigError
-
-from . import stats
-from .recording import Recording
-from .terms import Term, ThermalModel
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording
 
 
 @dataclass

@@ -16,10 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from . import explain, stats
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import EFFECTS, Term
+
+from . import explain
 from .library import Candidate, Library, bounded, extends, present_key, time_constants
 from .settings import Settings
-from .terms import EFFECTS, Term
 
 
 @dataclass

@@ -30,16 +30,17 @@ from typing import Any
 import numpy as np
 
 from nckemu.errors import NckConfigError
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording
 
-from . import explain, stats
+from . import explain
 from .library import Library
 from .problem import Problem
 from .readings import prepare, resampled
-from .recording import Recording
 from .selector import Baseline, Path, Selector
 from .settings import Settings
 from .splitters import Blocks, LeaveOneRunOut, Splitter, held_out_masks
-from .terms import Term, ThermalModel
 
 __all__ = ["Discoverer", "Discovery", "Settings", "discover", "discover_runs"]
 

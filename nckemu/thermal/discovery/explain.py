@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import stats
+from nckemu.thermal import stats
+from nckemu.thermal.recordings.recording import Recording
+
 from .library import label
-from .recording import Recording
 
 if TYPE_CHECKING:  # the selector imports this module for its words
     from .selector import Evaluation

@@ -15,10 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import stats
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import Term, asymmetric_lag, first_order_lag
+
 from .problem import Problem, Run
 from .settings import Settings
-from .terms import Term, asymmetric_lag, first_order_lag
 
 # Effects of one sensor that contain another as a special case (a time constant going to zero, or
 # heating and cooling at the same rate).

@@ -7,9 +7,11 @@ from typing import Any
 
 import numpy as np
 
-from . import explain, stats
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import EFFECTS
+
+from . import explain
 from .discover import Discovery
-from .terms import EFFECTS
 
 
 def _parameters(parameters: dict[str, Any]) -> str:
