@@ -14,7 +14,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from nckemu.thermal.discovery.discover import discover  # noqa: E402
-from nckemu.thermal.model.terms import Term, ThermalModel, first_order_lag  # noqa: E402
+from nckemu.thermal.model.lags import first_order_lag  # noqa: E402
+from nckemu.thermal.model.terms import Term, ThermalModel  # noqa: E402
 from nckemu.thermal.recordings.recording import Recording  # noqa: E402
 
 

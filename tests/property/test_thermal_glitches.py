@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from nckemu.thermal.model.terms import first_order_lag
+from nckemu.thermal.model.lags import first_order_lag
 from nckemu.thermal.recordings.quality import bridge, find_glitches
 
 

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from nckemu.thermal import stats
+from nckemu.thermal.model import families
 from nckemu.thermal.recordings.recording import Recording
 
 from .library import label
@@ -153,11 +154,6 @@ def evidence(chosen: Evaluation, best: Evaluation, equivalent: list[Evaluation],
 
 
 # ---------------------------------------------------------------------- when nothing passes
-FAMILY_ORDER = ("offset", "time_drift", "temperature", "quadratic_temperature", "thermal_gradient",
-                "centrifugal_growth", "position_dependent_expansion", "thermal_lag", "heating_cooling_hysteresis",
-                "transient_gradient")
-
-
 def detectable_um(evaluations: list[Evaluation], base_rms_um: float, t_critical: float,
                   min_improvement: float) -> dict[str, float]:
     """Per candidate family, the smallest effect (RMS of its contribution over the gauge samples, um)
@@ -183,7 +179,7 @@ def detectable_um(evaluations: list[Evaluation], base_rms_um: float, t_critical:
         size = max(t_critical * se * e.own_rms, held_out_um, own_um)
         family = e.candidate.term.effect
         out[family] = min(out.get(family, math.inf), size)
-    return {k: out[k] for k in FAMILY_ORDER if k in out}
+    return {k: out[k] for k in families.names() if k in out}
 
 
 def residual_structure(residual: np.ndarray, lags: int = 20) -> dict[str, Any]:

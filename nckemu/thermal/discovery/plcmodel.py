@@ -42,7 +42,7 @@ class PlcModel:
 
 def _sensors_of(term: Term) -> list[str]:
     p = term.parameters
-    if term.effect == "centrifugal_growth":
+    if term.spec.uses_spindle:
         return []
     if "sensors" in p:
         return [str(s) for s in p["sensors"]]
@@ -50,9 +50,9 @@ def _sensors_of(term: Term) -> list[str]:
 
 
 def why_not_compensable(term: Term, plc_sensors: set[str], spindle_input: bool = False) -> str | None:
-    if term.effect == "time_drift":
-        return "the PLC cannot know how long the machine has drifted (no physical input carries it)"
-    if term.effect == "centrifugal_growth" and not spindle_input:
+    if term.spec.plc_refusal:
+        return term.spec.plc_refusal
+    if term.spec.uses_spindle and not spindle_input:
         return ("no spindle speed: the machine file wires none to the PLC (a [[sensor]] named spindle_rpm) "
                 "and has no spindle whose actual speed FB2 GET could read")
     missing = [s for s in _sensors_of(term) if s not in plc_sensors]

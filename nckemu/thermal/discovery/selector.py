@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from nckemu.thermal import stats
-from nckemu.thermal.model.terms import EFFECTS, Term
+from nckemu.thermal.model.terms import Term
 
 from . import explain
 from .library import Candidate, Library, bounded, extends, present_key, time_constants
@@ -299,7 +299,7 @@ class Selector:
         window = [] if self.library.problem.per_run_offset else explain.locate(
             self.t_s, chosen.coefficient * (chosen.candidate.feature - np.median(chosen.candidate.feature)))
         record = explain.evidence(chosen, best, equivalent, margin, path.base_cv.rms_um, t_crit, len(folds),
-                                  window[0][:2] if window else None, EFFECTS[term.effect].description)
+                                  window[0][:2] if window else None, term.spec.description)
         if self.per_run:
             record["runs"] = self.run_figures(chosen.cv, path.base_cv, chosen.candidate.runs_with)
         path.discovered.append({"effect": term.effect, "parameters": {
@@ -416,7 +416,7 @@ class Selector:
             member = Evaluation(alone.candidate, move.cv, move.t_values[index], move.coefficients[index],
                                 move.fold_wins, move.ranked_rms_um)
             record = explain.evidence(member, member, [member], 0.0, path.base_cv.rms_um, t_crit, folds, None,
-                                      EFFECTS[term.effect].description)
+                                      term.spec.description)
             record["move"] = {**together, "share": round(move.shares[index], 3)}
             record["preferred"] = f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
             if figures is not None:

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from nckemu.thermal import stats
-from nckemu.thermal.model.terms import EFFECTS
+from nckemu.thermal.model.families import family
 
 from . import explain
 from .discover import Discovery
@@ -46,7 +46,7 @@ def program_findings(discovery: Discovery, law: str | None = None) -> list[tuple
         short = "The residual has no structured window: it does not fall short anywhere the data can show."
     if discovery.missing_physics:
         physics = "It leaves out: " + "; ".join(
-            f"{m['effect']} ({EFFECTS[m['effect']].description}: {_parameters(m['parameters'])})"
+            f"{m['effect']} ({family(m['effect']).description}: {_parameters(m['parameters'])})"
             for m in discovery.missing_physics) + "."
     elif discovery.residual_is_structure:
         physics = ("No candidate of the vocabulary passed the guards, but what it leaves is structure, not noise "

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from nckemu.thermal.model.terms import Term, ThermalModel, asymmetric_lag, first_order_lag
+from nckemu.thermal.model.lags import asymmetric_lag, first_order_lag
+from nckemu.thermal.model.terms import Term, ThermalModel
 from nckemu.thermal.recordings.recording import Recording
 
 SCENARIOS = ("offset", "temperature", "position_dependent_expansion", "thermal_lag", "centrifugal_growth",

@@ -19,7 +19,8 @@ from nckemu.emulator.machine.machine_file import Machine, load_machine, parse_ma
 from nckemu.plcsim.bridge import PlcRunner
 from nckemu.plcsim.replay import RecordingRun, recording_axis, run_on_recording
 from nckemu.plcsim.stlgen import STATE_DB, generate_program, lag_coefficient
-from nckemu.thermal.model.terms import Term, ThermalModel, first_order_lag
+from nckemu.thermal.model.lags import first_order_lag
+from nckemu.thermal.model.terms import Term, ThermalModel
 from nckemu.thermal.recordings.recording import Recording
 from nckemu.thermal.synthetic.scenarios import make_loop_scenario
 

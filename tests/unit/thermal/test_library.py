@@ -8,7 +8,8 @@ from nckemu.thermal.discovery.library import Library, bounded, extends, label, p
 from nckemu.thermal.discovery.problem import Problem
 from nckemu.thermal.discovery.readings import prepare
 from nckemu.thermal.discovery.settings import Settings
-from nckemu.thermal.model.terms import Term, first_order_lag, parse_model, render_model
+from nckemu.thermal.model.lags import first_order_lag
+from nckemu.thermal.model.terms import Term, parse_model, render_model
 from nckemu.thermal.synthetic.scenarios import make_scenario
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nckemu.thermal.model.terms import first_order_lag
+from nckemu.thermal.model.lags import first_order_lag
 from nckemu.thermal.synthetic.scenarios import (
     AXIS,
     FAMILY_GRADIENT_UM_PER_K,

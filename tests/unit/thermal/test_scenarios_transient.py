@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from nckemu.thermal.discovery.discover import discover_runs
-from nckemu.thermal.model.terms import first_order_lag
+from nckemu.thermal.model.lags import first_order_lag
 from nckemu.thermal.synthetic.scenarios import (
     AXIS,
     PAIR_FRONT_UM_PER_K,
