@@ -44,7 +44,7 @@ def main() -> int:
         started = time.perf_counter()
         result = discover(rec, model=model)
         elapsed = time.perf_counter() - started
-        found = ", ".join(m["effect"] for m in result.missing_physics) or "-"
+        found = ", ".join(m.effect for m in result.missing_physics) or "-"
         print(f"{hours:5}  {len(rec.t_s):7}  {result.samples:14}  {elapsed:7.2f}  {found}")
     return 0
 

@@ -91,12 +91,12 @@ def main() -> int:
         print("discover_runs: not in this tree yet")
     else:
         result, elapsed_runs = timed("discover_runs (pair moves on)", lambda: discover_runs(runs, AXIS, family.model))
-        named = [m["effect"] for m in getattr(result, "missing_physics", [])]
+        named = [m.effect for m in getattr(result, "missing_physics", [])]
         print(f"  named: {', '.join(named) or '-'} (truth: {family.truth.effect})")
         without = Settings(pair_moves=False)
         result, elapsed_single = timed("anchor: discover_runs, pair moves off",
                                        lambda: discover_runs(runs, AXIS, family.model, without))
-        named = [m["effect"] for m in getattr(result, "missing_physics", [])]
+        named = [m.effect for m in getattr(result, "missing_physics", [])]
         print(f"  named: {', '.join(named) or '-'}; pair moves cost {elapsed_runs - elapsed_single:+.2f} s")
     if not args.no_anchor:
         whole = end_to_end(runs)

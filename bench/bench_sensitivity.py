@@ -41,9 +41,9 @@ def hit(job: tuple[str, float, int]) -> bool:
     name, scale, seed = job
     scenario = scaled_scenario(name, seed, scale)
     found = discover(scenario.recording, model=scenario.baseline).missing_physics
-    if not found or found[0]["effect"] != scenario.truth_effect:
+    if not found or found[0].effect != scenario.truth_effect:
         return False
-    top = found[0]["parameters"]
+    top = found[0].parameters
     return all(abs(top[key] - truth) <= (0.35 if key in LAG_PARAMETERS else 0.30) * abs(truth)
                for key, truth in scenario.truth_parameters.items())
 

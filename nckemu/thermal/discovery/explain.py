@@ -12,6 +12,7 @@ from nckemu.thermal import stats
 from nckemu.thermal.model import families
 from nckemu.thermal.recordings.recording import Recording
 
+from .findings import Alternative, Evidence, Likely, LikelyEvidence, Window
 from .library import label
 
 if TYPE_CHECKING:  # the selector imports this module for its words
@@ -134,23 +135,19 @@ def recalibration_words(found: list[str], calibrated_here: bool, gain_note: str 
 
 def evidence(chosen: Evaluation, best: Evaluation, equivalent: list[Evaluation], margin: float,
              before_um: float, t_critical: float, folds: int, window: tuple[float, float] | None,
-             why_text: str) -> dict[str, Any]:
+             why_text: str) -> Evidence:
     """The evidence record of one admitted effect."""
-    record: dict[str, Any] = {
-        "heldout_rms_before_um": round(before_um, 4), "heldout_rms_after_um": round(chosen.cv.rms_um, 4),
-        "heldout_rms_without_sensor_noise_um": round(chosen.ranked_rms_um, 4),
-        "t_value_ar1_corrected": finite(chosen.t_value), "t_critical": round(t_critical, 3),
-        "folds_improved": f"{chosen.fold_wins}/{folds}",
-        "window": {"t_start_s": window[0], "t_end_s": window[1]} if window else None,
-        "equivalent": [{"effect": e.candidate.label, "heldout_rms_um": round(e.cv.rms_um, 4),
-                        "heldout_rms_without_sensor_noise_um": round(e.ranked_rms_um, 4)}
-                       for e in equivalent if e is not chosen],
-        "why": why_text,
-    }
-    if chosen is not best:
-        record["resolved_to_simpler"] = best.candidate.label
-    record["preferred"] = preference_words(chosen, best, equivalent, margin)
-    return record
+    return Evidence(
+        heldout_rms_before_um=round(before_um, 4), heldout_rms_after_um=round(chosen.cv.rms_um, 4),
+        heldout_rms_without_sensor_noise_um=round(chosen.ranked_rms_um, 4),
+        t_value_ar1_corrected=finite(chosen.t_value), t_critical=round(t_critical, 3),
+        folds_improved=f"{chosen.fold_wins}/{folds}",
+        window=Window(window[0], window[1]) if window else None,
+        equivalent=[Alternative(e.candidate.label, round(e.cv.rms_um, 4), round(e.ranked_rms_um, 4))
+                    for e in equivalent if e is not chosen],
+        why=why_text,
+        resolved_to_simpler=best.candidate.label if chosen is not best else None,
+        preferred=preference_words(chosen, best, equivalent, margin))
 
 
 # ---------------------------------------------------------------------- when nothing passes
@@ -215,20 +212,16 @@ def nothing_passed(units: int, unit_name: str, detectable: dict[str, float], aut
 
 
 def likely_record(evaluation: Evaluation, before_um: float, t_critical: float, folds: int,
-                  bar: float) -> dict[str, Any]:
+                  bar: float) -> Likely:
     """A correctly named term below the held-out bar: "likely, not proven", with its figures."""
     term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
     gain = 1 - evaluation.cv.rms_um / before_um if before_um > 0 else 0.0
-    return {"effect": term.effect, "label": label(term),
-            "parameters": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
-            "status": "likely, not proven",
-            "evidence": {"heldout_rms_before_um": round(before_um, 4),
-                         "heldout_rms_after_um": round(evaluation.cv.rms_um, 4),
-                         "heldout_improvement": round(gain, 4), "heldout_bar": bar,
-                         "t_value_ar1_corrected": finite(evaluation.t_value), "t_critical": round(t_critical, 3),
-                         "folds_improved": f"{evaluation.fold_wins}/{folds}",
-                         "why": (f"passes the t-test and improves {evaluation.fold_wins} of {folds} folds, but lowers "
-                                 f"held-out RMS by {gain:.1%}, below the {bar:.0%} an effect must clear")}}
+    return Likely(term.effect, label(term),
+                  {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
+                  LikelyEvidence(round(before_um, 4), round(evaluation.cv.rms_um, 4), round(gain, 4), bar,
+                                 finite(evaluation.t_value), round(t_critical, 3), f"{evaluation.fold_wins}/{folds}",
+                                 f"passes the t-test and improves {evaluation.fold_wins} of {folds} folds, but lowers "
+                                 f"held-out RMS by {gain:.1%}, below the {bar:.0%} an effect must clear"))
 
 
 # ---------------------------------------------------------------------- several runs

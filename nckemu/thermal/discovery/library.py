@@ -336,12 +336,16 @@ class Library:
         """Every family's candidates of the round (``families``: each family proposes its own)."""
         self._design = design
         self._searched = {}
-        out: list[Candidate] = []
-        for entry in families.families():
+        sensors = {name: index for index, name in enumerate(self.sensors())}
+        ranked: list[tuple[tuple[int, int, int], Candidate]] = []
+        # Generated in registry order (a family may build on an earlier one's search: the hysteresis
+        # on the lags), listed by each family's stage, then sensor.
+        for rank, entry in enumerate(families.families()):
             if entry.candidates is None or entry.feature is None:
                 continue
             for effect, parameters, grid_points in entry.candidates(self, present):
                 candidate = self.candidate(Term(effect, parameters), grid_points)
                 if candidate is not None:
-                    out.append(candidate)
-        return out
+                    sensor = sensors.get(parameters.get("sensor"), 0) if entry.stage == 1 else 0
+                    ranked.append(((entry.stage, sensor, rank), candidate))
+        return [candidate for _key, candidate in sorted(ranked, key=lambda item: item[0])]

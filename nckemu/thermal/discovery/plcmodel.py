@@ -24,6 +24,8 @@ from nckemu.thermal import stats
 from nckemu.thermal.model.terms import Term, ThermalModel
 from nckemu.thermal.recordings.recording import Recording
 
+from .findings import Finding
+
 
 @dataclass
 class PlcModel:
@@ -97,8 +99,8 @@ def read_program_law(recording: Recording, axis: str, plc_sensors: list[str],
     return [t.with_coefficient(float(c)) for t, c in zip(chosen, coefficients, strict=True)], left
 
 
-def terms_of(missing_physics: list[dict[str, Any]]) -> list[Term]:
-    return [Term(m["effect"], dict(m["parameters"])) for m in missing_physics if m["effect"] != "gain_error"]
+def terms_of(missing_physics: list[Finding]) -> list[Term]:
+    return [Term(m.effect, dict(m.parameters)) for m in missing_physics if m.effect != "gain_error"]
 
 
 def plc_model(recording: Recording, axis: str, found: list[Term], plc_sensors: list[str],

@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -20,6 +19,16 @@ from nckemu.thermal import stats
 from nckemu.thermal.model.terms import Term
 
 from . import explain
+from .findings import (
+    AdmissionRuns,
+    Alternative,
+    Evidence,
+    Finding,
+    GainEvidence,
+    MoveAlternative,
+    MoveEvidence,
+    finding,
+)
 from .library import Candidate, Library, bounded, extends, present_key, time_constants
 from .settings import Settings
 
@@ -101,7 +110,7 @@ class Path:
     design: np.ndarray
     base_cv: stats.CrossValidation
     noise: np.ndarray               # sensor noise carried by each column of design
-    discovered: list[dict[str, Any]] = field(default_factory=list)
+    discovered: list[Finding] = field(default_factory=list)
     added: list[Term] = field(default_factory=list)
     present: set[str] = field(default_factory=set)
     final: stats.Fit | None = None
@@ -154,7 +163,7 @@ class Selector:
         return given.fold_rms_um if self.baseline.given_heldout_um < base_cv.rms_um else base_cv.fold_rms_um
 
     def run_figures(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
-                    runs_with: np.ndarray | None) -> dict[str, Any]:
+                    runs_with: np.ndarray | None) -> AdmissionRuns:
         """Several runs: each run's held-out RMS (its own offset fitted on it, everything else on the
         other runs) before and after, over the runs that have the columns: the median, how many
         improve, the worst run."""
@@ -163,11 +172,11 @@ class Selector:
         counted = np.ones(len(after), dtype=bool) if runs_with is None else np.asarray(runs_with, dtype=bool)
         names = [run.name for run in self.library.problem.runs]
         worst = int(np.flatnonzero(counted)[np.argmax(after[counted])])
-        return {"median_before_um": round(float(np.median(before[counted])), 4),
-                "median_after_um": round(float(np.median(after[counted])), 4),
-                "runs_improved": int(np.sum(after[counted] < before[counted])), "runs": int(counted.sum()),
-                "worst_before_um": round(float(np.max(before[counted])), 4),
-                "worst_after_um": round(float(after[worst]), 4), "worst_run": names[worst]}
+        return AdmissionRuns(median_before_um=round(float(np.median(before[counted])), 4),
+                             median_after_um=round(float(np.median(after[counted])), 4),
+                             runs_improved=int(np.sum(after[counted] < before[counted])), runs=int(counted.sum()),
+                             worst_before_um=round(float(np.max(before[counted])), 4),
+                             worst_after_um=round(float(after[worst]), 4), worst_run=names[worst])
 
     def heldout_gain(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
                      runs_with: np.ndarray | None = None) -> float:
@@ -199,7 +208,7 @@ class Selector:
         rest = consistent and significant and all(bounded(term) for term in terms)
         if rest and self.per_run:  # ... and it must not leave the worst run worse
             figures = self.run_figures(cv, base_cv, runs_with)
-            rest = figures["worst_after_um"] <= (1 + s.equivalence) * figures["worst_before_um"]
+            rest = figures.worst_after_um <= (1 + s.equivalence) * figures.worst_before_um
         gain = self.heldout_gain(cv, base_cv, runs_with)
         return gain >= s.min_improvement and rest, rest and gain >= s.likely_min_improvement
 
@@ -257,12 +266,9 @@ class Selector:
             gain, gain_se, gain_cv = setup.gain
             path = Path(True, setup.given[:, None], gain_cv, setup.given_noise[:, None])
             path.present.add("gain_error")
-            path.discovered.append({"effect": "gain_error", "parameters": {"gain": round(gain, 5)},
-                                    "evidence": {"heldout_rms_before_um": round(setup.baseline_rms, 4),
-                                                 "heldout_rms_after_um": round(gain_cv.rms_um, 4),
-                                                 "baseline_rms_um": round(setup.baseline_rms, 4),
-                                                 "gain_se": round(gain_se, 5), "equivalent": [],
-                                                 "why": "one common factor on the whole model explains the mismatch"}})
+            path.discovered.append(Finding("gain_error", {"gain": round(gain, 5)}, GainEvidence(
+                round(setup.baseline_rms, 4), round(gain_cv.rms_um, 4), round(setup.baseline_rms, 4),
+                round(gain_se, 5), [], "one common factor on the whole model explains the mismatch")))
         else:
             path = Path(False, setup.base_design, setup.recal_cv, setup.base_noise)
         if self.library.problem.per_run_offset:
@@ -301,9 +307,8 @@ class Selector:
         record = explain.evidence(chosen, best, equivalent, margin, path.base_cv.rms_um, t_crit, len(folds),
                                   window[0][:2] if window else None, term.spec.description)
         if self.per_run:
-            record["runs"] = self.run_figures(chosen.cv, path.base_cv, chosen.candidate.runs_with)
-        path.discovered.append({"effect": term.effect, "parameters": {
-            k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()}, "evidence": record})
+            record.runs = self.run_figures(chosen.cv, path.base_cv, chosen.candidate.runs_with)
+        path.discovered.append(finding(term.effect, term.parameters, record))
         path.added.append(term)
         path.present.add(present_key(term))
         path.design = np.column_stack([design, chosen.candidate.feature])
@@ -405,25 +410,20 @@ class Selector:
     def admit_move(self, path: Path, move: Move, equivalent: list[Move], t_crit: float) -> None:
         folds = len(self.baseline.folds)
         figures = self.run_figures(move.cv, path.base_cv, move.runs_with) if self.per_run else None
-        together = {"terms": [e.candidate.label for e in move.alone],
-                    "heldout_rms_after_um": round(move.cv.rms_um, 4),
-                    "alone_heldout_rms_um": [round(e.cv.rms_um, 4) for e in move.alone],
-                    "shares": [round(share, 3) for share in move.shares],
-                    "equivalent": [{"effects": m.label, "heldout_rms_um": round(m.cv.rms_um, 4)} for m in equivalent],
-                    "why": "no single effect passed the guards; these two pass them together, and each is "
-                           "needed (the pair clears the held-out bar over either alone)"}
         for index, (alone, term) in enumerate(zip(move.alone, move.terms, strict=True)):
             member = Evaluation(alone.candidate, move.cv, move.t_values[index], move.coefficients[index],
                                 move.fold_wins, move.ranked_rms_um)
             record = explain.evidence(member, member, [member], 0.0, path.base_cv.rms_um, t_crit, folds, None,
                                       term.spec.description)
-            record["move"] = {**together, "share": round(move.shares[index], 3)}
-            record["preferred"] = f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
-            if figures is not None:
-                record["runs"] = figures
-            path.discovered.append({"effect": term.effect, "parameters": {
-                k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
-                "evidence": record})
+            record.move = MoveEvidence(
+                [e.candidate.label for e in move.alone], round(move.cv.rms_um, 4),
+                [round(e.cv.rms_um, 4) for e in move.alone], [round(share, 3) for share in move.shares],
+                [MoveAlternative(m.label, round(m.cv.rms_um, 4)) for m in equivalent],
+                "no single effect passed the guards; these two pass them together, and each is "
+                "needed (the pair clears the held-out bar over either alone)", round(move.shares[index], 3))
+            record.preferred = f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
+            record.runs = figures
+            path.discovered.append(finding(term.effect, term.parameters, record))
             path.added.append(term)
             path.present.add(present_key(term))
         path.design = np.column_stack([path.design] + [e.candidate.feature for e in move.alone])
@@ -478,9 +478,9 @@ class Selector:
         joint_gain, joint_se = (float(final.coefficients[0]), float(final.standard_errors[0])) \
             if final is not None else (math.nan, math.nan)
         cv_gain, cv_recal = with_gain.base_cv.rms_um, recalibrate.base_cv.rms_um
-        alternative = {"effect": "recalibration" + "".join(f" + {d['effect']}" for d in recalibrate.discovered),
-                       "heldout_rms_um": round(cv_recal, 4)}
-        found = [d["effect"] for d in recalibrate.discovered]
+        alternative = Alternative("recalibration" + "".join(f" + {d.effect}" for d in recalibrate.discovered),
+                                  round(cv_recal, 4))
+        found = [d.effect for d in recalibrate.discovered]
         if not self.gain_physical(joint_gain, joint_se):
             why = (f"a common gain was considered and withdrawn: with the other effects in, it is {joint_gain:.3g} "
                    f"(physical range {s.gain_range[0]:g}..{s.gain_range[1]:g}, and it must depart from 1)")
@@ -493,15 +493,17 @@ class Selector:
                       f"gain x model explains held-out data better ({cv_gain:.3f} um) than recalibrating and "
                       f"adding physics ({cv_recal:.3f} um)")
             if not single:  # with one coefficient, recalibration is the same model as the gain
-                with_gain.discovered[0]["evidence"]["equivalent"] = [alternative]
+                with_gain.discovered[0].evidence.equivalent = [alternative]
             words = f"gain_error preferred: {reason}"
-            with_gain.discovered[0]["evidence"]["preferred"] = words
+            with_gain.discovered[0].evidence.preferred = words
             return with_gain, words
         why = (f"a common gain of {joint_gain:.3g} was considered: held-out {cv_gain:.3f} um against "
                f"{cv_recal:.3f} um for recalibration + physics, not better by {s.equivalence:.0%}")
         for record in recalibrate.discovered:
-            record["evidence"]["note"] = "a common gain on the model was considered and set aside"
+            evidence = record.evidence
+            assert isinstance(evidence, Evidence)  # the recalibrated path names no gain
+            evidence.note = "a common gain on the model was considered and set aside"
         if recalibrate.discovered:
-            recalibrate.discovered[0]["evidence"]["equivalent"].append(
-                {"effect": "gain_error", "gain": round(joint_gain, 5), "heldout_rms_um": round(cv_gain, 4)})
+            recalibrate.discovered[0].evidence.equivalent.append(
+                Alternative("gain_error", round(cv_gain, 4), gain=round(joint_gain, 5)))
         return recalibrate, explain.recalibration_words(found, setup.calibrated_here, why)

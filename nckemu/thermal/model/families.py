@@ -89,6 +89,10 @@ class Family:
     # Extra checks of a model file's table: (message, field) when it is wrong.
     check: Callable[[dict[str, Any]], tuple[str, str] | None] | None = None
     default_coefficient: float = 0.0
+    # Where a round lists this family's candidates: by stage, then by sensor, then in registry order
+    # (0: without a sensor; 1: one sensor; 2: sensor pairs; 3..: searched time constants). The order
+    # decides only how ties and equivalent explanations are listed.
+    stage: int = 1
 
     def present_key(self, parameters: dict[str, Any]) -> str:
         """What a found term rules out of later rounds: the family, or the family of that sensor (pair)."""
@@ -255,10 +259,11 @@ def _hysteresis_candidates(source: CandidateSource, present: set[str]) -> Iterat
 # ---------------------------------------------------------------------- the built-in families
 for _family in (
     Family("offset", "value_um", (), {}, 0, "a constant",
-           lambda r, _a, _p: np.ones_like(r.t_s), _offset_candidates, plc_form="constant"),
+           lambda r, _a, _p: np.ones_like(r.t_s), _offset_candidates, plc_form="constant", stage=0),
     Family("time_drift", "um_per_h", (), {}, 1, "a slow drift proportional to time",
            lambda r, _a, _p: (r.t_s - r.t_s[0]) / 3600.0, _once("time_drift", {"um_per_h": 0.0}),
-           plc_refusal="the PLC cannot know how long the machine has drifted (no physical input carries it)"),
+           plc_refusal="the PLC cannot know how long the machine has drifted (no physical input carries it)",
+           stage=0),
     Family("temperature", "coeff_um_per_K", ("sensor",), {"t_ref_C": 20.0}, 1, "linear in one sensor",
            lambda r, _a, p: _deviation(r, p), _per_sensor("temperature", "coeff_um_per_K", not_modelled=True),
            plc_form="linear"),
@@ -270,10 +275,10 @@ for _family in (
            _per_sensor("quadratic_temperature", "coeff_um_per_K2"), plc_form="square"),
     Family("thermal_gradient", "coeff_um_per_K", ("sensors",), {}, 2, "bending from the difference of two sensors",
            lambda r, _a, p: r.sensor(p["sensors"][0]) - r.sensor(p["sensors"][1]), _gradient_candidates,
-           plc_form="difference", check=_two_sensors),
+           plc_form="difference", check=_two_sensors, stage=2),
     Family("centrifugal_growth", "coeff_um_per_krpm2", (), {}, 2,
            "spindle growth with the square of the speed, without lag", _spindle, _spindle_candidates,
-           plc_form="speed_square", uses_spindle=True),
+           plc_form="speed_square", uses_spindle=True, stage=0),
     Family("position_dependent_expansion", "slope_um_per_m_per_K", ("sensor",), {"t_ref_C": 20.0, "p0_mm": 0.0}, 2,
            "expansion growing with the distance from P0 (tan beta)", _position,
            _per_sensor("position_dependent_expansion", "slope_um_per_m_per_K", not_modelled=True, positions=True,
@@ -283,13 +288,13 @@ for _family in (
            "the structure follows a sensor through a first-order lag",
            lambda r, _a, p: first_order_lag(r.t_s, r.sensor(p["sensor"]), float(p["tau_s"]))
            - float(p.get("t_ref_C", 20.0)),
-           _lag_candidates, plc_form="lag", extends=("temperature",), time_constants=("tau_s",)),
+           _lag_candidates, plc_form="lag", extends=("temperature",), time_constants=("tau_s",), stage=3),
     Family("heating_cooling_hysteresis", "coeff_um_per_K", ("sensor", "tau_heat_s", "tau_cool_s"), {"t_ref_C": 20.0}, 4,
            "different lags while heating and while cooling",
            lambda r, _a, p: asymmetric_lag(r.t_s, r.sensor(p["sensor"]), float(p["tau_heat_s"]),
                                            float(p["tau_cool_s"])) - float(p.get("t_ref_C", 20.0)),
            _hysteresis_candidates, plc_form="asymmetric_lag", extends=("temperature", "thermal_lag"),
-           time_constants=("tau_heat_s", "tau_cool_s")),
+           time_constants=("tau_heat_s", "tau_cool_s"), stage=5),
     # Two responses of one sensor (more than a lag): beside the sensor's own temperature it spans what
     # its lag spans, and then the lag, the simpler, is named. Its time constant going to infinity
     # leaves the sensor's temperature (less its value at the start, which an offset holds).
@@ -297,6 +302,6 @@ for _family in (
            "bending while heat crosses a structure (skin-core): a sensor minus its own lagged value, "
            "rising with the sensor, then straightening as the structure evens out",
            _transient, _transient_candidates, plc_form="skin_core", extends=("temperature",),
-           time_constants=("tau_s",)),
+           time_constants=("tau_s",), stage=4),
 ):
     register(_family)

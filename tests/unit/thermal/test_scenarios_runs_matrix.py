@@ -15,7 +15,7 @@ SEEDS = range(1, 21)
 def _named(name: str, seed: int) -> list[str]:
     family = make_run_family(name, seed)
     result = discover_runs(family.runs, AXIS, family.model)
-    return [m["effect"] for m in result.missing_physics]
+    return [m.effect for m in result.missing_physics]
 
 
 @pytest.mark.parametrize(("name", "effect"), [("job_mix_gradient", "thermal_gradient"),

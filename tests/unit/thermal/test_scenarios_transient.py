@@ -66,29 +66,29 @@ def test_the_transient_is_named_with_its_sensor_time_constant_and_gain() -> None
     family = make_transient_family("skin_core_days", seed=1)
     result = discover_runs(family.runs, AXIS, family.model)
     top = result.missing_physics[0]
-    assert top["effect"] == "transient_gradient" and top["parameters"]["sensor"] == "front"
-    assert top["parameters"]["tau_s"] == pytest.approx(TRANSIENT_TAU_S, rel=0.25)
-    assert top["parameters"]["coeff_um_per_K"] == pytest.approx(TRANSIENT_UM_PER_K, rel=0.25)
-    runs = top["evidence"]["runs"]  # per-run held-out figures, each run's offset its own
-    assert runs["runs"] == 30 and runs["runs_improved"] >= 27
-    assert runs["median_after_um"] < 0.5 * runs["median_before_um"]
-    assert runs["worst_after_um"] < runs["worst_before_um"]
+    assert top.effect == "transient_gradient" and top.parameters["sensor"] == "front"
+    assert top.parameters["tau_s"] == pytest.approx(TRANSIENT_TAU_S, rel=0.25)
+    assert top.parameters["coeff_um_per_K"] == pytest.approx(TRANSIENT_UM_PER_K, rel=0.25)
+    runs = top.evidence.runs  # per-run held-out figures, each run's offset its own
+    assert runs is not None and runs.runs == 30 and runs.runs_improved >= 27
+    assert runs.median_after_um < 0.5 * runs.median_before_um
+    assert runs.worst_after_um < runs.worst_before_um
     assert result.heldout_rms_after_um < 0.5 * result.heldout_rms_before_um
 
 
 def test_a_pair_that_shows_only_together_is_named_as_one_move() -> None:
     family = make_transient_family("pair_days", seed=1)
     result = discover_runs(family.runs, AXIS, family.model)
-    found = {(m["effect"], m["parameters"].get("sensor")): m for m in result.missing_physics}
+    found = {(m.effect, m.parameters.get("sensor")): m for m in result.missing_physics}
     assert set(found) == {("temperature", "rear"), ("temperature", "front")}
-    assert found[("temperature", "rear")]["parameters"]["coeff_um_per_K"] == pytest.approx(PAIR_REAR_UM_PER_K, rel=0.25)
-    assert found[("temperature", "front")]["parameters"]["coeff_um_per_K"] == pytest.approx(PAIR_FRONT_UM_PER_K,
+    assert found[("temperature", "rear")].parameters["coeff_um_per_K"] == pytest.approx(PAIR_REAR_UM_PER_K, rel=0.25)
+    assert found[("temperature", "front")].parameters["coeff_um_per_K"] == pytest.approx(PAIR_FRONT_UM_PER_K,
                                                                                              rel=0.25)
-    moves = [m["evidence"]["move"] for m in found.values()]
-    assert all(sorted(m["terms"]) == ["temperature(front)", "temperature(rear)"] for m in moves)
-    assert sum(m["share"] for m in moves) == pytest.approx(1.0, abs=0.01)
+    moves = [m.evidence.move for m in found.values()]
+    assert all(m is not None and sorted(m.terms) == ["temperature(front)", "temperature(rear)"] for m in moves)
+    assert sum(m.share for m in moves if m is not None) == pytest.approx(1.0, abs=0.01)
     # each alone does worse than the move by the held-out bar
-    assert all(min(m["alone_heldout_rms_um"]) > m["heldout_rms_after_um"] for m in moves)
+    assert all(m is not None and min(m.alone_heldout_rms_um) > m.heldout_rms_after_um for m in moves)
 
 
 def test_the_null_days_raise_no_alarm() -> None:

@@ -30,11 +30,11 @@ def test_t_critical_is_bonferroni_corrected() -> None:
 def test_a_planted_effect_is_admitted_once_and_the_search_stops() -> None:
     selector = _selector("temperature")
     path = selector.search(gain_mode=False)
-    assert [d["effect"] for d in path.discovered] == ["temperature"]
+    assert [d.effect for d in path.discovered] == ["temperature"]
     assert path.design.shape[1] == selector.baseline.base_design.shape[1] + 1
     assert path.rejected and math.isfinite(path.rejected_t_critical)  # the round that stopped it
-    evidence = path.discovered[0]["evidence"]
-    assert evidence["heldout_rms_after_um"] <= 0.9 * evidence["heldout_rms_before_um"]
+    evidence = path.discovered[0].evidence
+    assert evidence.heldout_rms_after_um <= 0.9 * evidence.heldout_rms_before_um
 
 
 def test_nothing_is_admitted_on_a_null() -> None:
