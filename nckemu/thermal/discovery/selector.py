@@ -120,6 +120,18 @@ class Path:
     rejected_t_critical: float = math.nan
 
 
+def runs_improve(before_ms: np.ndarray, after_ms: np.ndarray, level: float, min_share: float,
+                 min_runs: int = 10) -> bool:
+    """Do the runs improve, as paired samples (each run's held-out mean squared error before and
+    after)? The one-sided Wilcoxon signed-rank test at ``level``; with fewer than ``min_runs`` runs
+    (a few days of data: the test could hardly reach the level with one run not improving), or too
+    few to reach it at all, ``min_share`` of the runs must improve."""
+    before_ms, after_ms = np.asarray(before_ms), np.asarray(after_ms)
+    if len(before_ms) < min_runs or 0.5 ** len(before_ms) > level:
+        return int(np.sum(after_ms < before_ms)) >= math.ceil(min_share * len(before_ms))
+    return stats.paired_improvement_p(before_ms, after_ms) <= level
+
+
 def t_critical(alpha: float, tests: int, dof: int) -> float:
     """Two-sided Student-t at ``alpha`` / ``tests`` (Bonferroni): short records need the t tail."""
     from scipy.stats import t as student_t
@@ -135,6 +147,8 @@ class Selector:
         self.library = library
         self.settings = settings
         self.baseline = baseline
+        # Several runs: how many candidates of the round reach the runs' paired test (its correction).
+        self.paired_tests = 1
 
     # ------------------------------------------------------------------ one candidate
     def evaluate(self, design: np.ndarray, noise: np.ndarray, candidate: Candidate,
@@ -195,15 +209,33 @@ class Selector:
         reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
         return 1.0 - cv.rms_um / reference_um if reference_um > 0 else 0.0
 
+    def runs_consistent(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
+                        runs_with: np.ndarray | None) -> bool:
+        """Several runs: the runs' held-out mean squared errors, before and after, as pairs. The
+        paired test (``stats.paired_improvement_p``) at ``runs_alpha`` / ``paired_tests``: a term that
+        helps most runs a little and a few a lot passes, one that helps one run a lot and hurts many
+        does not. With fewer than ``runs_test_min`` runs the share of runs that improve decides, as
+        for the blocks of one run."""
+        before = np.square(np.asarray(base_cv.fold_rms_um))
+        after = np.square(np.asarray(cv.fold_rms_um))
+        if runs_with is not None:
+            before, after = before[runs_with], after[runs_with]
+        return runs_improve(before, after, self.settings.runs_alpha / max(self.paired_tests, 1),
+                            self.settings.min_fold_share, self.settings.runs_test_min)
+
     def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
               t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
-              t_crit: float) -> tuple[bool, bool]:
+              t_crit: float, *, paired: bool = True) -> tuple[bool, bool]:
         """Every guard, on a single effect or on a move of two as a whole: (passes every guard, passes
-        every guard but the held-out bar)."""
+        every guard but the held-out bar). ``paired=False`` leaves out the runs' paired test (to count
+        the candidates it is corrected over)."""
         s = self.settings
         # Several runs: a candidate is judged on the runs that have its columns.
         folds = len(base_cv.fold_rms_um) if runs_with is None else int(runs_with.sum())
-        consistent = fold_wins >= math.ceil(s.min_fold_share * folds)
+        if self.per_run:
+            consistent = not paired or self.runs_consistent(cv, base_cv, runs_with)
+        else:
+            consistent = fold_wins >= math.ceil(s.min_fold_share * folds)
         significant = all(abs(t) >= t_crit for t in t_values)
         rest = consistent and significant and all(bounded(term) for term in terms)
         if rest and self.per_run:  # ... and it must not leave the worst run worse
@@ -212,14 +244,22 @@ class Selector:
         gain = self.heldout_gain(cv, base_cv, runs_with)
         return gain >= s.min_improvement and rest, rest and gain >= s.likely_min_improvement
 
-    def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> tuple[bool, bool]:
+    def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float,
+                paired: bool = True) -> tuple[bool, bool]:
         """(passes every guard, passes every guard but the held-out bar)."""
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         return self.judge(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
-                          (evaluation.t_value,), (term,), base_cv, t_crit)
+                          (evaluation.t_value,), (term,), base_cv, t_crit, paired=paired)
 
     def passes(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> bool:
         return self._guards(evaluation, base_cv, t_crit)[0]
+
+    def count_paired_tests(self, evaluations: list[Evaluation], base_cv: stats.CrossValidation,
+                           t_crit: float) -> None:
+        """The runs' paired test is corrected over the candidates that reach it: those that pass every
+        other guard, the held-out bar included."""
+        if self.per_run:
+            self.paired_tests = max(1, sum(self._guards(e, base_cv, t_crit, paired=False)[0] for e in evaluations))
 
     def margin(self, *evaluations: Evaluation) -> float:
         """Held-out RMS within this share is "as good": a time constant is picked on the whole record,
@@ -290,6 +330,7 @@ class Selector:
         tests = sum(c.grid_points for c in candidates)
         t_crit = t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1 - setup.extra_parameters)
         evaluations = [self.evaluate(design, path.noise, c, path.base_cv) for c in candidates]
+        self.count_paired_tests(evaluations, path.base_cv, t_crit)
         passing = [e for e in evaluations if self.passes(e, path.base_cv, t_crit)]
         if not passing and s.pair_moves and len(path.added) + 2 <= s.max_effects \
                 and self.pair_round(path, evaluations, tests):
@@ -391,13 +432,16 @@ class Selector:
         grid = np.array([e.candidate.grid_points for e in pool], dtype=float)
         tests = single_tests + int((grid.sum() ** 2 - float(np.sum(grid ** 2))) / 2)
         t_crit = t_critical(s.alpha, tests, len(self.y) - path.design.shape[1] - 2 - setup.extra_parameters)
-        passing = []
-        for first, second in pairs:
-            move = self.evaluate_pair(path, pool[first], pool[second])
-            if self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv, t_crit)[0] \
-                    and all(self.heldout_gain(move.cv, alone.cv, move.runs_with) >= s.min_improvement
-                            for alone in move.alone):
-                passing.append(move)
+        moves = [self.evaluate_pair(path, pool[first], pool[second]) for first, second in pairs]
+
+        def guarded(move: Move, paired: bool) -> bool:
+            return self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
+                              t_crit, paired=paired)[0] \
+                and all(self.heldout_gain(move.cv, alone.cv, move.runs_with) >= s.min_improvement
+                        for alone in move.alone)
+        if self.per_run:
+            self.paired_tests = max(1, sum(guarded(move, paired=False) for move in moves))
+        passing = [move for move in moves if guarded(move, paired=True)]
         if not passing:
             return False
         best = min(passing, key=lambda m: m.ranked_rms_um)
