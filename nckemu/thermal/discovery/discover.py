@@ -309,14 +309,21 @@ class Discoverer:
             term = evaluation.candidate.term
             if (term.effect, str(term.parameters.get("sensor", term.parameters.get("sensors", "")))) in found:
                 continue
-            result.likely.append(explain.likely_record(evaluation, path.base_cv.rms_um, path.rejected_t_critical,
-                                                       len(setup.folds), self.settings.min_improvement))
-        if result.missing_physics or not path.rejected:
+            before_um, after_um, gain, figure = selector.heldout_figures(evaluation.cv, path.base_cv,
+                                                                         evaluation.candidate.runs_with)
+            result.likely.append(explain.likely_record(
+                evaluation, before_um, after_um, gain, figure, path.rejected_t_critical, len(setup.folds),
+                self.settings.min_improvement, "runs" if self.problem.per_run_offset else "folds"))
+        # The smallest effect each family could have shown: when nothing passed, and whenever what is
+        # left is structure (what the last round could not name, and how large it would have had to be).
+        if not path.rejected or (result.missing_physics and not result.residual_is_structure):
             return
         for evaluation in path.rejected:
             evaluation.own_rms = selector.own_rms(path.design, evaluation.candidate.feature)
         result.smallest_detectable_um = explain.detectable_um(path.rejected, path.base_cv.rms_um,
                                                               path.rejected_t_critical, self.settings.min_improvement)
+        if result.missing_physics:
+            return
         residual = path.final.residual if path.final is not None else self.y - setup.given
         _beyond, words = explain.autocorrelation_words(residual)
         runs = len(self.problem.runs)

@@ -211,17 +211,27 @@ def nothing_passed(units: int, unit_name: str, detectable: dict[str, float], aut
             f"could have shown (RMS over the gauge samples, um): {sizes}; {autocorrelation}")
 
 
-def likely_record(evaluation: Evaluation, before_um: float, t_critical: float, folds: int,
-                  bar: float) -> Likely:
-    """A correctly named term below the held-out bar: "likely, not proven", with its figures."""
+def bar_words(gain: float, bar: float, figure: str, held_back: str = "") -> str:
+    """How a figure stands against the held-out bar, in words that follow the figure: "below" only
+    of a figure below the bar; a figure that clears it says so, and what held the term back."""
+    if gain < bar:
+        return f"lowers {figure} by {gain:.1%}, below the {bar:.0%} an effect must clear"
+    return (f"lowers {figure} by {gain:.1%}, above the {bar:.0%} bar, but "
+            f"{held_back or 'another guard held it back'}")
+
+
+def likely_record(evaluation: Evaluation, before_um: float, after_um: float, gain: float, figure: str,
+                  t_critical: float, folds: int, bar: float, unit: str = "folds", held_back: str = "") -> Likely:
+    """A correctly named term below the held-out bar: "likely, not proven", with its figures: the
+    held-out figure admission judged it on (``figure``: held-out RMS, or with several runs the median
+    over runs), before and after, and its relative drop ``gain``."""
     term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
-    gain = 1 - evaluation.cv.rms_um / before_um if before_um > 0 else 0.0
     return Likely(term.effect, label(term),
                   {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
-                  LikelyEvidence(round(before_um, 4), round(evaluation.cv.rms_um, 4), round(gain, 4), bar,
+                  LikelyEvidence(round(before_um, 4), round(after_um, 4), round(gain, 4), bar,
                                  finite(evaluation.t_value), round(t_critical, 3), f"{evaluation.fold_wins}/{folds}",
-                                 f"passes the t-test and improves {evaluation.fold_wins} of {folds} folds, but lowers "
-                                 f"held-out RMS by {gain:.1%}, below the {bar:.0%} an effect must clear"))
+                                 f"passes the t-test and improves {evaluation.fold_wins} of {folds} {unit}, but "
+                                 + bar_words(gain, bar, figure, held_back)))
 
 
 # ---------------------------------------------------------------------- several runs

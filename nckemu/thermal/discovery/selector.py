@@ -223,6 +223,19 @@ class Selector:
         return runs_improve(before, after, self.settings.runs_alpha / max(self.paired_tests, 1),
                             self.settings.min_fold_share, self.settings.runs_test_min)
 
+    def heldout_figures(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
+                        runs_with: np.ndarray | None = None) -> tuple[float, float, float, str]:
+        """(before, after, relative drop, what the figure is): the held-out figure admission rests on
+        (``heldout_gain``), for words that must follow it."""
+        gain = self.heldout_gain(cv, base_cv, runs_with)
+        if self.per_run:
+            before = np.asarray(self.reference_folds(base_cv))
+            after = np.asarray(cv.fold_rms_um)
+            if runs_with is not None:
+                before, after = before[runs_with], after[runs_with]
+            return float(np.median(before)), float(np.median(after)), gain, "the median over runs of held-out RMS"
+        return min(base_cv.rms_um, self.baseline.given_heldout_um), cv.rms_um, gain, "held-out RMS"
+
     def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
               t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
               t_crit: float, *, paired: bool = True) -> tuple[bool, bool]:

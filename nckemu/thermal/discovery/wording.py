@@ -78,6 +78,10 @@ def finding_lines(discovery: Discovery) -> list[str]:
                      f"{e.heldout_rms_before_um:.3f} -> {e.heldout_rms_after_um:.3f} um "
                      f"({e.heldout_improvement:.1%}, the bar is {e.heldout_bar:.0%}), t = "
                      f"{e.t_value_ar1_corrected} (critical {e.t_critical}), folds {e.folds_improved}")
+    if discovery.missing_physics and discovery.residual_is_structure:
+        sizes = ", ".join(f"{family} {size:.2g}" for family, size in discovery.smallest_detectable_um.items())
+        lines.append(f"left: the residual is still structure ({structure_words(discovery)})"
+                     + (f"; the smallest effect each family could have shown next (RMS, um): {sizes}" if sizes else ""))
     if not discovery.missing_physics:
         # A residual that is structure (r(1) near 1, a huge Ljung-Box Q) is never "nothing missing".
         head = (f"nothing named, but the residual is structure ({structure_words(discovery)})"
