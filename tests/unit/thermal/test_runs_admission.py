@@ -54,3 +54,17 @@ def test_unchanged_runs_are_no_evidence() -> None:
     before = np.full(12, 3.0)
     assert stats.paired_improvement_p(before, before) == 1.0
     assert not runs_improve(before, before, LEVEL, SHARE)
+
+
+def test_the_duty_mix_days_are_light_then_heavy_and_the_null_shares_their_inputs() -> None:
+    from nckemu.thermal.synthetic.scenarios import make_duty_mix_family
+
+    family = make_duty_mix_family("duty_mix_days", 3, runs=12)
+    null = make_duty_mix_family("null_duty_mix_days", 3, runs=12)
+    assert family.truth.kinds == ("light",) * 10 + ("heavy",) * 2 and family.truth.effect == "temperature"
+    assert null.truth.effect is None
+    light, heavy = family.runs[0], family.runs[-1]
+    assert np.ptp(heavy.sensor("rear")) > 2 * np.ptp(light.sensor("rear"))
+    np.testing.assert_array_equal(family.runs[5].sensor("rear"), null.runs[5].sensor("rear"))
+    # the concealed term is the only difference between the families
+    assert float(np.ptp(heavy.errors_um["Z"] - null.runs[-1].errors_um["Z"])) > 10.0
