@@ -13,9 +13,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from nckemu.thermal.discover import discover  # noqa: E402
-from nckemu.thermal.recording import Recording  # noqa: E402
-from nckemu.thermal.terms import Term, ThermalModel, first_order_lag  # noqa: E402
+from nckemu.thermal.discovery.discover import discover  # noqa: E402
+from nckemu.thermal.model.lags import first_order_lag  # noqa: E402
+from nckemu.thermal.model.terms import Term, ThermalModel  # noqa: E402
+from nckemu.thermal.recordings.recording import Recording  # noqa: E402
 
 
 def recording(hours: float, sensors: int = 10, seed: int = 1) -> Recording:
@@ -43,7 +44,7 @@ def main() -> int:
         started = time.perf_counter()
         result = discover(rec, model=model)
         elapsed = time.perf_counter() - started
-        found = ", ".join(m["effect"] for m in result.missing_physics) or "-"
+        found = ", ".join(m.effect for m in result.missing_physics) or "-"
         print(f"{hours:5}  {len(rec.t_s):7}  {result.samples:14}  {elapsed:7.2f}  {found}")
     return 0
 

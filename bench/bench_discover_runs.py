@@ -25,11 +25,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from nckemu.thermal.discover import discover  # noqa: E402
-from nckemu.thermal.readings import resample  # noqa: E402
-from nckemu.thermal.recording import Recording, load_runs, write_recording  # noqa: E402
-from nckemu.thermal.scenarios import AXIS, make_run_family  # noqa: E402
-from nckemu.thermal.settings import Settings  # noqa: E402
+from nckemu.thermal.discovery.discover import discover  # noqa: E402
+from nckemu.thermal.discovery.readings import resample  # noqa: E402
+from nckemu.thermal.discovery.settings import Settings  # noqa: E402
+from nckemu.thermal.recordings.recording import Recording, load_runs, write_recording  # noqa: E402
+from nckemu.thermal.synthetic.scenarios import AXIS, make_run_family  # noqa: E402
 
 
 def end_to_end(runs: list[Recording]) -> Recording:
@@ -83,7 +83,7 @@ def main() -> int:
                 timed(f"load_runs {suffix[1:]} ({size_mb:.0f} MB)", lambda f=folder: load_runs([f], axis=AXIS))
 
     try:
-        from nckemu.thermal.discover import discover_runs  # type: ignore[attr-defined]
+        from nckemu.thermal.discovery.discover import discover_runs  # type: ignore[attr-defined]
     except ImportError:
         discover_runs = None
     elapsed_runs = None
@@ -91,12 +91,12 @@ def main() -> int:
         print("discover_runs: not in this tree yet")
     else:
         result, elapsed_runs = timed("discover_runs (pair moves on)", lambda: discover_runs(runs, AXIS, family.model))
-        named = [m["effect"] for m in getattr(result, "missing_physics", [])]
+        named = [m.effect for m in getattr(result, "missing_physics", [])]
         print(f"  named: {', '.join(named) or '-'} (truth: {family.truth.effect})")
         without = Settings(pair_moves=False)
         result, elapsed_single = timed("anchor: discover_runs, pair moves off",
                                        lambda: discover_runs(runs, AXIS, family.model, without))
-        named = [m["effect"] for m in getattr(result, "missing_physics", [])]
+        named = [m.effect for m in getattr(result, "missing_physics", [])]
         print(f"  named: {', '.join(named) or '-'}; pair moves cost {elapsed_runs - elapsed_single:+.2f} s")
     if not args.no_anchor:
         whole = end_to_end(runs)

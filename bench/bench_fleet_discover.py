@@ -1,7 +1,7 @@
 """Fleet discovery on Dask: 200 synthetic machine-days with 1 and 2 local workers, and the scaling ratio.
 
 The fleet: ``--machines`` folders (default 50) of ``--days`` one-day runs each (default 4: 200
-machine-days), made by the scenario generator (``thermal/scenarios.py``, the scenarios in turn, one
+machine-days), made by the scenario generator (``thermal/synthetic/scenarios.py``, the scenarios in turn, one
 seed per machine) at its 60 s sampling, with each machine's baseline model. Written as CSV, read by
 the workers.
 
@@ -27,10 +27,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from nckemu.thermal.fleet import discover_fleet, discover_machine, scan_root
-from nckemu.thermal.recording import load_recording, write_recording
-from nckemu.thermal.scenarios import SCENARIOS, make_scenario
-from nckemu.thermal.terms import render_model
+from nckemu.thermal.fleet.discover import discover_fleet, discover_machine, scan_root
+from nckemu.thermal.model.terms import render_model
+from nckemu.thermal.recordings.recording import load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import SCENARIOS, make_scenario
 
 DAY_S = 86400.0
 

@@ -20,11 +20,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from nckemu.thermal.fleet import MachineFolder, discover_machine
-from nckemu.thermal.fleet_reduce import plan, reduce_file
-from nckemu.thermal.recording import write_recording
-from nckemu.thermal.scenarios import SCENARIOS, make_scenario
-from nckemu.thermal.terms import render_model
+from nckemu.thermal.fleet.discover import MachineFolder, discover_machine
+from nckemu.thermal.fleet.reduce import plan, reduce_file
+from nckemu.thermal.model.terms import render_model
+from nckemu.thermal.recordings.recording import write_recording
+from nckemu.thermal.synthetic.scenarios import SCENARIOS, make_scenario
 
 DAY_S = 86400.0
 

@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from nckemu.plcsim.replay import run_on_recording  # noqa: E402
-from nckemu.thermal.recording import load_recording  # noqa: E402
+from nckemu.thermal.recordings.recording import load_recording  # noqa: E402
 from tests.interop.live_tools import poll, serve  # noqa: E402
 
 MACHINE = ROOT / "fixtures/machines/loop_mill.toml"

@@ -21,7 +21,7 @@ sys.path.insert(0, str(ROOT))
 
 from nckemu.plcsim.replay import run_on_recording  # noqa: E402
 from nckemu.plcsim.run import run_program  # noqa: E402
-from nckemu.thermal.recording import Recording  # noqa: E402
+from nckemu.thermal.recordings.recording import Recording  # noqa: E402
 
 
 def day_at_1hz(hours: float) -> Recording:

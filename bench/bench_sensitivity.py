@@ -20,8 +20,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from nckemu.thermal.discover import discover  # noqa: E402
-from nckemu.thermal.scenarios import AXIS, SCENARIOS, make_scenario, scaled_scenario  # noqa: E402
+from nckemu.thermal.discovery.discover import discover  # noqa: E402
+from nckemu.thermal.synthetic.scenarios import AXIS, SCENARIOS, make_scenario, scaled_scenario  # noqa: E402
 
 LADDER = (1.0, 0.7, 0.5, 0.35, 0.25, 0.18, 0.125, 0.09, 0.06, 0.04, 0.03)
 LAG_PARAMETERS = {"tau_s", "tau_heat_s", "tau_cool_s"}
@@ -41,9 +41,9 @@ def hit(job: tuple[str, float, int]) -> bool:
     name, scale, seed = job
     scenario = scaled_scenario(name, seed, scale)
     found = discover(scenario.recording, model=scenario.baseline).missing_physics
-    if not found or found[0]["effect"] != scenario.truth_effect:
+    if not found or found[0].effect != scenario.truth_effect:
         return False
-    top = found[0]["parameters"]
+    top = found[0].parameters
     return all(abs(top[key] - truth) <= (0.35 if key in LAG_PARAMETERS else 0.30) * abs(truth)
                for key, truth in scenario.truth_parameters.items())
 

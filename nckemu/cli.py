@@ -26,7 +26,7 @@ COMMAND_MODULES = (
     "nckemu.clients.program_commands",  # program put, get, list, select, start, stop, reset
     "nckemu.traces.commands",     # trace show, trace replay
     "nckemu.thermal.commands",    # simulate, discover
-    "nckemu.thermal.recording_commands",  # recording import, recording check
+    "nckemu.thermal.recordings.commands",  # recording import, recording check
     "nckemu.plcsim.commands",     # plc run, plc stubs
     "nckemu.plcsim.fleet_live",   # fleet: living machines (inputs/plc in a [[machine]])
     "nckemu.emulator.program_commands",  # program run (the program group)

@@ -195,7 +195,7 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from nckemu.thermal.recording_map import load_recording
+    from nckemu.thermal.recordings.recording_map import load_recording
 
     from .replay import run_on_recording, with_simulation, write_atomically
 
@@ -277,7 +277,7 @@ def run_loop_command(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from nckemu.thermal.recording_map import load_recording
+    from nckemu.thermal.recordings.recording_map import load_recording
 
     from .loop import run_loop, write_loop_report
 
@@ -320,8 +320,8 @@ def discover_with_stl(thermal_discover: Any, args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from nckemu.emulator.machine.machine_file import load_machine
-    from nckemu.thermal.plcmodel import plc_model, terms_of
-    from nckemu.thermal.recording_map import load_recording
+    from nckemu.thermal.discovery.plcmodel import plc_model, terms_of
+    from nckemu.thermal.recordings.recording_map import load_recording
 
     from .replay import plc_inputs, recording_axis
     from .stlgen import generate_program
@@ -412,7 +412,7 @@ def serve_live(plain_serve: Any, args: argparse.Namespace) -> int:
         raise NckConfigError("--loop starts a recording over: it needs --inputs")
     inputs = args.inputs
     if args.map and inputs is not None:  # a foreign file: read through the map before the server starts
-        from nckemu.thermal.recording_map import load_recording
+        from nckemu.thermal.recordings.recording_map import load_recording
 
         inputs = load_recording(inputs, need_errors=False, map_path=args.map)
     verbose = getattr(args, "verbose", 0) > 0

@@ -27,7 +27,7 @@ from nckemu.emulator.machine.machine_file import Machine
 from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE
 from nckemu.emulator.machine.nck.model import NckModel
 from nckemu.errors import NckConfigError
-from nckemu.thermal.recording import Recording
+from nckemu.thermal.recordings.recording import Recording
 
 # A [[sensor]] with this name carries the spindle speed to the PLC (its "degrees" are rpm): driven
 # from the recording's spindle_rpm column; the generator computes centrifugal growth from it.

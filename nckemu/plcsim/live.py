@@ -31,7 +31,7 @@ from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.cycle import CyclePacer, PacerStats
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area
-from nckemu.thermal.recording import Recording, load_recording
+from nckemu.thermal.recordings.recording import Recording, load_recording
 
 from .bridge import PlcRunner, awlsim_error_text, check_program
 from .drive import CycleInputs, RecordingDrive

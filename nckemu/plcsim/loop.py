@@ -30,11 +30,11 @@ import numpy as np
 from nckemu.cliutil import write_atomically
 from nckemu.emulator.machine.machine_file import Axis, Machine, load_machine
 from nckemu.thermal import stats
-from nckemu.thermal.discover import Discovery, discover
-from nckemu.thermal.plcmodel import PlcModel, plc_model, terms_of
-from nckemu.thermal.recording import Recording
-from nckemu.thermal.report import findings_html
-from nckemu.thermal.wording import program_findings
+from nckemu.thermal.discovery.discover import Discovery, discover
+from nckemu.thermal.discovery.plcmodel import PlcModel, plc_model, terms_of
+from nckemu.thermal.discovery.report import findings_html
+from nckemu.thermal.discovery.wording import program_findings
+from nckemu.thermal.recordings.recording import Recording
 
 from .bridge import check_program
 from .replay import plc_inputs, recording_axis, run_on_recording, with_simulation

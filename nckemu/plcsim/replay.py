@@ -31,7 +31,7 @@ from nckemu.emulator.machine.machine_file import Axis, Machine, load_machine
 from nckemu.emulator.runner import EmulatorThread
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import S7Area
-from nckemu.thermal.recording import Recording
+from nckemu.thermal.recordings.recording import Recording
 
 from .bridge import BridgeLog, PlcRunner, check_program
 from .drive import (  # noqa: F401 (their old home)
@@ -201,7 +201,7 @@ def with_simulation(recording: Recording, letter: str, sim_um: np.ndarray) -> Re
 
 def write_atomically(path: str | Path, recording: Recording) -> None:
     """Write to a temporary file beside ``path`` and rename: no partial SIM.csv on failure."""
-    from nckemu.thermal.recording import write_recording
+    from nckemu.thermal.recordings.recording import write_recording
 
     path = Path(path)
     temporary = path.with_name(f".{path.name}.partial")

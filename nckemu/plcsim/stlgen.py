@@ -36,8 +36,9 @@ from nckemu.emulator.machine.machine_file import Axis, Machine, Sensor
 from nckemu.errors import NckConfigError
 from nckemu.protocol.addresses import NckType
 from nckemu.protocol.awl import NcVarDb, NcVarEntry, render_ncvar_db
-from nckemu.thermal.plcmodel import why_not_compensable
-from nckemu.thermal.terms import Term, ThermalModel
+from nckemu.thermal.discovery.plcmodel import why_not_compensable
+from nckemu.thermal.model.families import PLC_FORMS, STATEFUL_PLC_FORMS
+from nckemu.thermal.model.terms import Term, ThermalModel
 
 from .replay import NCK_SPINDLE, POSITION_DEPENDENT_MARKER, SPINDLE_SPEED_SENSOR, nck_spindle_speed
 
@@ -138,7 +139,7 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
             generated.append({"effect": "gain_error", "parameters": dict(term.parameters)})
             continue
         reason = why_not_compensable(term, set(sensors), spindle_input=spindle_input or speed_by_get)
-        if reason is None and term.effect not in _GENERATORS:
+        if reason is None and term.spec.plc_form not in _GENERATORS:
             reason = f"no PLC form for {term.effect}"
         if reason:
             not_compensable.append({"effect": term.effect, "parameters": dict(term.parameters),
@@ -168,7 +169,7 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
     run = e.label()
     e.op(f"L {ready}", f"L {_real(0.0)}", "<>R", f"JC {run}")
     for index, term in enumerate(usable):
-        if term.effect in ("thermal_lag", "heating_cooling_hysteresis", "transient_gradient"):
+        if term.spec.plc_form in STATEFUL_PLC_FORMS:
             e.deviation(term.parameters["sensor"], float(term.parameters.get("t_ref_C", 20.0)))
             e.op(f"T {e.field(f'S{index}')}")
     e.op(f"L {_real(1.0)}", f"T {ready}")
@@ -176,8 +177,8 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
     e.op(f"L {_real(0.0)}", f"T {total}", f"T {tanb}")
     p0_mm: float | None = None
     for index, term in enumerate(usable):
-        detail = _GENERATORS[term.effect](e, term, index, cycle_s, total, tanb)
-        if term.effect == "position_dependent_expansion":
+        detail = _GENERATORS[str(term.spec.plc_form)](e, term, index, cycle_s, total, tanb)
+        if term.spec.plc_form == "position_slope":
             this_p0 = float(term.parameters.get("p0_mm", 0.0))
             if p0_mm is None:
                 p0_mm = this_p0
@@ -200,7 +201,7 @@ def generate_program(model: ThermalModel, machine: Machine, axis: Axis, cycle_s:
 
 
 def _sensors_of(term: Term) -> list[str]:
-    if term.effect == "centrifugal_growth":
+    if term.spec.uses_spindle:
         return [SPINDLE_SPEED_SENSOR]
     p = term.parameters
     if "sensors" in p:
@@ -216,7 +217,7 @@ def _offset(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tan
 
 def _temperature(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: str) -> str:
     p = term.parameters
-    e.op(f"// temperature {p['sensor']}: {term.coefficient:.6g} um/K")
+    e.op(f"// {term.effect} {p['sensor']}: {term.coefficient:.6g} um/K")
     e.deviation(p["sensor"], float(p.get("t_ref_C", 20.0)))
     e.op(f"L {_real(term.coefficient)}", "*R")
     e.accumulate(total)
@@ -226,7 +227,7 @@ def _temperature(e: _Emitter, term: Term, index: int, cycle_s: float, total: str
 def _quadratic(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: str) -> str:
     p = term.parameters
     scratch = e.field("D")
-    e.op(f"// quadratic_temperature {p['sensor']}: {term.coefficient:.6g} um/K^2")
+    e.op(f"// {term.effect} {p['sensor']}: {term.coefficient:.6g} um/K^2")
     e.deviation(p["sensor"], float(p.get("t_ref_C", 20.0)))
     e.op(f"T {scratch}", f"L {scratch}", "*R", f"L {_real(term.coefficient)}", "*R")
     e.accumulate(total)
@@ -235,7 +236,7 @@ def _quadratic(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, 
 
 def _gradient(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: str) -> str:
     a, b = term.parameters["sensors"]
-    e.op(f"// thermal_gradient {a} - {b}: {term.coefficient:.6g} um/K",
+    e.op(f"// {term.effect} {a} - {b}: {term.coefficient:.6g} um/K",
          f"L {e.temperature(a)}", f"L {e.temperature(b)}", "-R", f"L {_real(term.coefficient)}", "*R")
     e.accumulate(total)
     return "c * (T_a - T_b)"
@@ -244,7 +245,7 @@ def _gradient(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, t
 def _lag(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: str) -> str:
     p = term.parameters
     state, scratch = e.field(f"S{index}"), e.field("U")
-    if term.effect in ("thermal_lag", "transient_gradient"):
+    if term.spec.plc_form in ("lag", "skin_core"):
         alpha = lag_coefficient(cycle_s, float(p["tau_s"]))
         e.op(f"// {term.effect} {p['sensor']}: tau {float(p['tau_s']):.0f} s, {term.coefficient:.6g} um/K, "
              f"alpha {alpha:.6g} per {cycle_s:g} s cycle")
@@ -252,7 +253,7 @@ def _lag(e: _Emitter, term: Term, index: int, cycle_s: float, total: str, tanb: 
         e.op(f"T {scratch}")
         e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(alpha)}", "*R", f"L {state}", "+R", f"T {state}")
         detail = f"S += {alpha:.6g} * (T - t_ref - S) per cycle"
-        if term.effect == "transient_gradient":
+        if term.spec.plc_form == "skin_core":
             # The skin against the core: the sensor minus its own lag, zero once the structure is even.
             e.op(f"L {scratch}", f"L {state}", "-R", f"L {_real(term.coefficient)}", "*R")
             e.accumulate(total)
@@ -294,11 +295,11 @@ def _centrifugal(e: _Emitter, term: Term, index: int, cycle_s: float, total: str
     return "c * (rpm / 1000)^2"
 
 
-_GENERATORS = {"offset": _offset, "centrifugal_growth": _centrifugal, "temperature": _temperature,
-               "quadratic_temperature": _quadratic,
-               "thermal_gradient": _gradient, "thermal_lag": _lag, "heating_cooling_hysteresis": _lag,
-               "transient_gradient": _lag,
-               "position_dependent_expansion": _position}
+# One emitter per PLC form (model/families.py names each family's form: the generator asks the registry).
+_GENERATORS = {"constant": _offset, "speed_square": _centrifugal, "linear": _temperature, "square": _quadratic,
+               "difference": _gradient, "lag": _lag, "asymmetric_lag": _lag, "skin_core": _lag,
+               "position_slope": _position}
+assert set(_GENERATORS) == set(PLC_FORMS), "every PLC form of model/families.py has an emitter here"
 
 
 def _program_text(e: _Emitter, machine: Machine, axis: Axis, cycle_s: float, write_period_s: float,

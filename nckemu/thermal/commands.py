@@ -59,7 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     find.add_argument("--json-out", metavar="FILE", help="write the findings as JSON to FILE (- for stdout)")
     find.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
     find.add_argument("--write-model", metavar="IMPROVED.toml", help="write the improved model")
-    # fleet discovery (thermal/fleet.py): one Dask task per machine folder
+    # fleet discovery (thermal/fleet/discover.py): one Dask task per machine folder
     find.add_argument("--fleet", metavar="ROOT", help="one folder per machine under ROOT (its runs as CSV or "
                                                      "Parquet, optionally its model TOML); each machine a Dask task")
     find.add_argument("--scheduler", metavar="tcp://HOST:PORT",
@@ -74,8 +74,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 def run_simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .recording import Recording, load_recording, write_recording
-    from .terms import load_model
+    from nckemu.thermal.model.terms import load_model
+    from nckemu.thermal.recordings.recording import Recording, load_recording, write_recording
 
     check_output(args.out, "--out")
     model = load_model(args.model)
@@ -107,14 +107,14 @@ def run_discover(args: argparse.Namespace) -> int:
         raise NckConfigError("--fleet reads the project's format only: write each machine's runs with "
                              "`nckemu recording import SOURCE --map MAP.toml --out ROOT/<machine>` first")
     if args.fleet or args.scheduler or args.workers or args.reduce:
-        from .fleet_commands import run_fleet_discover
+        from nckemu.thermal.fleet.commands import run_fleet_discover
 
         return run_fleet_discover(args)
     if args.recording is None:
         raise NckConfigError("give a recording CSV, or --fleet ROOT")
-    from .discover import discover_runs
-    from .recording_map import load_recording, load_runs
-    from .terms import load_model
+    from nckemu.thermal.discovery.discover import discover_runs
+    from nckemu.thermal.model.terms import load_model
+    from nckemu.thermal.recordings.recording_map import load_recording, load_runs
 
     for option, path in (("--json-out", args.json_out), ("--report", args.report),
                          ("--write-model", args.write_model)):
@@ -133,9 +133,9 @@ def run_discover(args: argparse.Namespace) -> int:
 
 def _run_discover_one(args: argparse.Namespace, recording: Any, model: Any) -> int:
     """Discovery on one recording (one file, or a recording that ``--split-runs`` left whole)."""
-    from .discover import discover
-    from .report import write_report
-    from .terms import Term, ThermalModel
+    from nckemu.thermal.discovery.discover import discover
+    from nckemu.thermal.discovery.report import write_report
+    from nckemu.thermal.model.terms import Term, ThermalModel
 
     axis = args.axis or (model.axis if model is not None else None)
     if axis is None:
@@ -158,7 +158,7 @@ def _run_discover_one(args: argparse.Namespace, recording: Any, model: Any) -> i
     document = result.to_json()
     findings = None
     if model is None:  # the baseline is a program's compensation: say what it did and left out
-        from .wording import program_findings
+        from nckemu.thermal.discovery.wording import program_findings
 
         findings = program_findings(result)
         document["program"] = dict(findings)
@@ -179,7 +179,7 @@ def _run_discover_one(args: argparse.Namespace, recording: Any, model: Any) -> i
 
 def _write_model_and_json(args: argparse.Namespace, document: dict[str, Any], result: Any, note: str) -> Any:
     """--write-model and --json; the stream for the text (None when the JSON went to stdout)."""
-    from .terms import render_model
+    from nckemu.thermal.model.terms import render_model
 
     if args.write_model:
         text = note + render_model(result.improved_model)
@@ -191,7 +191,7 @@ def _write_model_and_json(args: argparse.Namespace, document: dict[str, Any], re
 
 
 def _print_findings(result: Any, text: Any) -> None:
-    from .wording import finding_lines
+    from nckemu.thermal.discovery.wording import finding_lines
 
     for line in finding_lines(result):
         print(f"  {line}", file=text)
@@ -199,12 +199,12 @@ def _print_findings(result: Any, text: Any) -> None:
 
 def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, discover_runs: Any,
                        load_runs: Any) -> int:
-    from .report import write_report
-    from .wording import runs_table
+    from nckemu.thermal.discovery.report import write_report
+    from nckemu.thermal.discovery.wording import runs_table
 
     runs = load_runs(specs, args.axis or (model.axis if model is not None else None))
     if getattr(args, "split_runs", False):
-        from .recording import split_runs
+        from nckemu.thermal.recordings.recording import split_runs
 
         runs = [part for run in runs for part in split_runs(run)]
         if len(runs) == 1:  # nothing to cut: discovery on the recording, exactly as without --split-runs

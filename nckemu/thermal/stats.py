@@ -83,6 +83,20 @@ def cross_validate_gram(design: np.ndarray, target: np.ndarray, folds: list[np.n
     return CrossValidation(float(np.sqrt(np.mean(squared))), tuple(per_fold))
 
 
+def paired_improvement_p(before: np.ndarray, after: np.ndarray) -> float:
+    """One-sided p-value that ``after`` is below ``before``, pair by pair: the Wilcoxon signed-rank
+    test on the differences (exact for the few dozen pairs of a machine's runs; pairs that do not
+    change are dropped). 1.0 when nothing changed."""
+    from scipy.stats import wilcoxon
+
+    difference = np.asarray(before, dtype=float) - np.asarray(after, dtype=float)
+    difference = difference[np.isfinite(difference) & (difference != 0)]
+    if len(difference) == 0:
+        return 1.0
+    method = "exact" if len(difference) <= 50 else "approx"
+    return float(wilcoxon(difference, alternative="greater", method=method).pvalue)
+
+
 def autocorrelation(residual: np.ndarray, lag: int) -> float:
     if len(residual) <= lag + 1:
         return 0.0

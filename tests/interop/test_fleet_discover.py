@@ -16,10 +16,10 @@ from pathlib import Path
 
 import pytest
 
-from nckemu.thermal.fleet import discover_fleet, discover_machine, scan_root
-from nckemu.thermal.recording import write_recording
-from nckemu.thermal.scenarios import make_scenario
-from nckemu.thermal.terms import render_model
+from nckemu.thermal.fleet.discover import discover_fleet, discover_machine, scan_root
+from nckemu.thermal.model.terms import render_model
+from nckemu.thermal.recordings.recording import write_recording
+from nckemu.thermal.synthetic.scenarios import make_scenario
 
 pytest.importorskip("distributed")
 

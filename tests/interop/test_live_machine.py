@@ -16,7 +16,7 @@ import snap7
 
 from nckemu.emulator.machine.machine_file import load_machine
 from nckemu.plcsim.replay import run_on_recording, with_simulation, write_atomically
-from nckemu.thermal.recording import load_recording
+from nckemu.thermal.recordings.recording import load_recording
 
 from .live_tools import MACHINE, PROGRAM, poll, serve, write_recording
 

@@ -11,8 +11,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from nckemu.thermal.recording import load_recording, parse_number, sniff_csv
-from nckemu.thermal.recording_map import (
+from nckemu.thermal.recordings.recording import load_recording, parse_number, sniff_csv
+from nckemu.thermal.recordings.recording_map import (
     TIME_UNITS,
     VALUE_UNITS,
     convert_value,

@@ -6,8 +6,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from nckemu.thermal.quality import bridge, find_glitches
-from nckemu.thermal.terms import first_order_lag
+from nckemu.thermal.model.lags import first_order_lag
+from nckemu.thermal.recordings.quality import bridge, find_glitches
 
 
 def clean_reading(seed: int, dt_s: float, noise_C: float) -> tuple[np.ndarray, np.ndarray]:

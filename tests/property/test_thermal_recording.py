@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from nckemu.errors import NckConfigError
-from nckemu.thermal.recording import Recording, load_recording, write_recording
+from nckemu.thermal.recordings.recording import Recording, load_recording, write_recording
 
 NAMES = st.text("abcdefghijklmnopqrstuvwxyzABCZ0123456789_", min_size=1, max_size=6)
 VALUES = st.floats(allow_nan=False, allow_infinity=False, width=64)

@@ -20,8 +20,8 @@ import pytest
 from nckemu.cli import _walk, build_parser, main
 from nckemu.clients import NckClient
 from nckemu.emulator.runner import EmulatorThread
-from nckemu.thermal.recording import write_recording
-from nckemu.thermal.scenarios import make_scenario
+from nckemu.thermal.recordings.recording import write_recording
+from nckemu.thermal.synthetic.scenarios import make_scenario
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures"

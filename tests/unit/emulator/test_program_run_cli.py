@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from nckemu.cli import main
-from nckemu.thermal.recording import load_recording
+from nckemu.thermal.recordings.recording import load_recording
 from tests.conftest import FIXTURES
 
 SHORT = FIXTURES / "programs" / "SHORT.MPF"

@@ -50,7 +50,7 @@ def test_on_a_recording_the_program_follows_its_motor_temperature_column(tmp_pat
     """`plc run --inputs` (the code path of `loop` and a living serve): the recording's
     temp_spindle_motor_C drives the sensor, r0035 reports it, the program's K0 follows."""
     from nckemu.plcsim.replay import run_on_recording
-    from nckemu.thermal.recording import load_recording
+    from nckemu.thermal.recordings.recording import load_recording
 
     rows = ["t_s,temp_spindle_motor_C,temp_bed_C,spindle_rpm,err_Z_um"]
     for i in range(61):

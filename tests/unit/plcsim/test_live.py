@@ -18,7 +18,7 @@ from nckemu.emulator.machine.machine_file import load_machine
 from nckemu.errors import NckConfigError
 from nckemu.plcsim.drive import RecordingDrive
 from nckemu.plcsim.live import LiveMachine, parse_speed
-from nckemu.thermal.recording import load_recording
+from nckemu.thermal.recordings.recording import load_recording
 from tests.interop.live_tools import MACHINE, PROGRAM, write_recording
 
 FAULT_PROGRAM = """\

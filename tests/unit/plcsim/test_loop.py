@@ -10,8 +10,8 @@ import pytest
 
 from nckemu.plcsim.loop import run_loop, write_loop_report
 from nckemu.plcsim.replay import run_on_recording, with_simulation
-from nckemu.thermal.recording import Recording, load_recording, write_recording
-from nckemu.thermal.scenarios import LOOP_SPINDLE_TAU_S, make_loop_scenario
+from nckemu.thermal.recordings.recording import Recording, load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import LOOP_SPINDLE_TAU_S, make_loop_scenario
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures"
 LOOP_MILL = FIXTURES / "machines" / "loop_mill.toml"
@@ -25,8 +25,8 @@ def test_loop_names_the_lagging_spindle_and_halves_the_heldout_residual(seed: in
     scenario = make_loop_scenario(seed=seed)
     result = run_loop(BED_ONLY, LOOP_MILL, scenario.recording, "Z", cycle_s=60.0, progress=False)
     first = result.discovery.missing_physics[0]
-    assert first["effect"] == "thermal_lag" and first["parameters"]["sensor"] == "spindle"
-    assert abs(first["parameters"]["tau_s"] / LOOP_SPINDLE_TAU_S - 1) <= 0.30
+    assert first.effect == "thermal_lag" and first.parameters["sensor"] == "spindle"
+    assert abs(first.parameters["tau_s"] / LOOP_SPINDLE_TAU_S - 1) <= 0.30
     assert result.heldout_rms_after_um <= 0.5 * result.rms_before_um
     assert [h for h, _ in result.findings] == ["What the program compensated", "The residual",
                                               "Where it falls short", "What physics it leaves out"]
@@ -102,7 +102,7 @@ def test_seed003_table_through_the_loop() -> None:
                       recording, "Z", cycle_s=60.0, folds=3, progress=False)
     # The program follows the sensor (Table 1's "PLC" column); the gauge grows faster than the sensor.
     assert result.sim_old_um[0] == pytest.approx(5.0, abs=0.05)
-    assert result.discovery.missing_physics[0]["effect"] == "gain_error"
+    assert result.discovery.missing_physics[0].effect == "gain_error"
     assert result.heldout_rms_after_um < 0.5 * result.rms_before_um
 
 

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nckemu.plcsim.replay import run_on_recording
-from nckemu.thermal.recording import Recording, load_recording, write_recording
+from nckemu.thermal.recordings.recording import Recording, load_recording, write_recording
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures"
 BED_RAMP = FIXTURES / "machines" / "bed_ramp.toml"

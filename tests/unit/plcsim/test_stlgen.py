@@ -19,9 +19,10 @@ from nckemu.emulator.machine.machine_file import Machine, load_machine, parse_ma
 from nckemu.plcsim.bridge import PlcRunner
 from nckemu.plcsim.replay import RecordingRun, recording_axis, run_on_recording
 from nckemu.plcsim.stlgen import STATE_DB, generate_program, lag_coefficient
-from nckemu.thermal.recording import Recording
-from nckemu.thermal.scenarios import make_loop_scenario
-from nckemu.thermal.terms import Term, ThermalModel, first_order_lag
+from nckemu.thermal.model.lags import first_order_lag
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording
+from nckemu.thermal.synthetic.scenarios import make_loop_scenario
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures"
 MACHINE = load_machine(FIXTURES / "machines" / "loop_mill.toml")
@@ -168,7 +169,7 @@ def test_float32_program_against_float64_model_property(tmp_path: Path, coeff_be
 
 def test_plc_run_warns_when_md32750_bit_1_is_missing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from nckemu.cli import main
-    from nckemu.thermal.recording import write_recording
+    from nckemu.thermal.recordings.recording import write_recording
 
     model = ThermalModel("Z", [Term("position_dependent_expansion", {"sensor": "bed", "t_ref_C": 20.0, "p0_mm": -100.0,
                                                                      "slope_um_per_m_per_K": 11.5})])
@@ -226,7 +227,7 @@ def test_position_dependent_program_on_the_nck_follows_the_model(tmp_path: Path)
 def test_plc_run_inputs_runs_the_fb2_get_program(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """`plc run --inputs` loads the generated program with FB2 GET in awlsim and runs it on a recording."""
     from nckemu.cli import main
-    from nckemu.thermal.recording import write_recording
+    from nckemu.thermal.recordings.recording import write_recording
 
     model = ThermalModel("Z", [Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": 2.0}),
                                Term("centrifugal_growth", {"coeff_um_per_krpm2": -0.05})])

@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from nckemu.thermal.discover import Discovery, discover
-from nckemu.thermal.recording import load_recording
-from nckemu.thermal.terms import parse_model
+from nckemu.thermal.discovery.discover import Discovery, discover
+from nckemu.thermal.model.terms import parse_model
+from nckemu.thermal.recordings.recording import load_recording
 
 # FL_THERMAL's ch3 against a hand model (offset, t5 at -2 um/K), every 4th reading
 FL_THERMAL_CH3_MODEL = ('axis = "ch3"\n[[term]]\neffect = "offset"\nvalue_um = 0.0\n[[term]]\n'

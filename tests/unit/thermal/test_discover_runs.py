@@ -13,10 +13,10 @@ import pytest
 from nckemu.cli import main
 from nckemu.errors import NckConfigError
 from nckemu.thermal import stats
-from nckemu.thermal.discover import discover, discover_runs
-from nckemu.thermal.recording import load_recording, write_recording
-from nckemu.thermal.scenarios import AXIS, make_run_family, make_scenario, make_variant
-from nckemu.thermal.terms import Term, ThermalModel, load_model
+from nckemu.thermal.discovery.discover import discover, discover_runs
+from nckemu.thermal.model.terms import Term, ThermalModel, load_model
+from nckemu.thermal.recordings.recording import load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import AXIS, make_run_family, make_scenario, make_variant
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
 RUNS = FIXTURES / "runs"
@@ -30,7 +30,7 @@ def test_a_lag_is_named_across_runs_each_with_its_own_offset() -> None:
     model = load_model(FIXTURES / "baseline_spindle_bed.toml")
     result = discover_runs(_days(), model=model)
     top = result.missing_physics[0]
-    assert top["effect"] == "thermal_lag" and top["parameters"]["tau_s"] == pytest.approx(2400, rel=0.35)
+    assert top.effect == "thermal_lag" and top.parameters["tau_s"] == pytest.approx(2400, rel=0.35)
     assert [r["name"] for r in result.runs] == ["day1", "day2", "day3"]
     for row in result.runs:
         assert set(row) >= {"name", "rows", "duration_h", "heldout_rms_before_um", "heldout_rms_after_um"}
@@ -49,7 +49,7 @@ def test_a_runs_offset_changes_nothing_but_that_run() -> None:
     days[1].errors_um["Z"] = days[1].errors_um["Z"] + 250.0  # re-referenced elsewhere
     second = discover_runs(days, model=model)
     assert second.runs == first.runs
-    assert second.missing_physics[0]["parameters"] == first.missing_physics[0]["parameters"]
+    assert second.missing_physics[0].parameters == first.missing_physics[0].parameters
 
 
 def test_runs_lacking_a_sensor_are_named_and_candidates_judged_where_it_is() -> None:
@@ -60,7 +60,7 @@ def test_runs_lacking_a_sensor_are_named_and_candidates_judged_where_it_is() -> 
                                 "handled": "candidates that need it were judged on the runs that have it: elsewhere "
                                            "they contribute nothing, and only those runs count among the folds they "
                                            "must improve"}]
-    assert result.missing_physics[0]["effect"] == "thermal_lag"
+    assert result.missing_physics[0].effect == "thermal_lag"
 
 
 def test_a_sensor_the_physics_needs_missing_in_some_runs_is_judged_on_the_others() -> None:
@@ -69,7 +69,7 @@ def test_a_sensor_the_physics_needs_missing_in_some_runs_is_judged_on_the_others
     family = make_run_family("job_mix_gradient", 1, missing_from=("front", "rear", "ambient", "coolant"))
     result = discover_runs(family.runs, AXIS, family.model)
     top = result.missing_physics[0]
-    assert top["effect"] == "thermal_gradient" and sorted(top["parameters"]["sensors"]) == ["front", "rear"]
+    assert top.effect == "thermal_gradient" and sorted(top.parameters["sensors"]) == ["front", "rear"]
     assert result.coverage[0]["column"] == "temp_front_C" and len(result.coverage[0]["missing_in"]) == 2
     # with front in 2 of 8 runs only, candidates of it are not tried, and it is said
     for run in family.runs[2:]:
@@ -77,7 +77,7 @@ def test_a_sensor_the_physics_needs_missing_in_some_runs_is_judged_on_the_others
     result = discover_runs(family.runs, AXIS, family.model)
     front = next(c for c in result.coverage if c["column"] == "temp_front_C")
     assert "not tried" in front["handled"]
-    assert "front" not in json.dumps([m["parameters"] for m in result.missing_physics])
+    assert "front" not in json.dumps([m.parameters for m in result.missing_physics])
 
 
 def test_runs_with_different_sampling_and_lengths() -> None:
@@ -87,7 +87,7 @@ def test_runs_with_different_sampling_and_lengths() -> None:
     result = discover_runs(days, model=load_model(FIXTURES / "baseline_spindle_bed.toml"))
     assert [r["rows"] for r in result.runs] == [int(np.sum(~np.isnan(d.errors_um["Z"]))) for d in days]
     assert [r["duration_h"] for r in result.runs] == pytest.approx([12, 12, 6], abs=0.1)
-    assert result.missing_physics[0]["effect"] == "thermal_lag"
+    assert result.missing_physics[0].effect == "thermal_lag"
 
 
 def test_fast_runs_are_resampled_and_say_so() -> None:
@@ -131,7 +131,7 @@ def test_the_headline_before_is_the_baseline_refitted_like_the_after() -> None:
     result = discover(shifted, model=offset)
     assert result.baseline_rms_um > 60
     assert result.heldout_rms_before_um < 20
-    assert result.heldout_rms_before_um == pytest.approx(result.missing_physics[0]["evidence"]["heldout_rms_before_um"],
+    assert result.heldout_rms_before_um == pytest.approx(result.missing_physics[0].evidence.heldout_rms_before_um,
                                                          abs=1e-3)
     assert result.before_is == "the baseline refitted per held-out block"
 
@@ -159,11 +159,11 @@ def test_a_small_quadratic_is_likely_not_proven() -> None:
     result = discover(scenario.recording, model=scenario.baseline)
     assert result.missing_physics == []
     (likely,) = result.likely
-    assert likely["effect"] == "quadratic_temperature" and likely["status"] == "likely, not proven"
+    assert likely.effect == "quadratic_temperature" and likely.status == "likely, not proven"
     truth = scenario.truth_parameters["coeff_um_per_K2"]
     # near the noise floor the size is rough (0.027 against 0.04 on this seed): named, not measured
-    assert likely["parameters"]["coeff_um_per_K2"] == pytest.approx(truth, rel=0.5)
-    assert 0.02 <= likely["evidence"]["heldout_improvement"] < 0.10
+    assert likely.parameters["coeff_um_per_K2"] == pytest.approx(truth, rel=0.5)
+    assert 0.02 <= likely.evidence.heldout_improvement < 0.10
 
 
 # ---------------------------------------------------------------------- the CLI

@@ -10,10 +10,10 @@ import pytest
 
 from nckemu.cli import main
 from nckemu.errors import NckConfigError
-from nckemu.thermal.discover import Discoverer, Discovery, discover
-from nckemu.thermal.recording import load_recording, write_recording
-from nckemu.thermal.scenarios import SCENARIOS, make_scenario, make_variant
-from nckemu.thermal.terms import load_model, parse_model
+from nckemu.thermal.discovery.discover import Discoverer, Discovery, discover
+from nckemu.thermal.model.terms import load_model, parse_model
+from nckemu.thermal.recordings.recording import load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import SCENARIOS, make_scenario, make_variant
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
 EFFECT_SCENARIOS = [s for s in SCENARIOS if not s.startswith("null")]
@@ -26,17 +26,18 @@ def test_concealed_effect_is_found_fitted_and_located(name: str) -> None:
     result = discover(scenario.recording, model=scenario.baseline)
     assert result.missing_physics, f"{name}: nothing found"
     top = result.missing_physics[0]
-    assert top["effect"] == scenario.truth_effect
+    assert top.effect == scenario.truth_effect
     for key, truth in scenario.truth_parameters.items():
         tolerance = 0.35 if key in LAG_PARAMETERS else 0.30
-        assert top["parameters"][key] == pytest.approx(truth, rel=tolerance), key
+        assert top.parameters[key] == pytest.approx(truth, rel=tolerance), key
     assert result.heldout_rms_after_um < 0.7 * result.heldout_rms_before_um
-    assert len(result.missing_physics) == 1, [m["effect"] for m in result.missing_physics]
+    assert len(result.missing_physics) == 1, [m.effect for m in result.missing_physics]
     if scenario.window_s is not None:
-        window = top["evidence"]["window"]
+        window = top.evidence.window
+        assert window is not None
         start, end = scenario.window_s
-        inside = max(0.0, min(end, window["t_end_s"]) - max(start, window["t_start_s"]))
-        assert inside >= 0.8 * (window["t_end_s"] - window["t_start_s"])
+        inside = max(0.0, min(end, window.t_end_s) - max(start, window.t_start_s))
+        assert inside >= 0.8 * (window.t_end_s - window.t_start_s)
 
 
 @pytest.mark.parametrize("name", ["null_ar1", "null_outliers_gaps"])
@@ -54,7 +55,7 @@ def test_nothing_is_reported_on_nulls(name: str) -> None:
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_more_seeds(name: str, seed: int) -> None:
     scenario = make_scenario(name, seed=seed)
-    found = [m["effect"] for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
+    found = [m.effect for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
     assert found[:1] == ([scenario.truth_effect] if scenario.truth_effect else [])
 
 
@@ -145,7 +146,7 @@ def test_discover_without_a_baseline_starts_from_an_offset(shared_dir: Path, tmp
 
 def test_fl_thermal_recording_claims_no_centrifugal_growth(fl_thermal_ch3_discovery: Discovery) -> None:
     result = fl_thermal_ch3_discovery
-    assert "centrifugal_growth" not in [m["effect"] for m in result.missing_physics]
+    assert "centrifugal_growth" not in [m.effect for m in result.missing_physics]
     assert result.heldout_rms_after_um <= result.heldout_rms_before_um
 
 
@@ -158,7 +159,7 @@ def test_fl_thermal_recording_claims_no_centrifugal_growth(fl_thermal_ch3_discov
 ])
 def test_seeds_that_once_fooled_discovery(name: str, seed: int, expected: str | None) -> None:
     scenario = make_scenario(name, seed=seed)
-    found = [m["effect"] for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
+    found = [m.effect for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
     assert found[:1] == ([expected] if expected else [])
 
 
@@ -170,11 +171,11 @@ def test_the_sensors_noise_is_measured_and_judged_apart_from_the_physics() -> No
     for name in ("temp_front_C", "temp_rear_C", "temp_spindle_C"):
         assert discoverer.sensor_noise_C[name] == pytest.approx(0.03, rel=0.15), name
     top = discoverer.run().missing_physics[0]
-    assert top["effect"] == "thermal_gradient"
-    evidence = top["evidence"]
-    assert evidence["heldout_rms_without_sensor_noise_um"] < 0.98 * evidence["heldout_rms_after_um"]
-    lag = next(e for e in evidence["equivalent"] if e["effect"] == "thermal_lag(spindle)")
-    assert lag["heldout_rms_um"] < evidence["heldout_rms_after_um"]  # better as measured, by its quiet sensor
+    assert top.effect == "thermal_gradient"
+    evidence = top.evidence
+    assert evidence.heldout_rms_without_sensor_noise_um < 0.98 * evidence.heldout_rms_after_um
+    lag = next(e for e in evidence.equivalent if e.effect == "thermal_lag(spindle)")
+    assert lag.heldout_rms_um < evidence.heldout_rms_after_um  # better as measured, by its quiet sensor
 
 
 def test_a_gradient_standing_in_for_a_lag_is_not_named_for_its_tie_without_noise() -> None:
@@ -182,5 +183,5 @@ def test_a_gradient_standing_in_for_a_lag_is_not_named_for_its_tie_without_noise
     removed, but predicts worse as measured, and that noise costs it more held-out RMS than the
     equivalence margin of the pair."""
     scenario = make_variant("thermal_lag_small", 19)
-    found = [m["effect"] for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
+    found = [m.effect for m in discover(scenario.recording, model=scenario.baseline).missing_physics]
     assert found[:1] == ["thermal_lag"]

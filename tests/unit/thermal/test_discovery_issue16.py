@@ -10,11 +10,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nckemu.thermal.discover import Discovery, discover
-from nckemu.thermal.recording import load_recording
-from nckemu.thermal.report import write_report
-from nckemu.thermal.scenarios import ALL_SCENARIOS, VARIANTS, make_scenario, make_variant, scaled_scenario
-from nckemu.thermal.terms import Term, ThermalModel
+from nckemu.thermal.discovery.discover import Discovery, discover
+from nckemu.thermal.discovery.report import write_report
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import load_recording
+from nckemu.thermal.synthetic.scenarios import (
+    ALL_SCENARIOS,
+    VARIANTS,
+    make_scenario,
+    make_variant,
+    scaled_scenario,
+)
 
 LAG_PARAMETERS = {"tau_s", "tau_heat_s", "tau_cool_s"}
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
@@ -23,12 +29,12 @@ FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
 def named_first_and_fitted(name: str, seed: int) -> tuple[bool, list[str]]:
     scenario = make_variant(name, seed)
     result = discover(scenario.recording, model=scenario.baseline)
-    found = [m["effect"] for m in result.missing_physics]
+    found = [m.effect for m in result.missing_physics]
     if scenario.truth_effect is None:
         return found == [], found
     if found[:1] != [scenario.truth_effect]:
         return False, found
-    top = result.missing_physics[0]["parameters"]
+    top = result.missing_physics[0].parameters
     for key, truth in scenario.truth_parameters.items():
         tolerance = 0.35 if key in LAG_PARAMETERS else 0.30
         if not abs(top[key] - truth) <= tolerance * abs(truth):
@@ -49,7 +55,7 @@ def test_a_gain_outside_the_physical_range_is_recalibration() -> None:
     inflated = ThermalModel("Z", [t.with_coefficient(4 * t.coefficient) if t.effect != "offset" else t
                                   for t in scenario.baseline.terms])
     result = discover(scenario.recording, model=inflated)
-    assert "gain_error" not in [m["effect"] for m in result.missing_physics]
+    assert "gain_error" not in [m.effect for m in result.missing_physics]
     assert result.recalibrated_rms_um < 0.1 * result.baseline_rms_um
     improved = {t.parameters.get("sensor"): t.coefficient for t in result.improved_model.terms}
     assert improved["spindle"] == pytest.approx(3.9, rel=0.1)
@@ -60,7 +66,7 @@ def test_a_gain_is_withdrawn_when_physics_explains_better() -> None:
     never a gain, and the report says why."""
     scenario = make_variant("position_dependent_expansion_calibrated", 3)
     result = discover(scenario.recording, model=scenario.baseline)
-    effects = [m["effect"] for m in result.missing_physics]
+    effects = [m.effect for m in result.missing_physics]
     assert effects[0] == "position_dependent_expansion"
     assert "gain_error" not in effects
     assert result.calibrated_on_record
@@ -72,9 +78,9 @@ def test_like_with_like_a_small_quadratic_on_a_calibrated_model() -> None:
     the linear model refitted per fold, not with that figure."""
     scenario = make_variant("quadratic_temperature_calibrated", 1)
     result = discover(scenario.recording, model=scenario.baseline)
-    assert [m["effect"] for m in result.missing_physics][:1] == ["quadratic_temperature"]
-    evidence = result.missing_physics[0]["evidence"]
-    assert evidence["heldout_rms_before_um"] > result.baseline_rms_um  # the refit CV, not the in-sample figure
+    assert [m.effect for m in result.missing_physics][:1] == ["quadratic_temperature"]
+    evidence = result.missing_physics[0].evidence
+    assert evidence.heldout_rms_before_um > result.baseline_rms_um  # the refit CV, not the in-sample figure
 
 
 def test_null_with_slow_wander_gaps_and_outliers_stays_silent() -> None:
@@ -96,7 +102,7 @@ def test_sensor_glitches_are_reported_and_kept_out_of_the_model() -> None:
     scenario = make_variant("thermal_gradient_glitch", 1)
     result = discover(scenario.recording, model=scenario.baseline)
     assert any(note.startswith("temp_front_C:") and "glitch" in note for note in result.data_quality)
-    assert result.missing_physics[0]["effect"] == "thermal_gradient"
+    assert result.missing_physics[0].effect == "thermal_gradient"
     residual = result.series["residual_after_um"]
     # No spike: the improved model stays within the gauge's own noise everywhere.
     assert np.max(np.abs(residual - np.median(residual))) < 3.0
@@ -136,10 +142,10 @@ def test_report_gain_row_has_numbers_equivalents_and_preference(tmp_path: Path) 
 def test_report_lists_equivalent_explanations(tmp_path: Path) -> None:
     scenario = make_variant("position_dependent_expansion_calibrated", 1)
     result = discover(scenario.recording, model=scenario.baseline)
-    listed = [e for m in result.missing_physics for e in m["evidence"].get("equivalent", [])]
+    listed = [e for m in result.missing_physics for e in m.evidence.equivalent]
     text = _report_text(tmp_path, result)
     for item in listed:
-        assert item["effect"] in text
+        assert item.effect in text
     json.dumps(result.to_json())  # the JSON stays serialisable
 
 
@@ -178,5 +184,5 @@ def test_gain_term_round_trip() -> None:
     scenario = make_scenario("gain_error", 1)
     given = ThermalModel("Z", [Term("gain_error", {"gain": 0.9})] + scenario.baseline.terms)
     result = discover(scenario.recording, model=given)
-    assert result.missing_physics[0]["effect"] == "gain_error"
+    assert result.missing_physics[0].effect == "gain_error"
     assert result.improved_model.gain == pytest.approx(1.3, rel=0.05)

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from nckemu.cli import main
-from nckemu.thermal import explain
-from nckemu.thermal.discover import discover, discover_runs
-from nckemu.thermal.recording import Recording, load_recording, write_recording
-from nckemu.thermal.report import write_report
-from nckemu.thermal.terms import Term, ThermalModel
-from nckemu.thermal.wording import finding_lines, program_findings, runs_table
+from nckemu.thermal.discovery import explain
+from nckemu.thermal.discovery.discover import discover, discover_runs
+from nckemu.thermal.discovery.report import write_report
+from nckemu.thermal.discovery.wording import finding_lines, program_findings, runs_table
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording, load_recording, write_recording
 
 FIXTURES = Path(__file__).resolve().parents[3] / "fixtures" / "thermal"
 RUNS = FIXTURES / "runs"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nckemu.thermal import explain
+from nckemu.thermal.discovery import explain
 
 
 def test_locate_finds_and_merges_windows_heaviest_first() -> None:

@@ -9,7 +9,7 @@ import pytest
 
 from nckemu.cli import main
 from nckemu.errors import NckConfigError
-from nckemu.thermal.fleet import (
+from nckemu.thermal.fleet.discover import (
     MachineFolder,
     discover_machine,
     fleet_document,
@@ -17,9 +17,9 @@ from nckemu.thermal.fleet import (
     scan_root,
     write_fleet_report,
 )
-from nckemu.thermal.recording import load_recording, write_recording
-from nckemu.thermal.scenarios import make_scenario
-from nckemu.thermal.terms import render_model
+from nckemu.thermal.model.terms import render_model
+from nckemu.thermal.recordings.recording import load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import make_scenario
 
 
 def _machine(root: Path, name: str, scenario: str, seed: int, days: int = 1, model: bool = True) -> Path:

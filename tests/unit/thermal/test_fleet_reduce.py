@@ -11,10 +11,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from nckemu.thermal.fleet import MachineFolder, scan_root
-from nckemu.thermal.fleet_reduce import ReduceTask, plan, reduce_file, reduced_root, window_means
-from nckemu.thermal.recording import Recording, load_recording, write_recording
-from nckemu.thermal.scenarios import make_scenario
+from nckemu.thermal.fleet.discover import MachineFolder, scan_root
+from nckemu.thermal.fleet.reduce import ReduceTask, plan, reduce_file, reduced_root, window_means
+from nckemu.thermal.recordings.recording import Recording, load_recording, write_recording
+from nckemu.thermal.synthetic.scenarios import make_scenario
 
 
 def _recording(t_s: np.ndarray, rng: np.random.Generator, gauge_missing: np.ndarray) -> Recording:

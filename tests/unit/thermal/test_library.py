@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from nckemu.thermal.library import Library, bounded, extends, label, present_key, time_constants
-from nckemu.thermal.problem import Problem
-from nckemu.thermal.readings import prepare
-from nckemu.thermal.scenarios import make_scenario
-from nckemu.thermal.settings import Settings
-from nckemu.thermal.terms import Term, first_order_lag, parse_model, render_model
+from nckemu.thermal.discovery.library import Library, bounded, extends, label, present_key, time_constants
+from nckemu.thermal.discovery.problem import Problem
+from nckemu.thermal.discovery.readings import prepare
+from nckemu.thermal.discovery.settings import Settings
+from nckemu.thermal.model.lags import first_order_lag
+from nckemu.thermal.model.terms import Term, parse_model, render_model
+from nckemu.thermal.synthetic.scenarios import make_scenario
 
 
 def _library(runs: int = 1) -> Library:

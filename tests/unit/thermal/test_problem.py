@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from nckemu.errors import NckConfigError
-from nckemu.thermal.problem import Problem
-from nckemu.thermal.readings import prepare
-from nckemu.thermal.recording import Recording
-from nckemu.thermal.settings import Settings
-from nckemu.thermal.terms import Term, ThermalModel
+from nckemu.thermal.discovery.problem import Problem
+from nckemu.thermal.discovery.readings import prepare
+from nckemu.thermal.discovery.settings import Settings
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording
 
 
 def _run(offset_um: float, seed: int, rows: int = 60) -> Recording:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nckemu.thermal.readings import prepare, resample, smooth_sensor, white_noise_C
-from nckemu.thermal.recording import Recording
-from nckemu.thermal.settings import Settings
+from nckemu.thermal.discovery.readings import prepare, resample, smooth_sensor, white_noise_C
+from nckemu.thermal.discovery.settings import Settings
+from nckemu.thermal.recordings.recording import Recording
 
 
 def _recording(step_s: float = 60.0, hours: float = 12.0, seed: int = 1) -> Recording:

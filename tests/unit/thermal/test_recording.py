@@ -10,7 +10,13 @@ import pyarrow.parquet as pq
 import pytest
 
 from nckemu.errors import NckConfigError
-from nckemu.thermal.recording import Recording, find_recordings, load_recording, load_runs, write_recording
+from nckemu.thermal.recordings.recording import (
+    Recording,
+    find_recordings,
+    load_recording,
+    load_runs,
+    write_recording,
+)
 
 
 def _recording(rows: int = 20, seed: int = 0, axes: tuple[str, ...] = ("Z",), source: str = "<run>") -> Recording:

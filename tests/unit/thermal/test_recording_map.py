@@ -14,7 +14,7 @@ openpyxl = pytest.importorskip("openpyxl")
 
 from nckemu.cli import main  # noqa: E402
 from nckemu.errors import NckConfigError  # noqa: E402
-from nckemu.thermal.recording_map import (  # noqa: E402
+from nckemu.thermal.recordings.recording_map import (  # noqa: E402
     excel_serial,
     load_map,
     load_mapped_runs,

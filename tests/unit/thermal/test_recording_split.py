@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from nckemu.errors import NckConfigError
-from nckemu.thermal.recording import Recording, load_recording, split_runs
+from nckemu.thermal.recordings.recording import Recording, load_recording, split_runs
 
 
 def _schedule(speeds_rpm: list[float], rows_per_step: int = 10, dt_s: float = 60.0) -> Recording:

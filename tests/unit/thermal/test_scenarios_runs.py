@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nckemu.thermal.scenarios import (
+from nckemu.thermal.model.lags import first_order_lag
+from nckemu.thermal.synthetic.scenarios import (
     AXIS,
     FAMILY_GRADIENT_UM_PER_K,
     FAMILY_SENSORS,
@@ -14,7 +15,6 @@ from nckemu.thermal.scenarios import (
     RUN_FAMILIES,
     make_run_family,
 )
-from nckemu.thermal.terms import first_order_lag
 
 
 @pytest.mark.parametrize("name", RUN_FAMILIES)

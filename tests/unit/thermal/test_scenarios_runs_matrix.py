@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from nckemu.thermal.discover import discover_runs
-from nckemu.thermal.scenarios import AXIS, make_run_family
+from nckemu.thermal.discovery.discover import discover_runs
+from nckemu.thermal.synthetic.scenarios import AXIS, make_run_family
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(3600)]
 SEEDS = range(1, 21)
@@ -15,7 +15,7 @@ SEEDS = range(1, 21)
 def _named(name: str, seed: int) -> list[str]:
     family = make_run_family(name, seed)
     result = discover_runs(family.runs, AXIS, family.model)
-    return [m["effect"] for m in result.missing_physics]
+    return [m.effect for m in result.missing_physics]
 
 
 @pytest.mark.parametrize(("name", "effect"), [("job_mix_gradient", "thermal_gradient"),

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nckemu.thermal.discover import discover_runs
-from nckemu.thermal.scenarios import (
+from nckemu.thermal.discovery.discover import discover_runs
+from nckemu.thermal.synthetic.scenarios import (
     AXIS,
     PAIR_FRONT_UM_PER_K,
     PAIR_REAR_UM_PER_K,
@@ -28,13 +28,13 @@ def _outcome(name: str, seed: int) -> tuple[bool, list[str], tuple[float, float]
     family = make_transient_family(name, seed)
     result = discover_runs(family.runs, AXIS, family.model)
     found = result.missing_physics
-    named = [f"{m['effect']}({m['parameters'].get('sensor', m['parameters'].get('sensors'))})" for m in found]
+    named = [f"{m.effect}({m.parameters.get('sensor', m.parameters.get('sensors'))})" for m in found]
     if name == "skin_core_days":
-        p = found[0]["parameters"] if found else {}
-        ok = bool(found) and found[0]["effect"] == "transient_gradient" and p["sensor"] == "front" \
+        p = found[0].parameters if found else {}
+        ok = bool(found) and found[0].effect == "transient_gradient" and p["sensor"] == "front" \
             and _close(p["tau_s"], TRANSIENT_TAU_S) and _close(p["coeff_um_per_K"], TRANSIENT_UM_PER_K)
     elif name == "pair_days":
-        got = {(m["effect"], m["parameters"].get("sensor")): m["parameters"].get("coeff_um_per_K") for m in found[:2]}
+        got = {(m.effect, m.parameters.get("sensor")): m.parameters.get("coeff_um_per_K") for m in found[:2]}
         ok = set(got) == {("temperature", "rear"), ("temperature", "front")} \
             and _close(got[("temperature", "rear")], PAIR_REAR_UM_PER_K) \
             and _close(got[("temperature", "front")], PAIR_FRONT_UM_PER_K)

@@ -7,10 +7,10 @@ import math
 
 import pytest
 
-from nckemu.thermal.discover import Discoverer
-from nckemu.thermal.library import Library
-from nckemu.thermal.scenarios import make_scenario, make_variant
-from nckemu.thermal.selector import Selector, t_critical
+from nckemu.thermal.discovery.discover import Discoverer
+from nckemu.thermal.discovery.library import Library
+from nckemu.thermal.discovery.selector import Selector, t_critical
+from nckemu.thermal.synthetic.scenarios import make_scenario, make_variant
 
 
 def _selector(name: str, seed: int = 1, variant: bool = False) -> Selector:
@@ -30,11 +30,11 @@ def test_t_critical_is_bonferroni_corrected() -> None:
 def test_a_planted_effect_is_admitted_once_and_the_search_stops() -> None:
     selector = _selector("temperature")
     path = selector.search(gain_mode=False)
-    assert [d["effect"] for d in path.discovered] == ["temperature"]
+    assert [d.effect for d in path.discovered] == ["temperature"]
     assert path.design.shape[1] == selector.baseline.base_design.shape[1] + 1
     assert path.rejected and math.isfinite(path.rejected_t_critical)  # the round that stopped it
-    evidence = path.discovered[0]["evidence"]
-    assert evidence["heldout_rms_after_um"] <= 0.9 * evidence["heldout_rms_before_um"]
+    evidence = path.discovered[0].evidence
+    assert evidence.heldout_rms_after_um <= 0.9 * evidence.heldout_rms_before_um
 
 
 def test_nothing_is_admitted_on_a_null() -> None:

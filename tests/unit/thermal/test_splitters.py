@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from nckemu.thermal import stats
-from nckemu.thermal.splitters import Blocks, LeaveOneRunOut, held_out_masks
+from nckemu.thermal.discovery.splitters import Blocks, LeaveOneRunOut, held_out_masks
 
 
 @given(st.integers(2, 500), st.integers(1, 12))

@@ -8,7 +8,6 @@ import html
 import io
 import json
 from pathlib import Path
-from typing import Any
 
 import matplotlib
 
@@ -18,6 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from nckemu.cliutil import write_atomically
 
 from .discover import Discovery  # noqa: E402
+from .findings import Evidence, Finding  # noqa: E402
 
 
 def _png(figure: plt.Figure) -> str:
@@ -45,27 +45,25 @@ def _um(value: object) -> str:
     return f"{value:.3f} um" if isinstance(value, int | float) else "n/a"
 
 
-def _row(finding: dict[str, Any]) -> str:
+def _row(finding: Finding) -> str:
     """One discovered effect: why, held-out RMS before and after, the equivalent explanations and
     which one was preferred."""
-    evidence = finding["evidence"]
-    parts = [html.escape(str(evidence.get("why", ""))),
-             f"held-out {_um(evidence.get('heldout_rms_before_um'))} &rarr; {_um(evidence.get('heldout_rms_after_um'))}"]
-    if "t_value_ar1_corrected" in evidence:
-        parts.append(f"t = {evidence['t_value_ar1_corrected']} (critical {evidence.get('t_critical')}), "
-                     f"folds improved {evidence.get('folds_improved')}")
-    if "gain_se" in evidence:
-        parts.append(f"gain standard error {evidence['gain_se']}")
-    equivalent = evidence.get("equivalent") or []
-    if equivalent:
-        listed = ", ".join(html.escape(f"{e['effect']} ({_um(e.get('heldout_rms_um'))})") if isinstance(e, dict)
-                           else html.escape(str(e)) for e in equivalent)
+    evidence = finding.evidence
+    parts = [html.escape(evidence.why),
+             f"held-out {_um(evidence.heldout_rms_before_um)} &rarr; {_um(evidence.heldout_rms_after_um)}"]
+    if isinstance(evidence, Evidence):
+        parts.append(f"t = {evidence.t_value_ar1_corrected} (critical {evidence.t_critical}), "
+                     f"folds improved {evidence.folds_improved}")
+    else:
+        parts.append(f"gain standard error {evidence.gain_se}")
+    if evidence.equivalent:
+        listed = ", ".join(html.escape(f"{e.effect} ({_um(e.heldout_rms_um)})") for e in evidence.equivalent)
         parts.append(f"equivalent explanations considered: {listed}")
-    for key in ("preferred", "note"):
-        if evidence.get(key):
-            parts.append(html.escape(str(evidence[key])))
-    return (f"<tr><td>{html.escape(finding['effect'])}</td>"
-            f"<td><code>{html.escape(json.dumps(finding['parameters']))}</code></td>"
+    for text in (evidence.preferred, evidence.note if isinstance(evidence, Evidence) else None):
+        if text:
+            parts.append(html.escape(text))
+    return (f"<tr><td>{html.escape(finding.effect)}</td>"
+            f"<td><code>{html.escape(json.dumps(finding.parameters))}</code></td>"
             f"<td>{'<br>'.join(parts)}</td></tr>")
 
 
@@ -165,11 +163,11 @@ def _honest_section(discovery: Discovery) -> str:
         heading = "Why nothing is named" if discovery.residual_is_structure else "Why nothing is missing"
         parts.append(f"<p><b>{heading}.</b> {html.escape(discovery.why_nothing)}</p>")
     for item in discovery.likely:
-        e = item["evidence"]
-        parts.append(f"<p><b>Likely, not proven:</b> {html.escape(item['label'])} "
-                     f"<code>{html.escape(json.dumps(item['parameters']))}</code>: held-out "
-                     f"{_um(e['heldout_rms_before_um'])} &rarr; {_um(e['heldout_rms_after_um'])}; "
-                     f"{html.escape(e['why'])}.</p>")
+        e = item.evidence
+        parts.append(f"<p><b>Likely, not proven:</b> {html.escape(item.label)} "
+                     f"<code>{html.escape(json.dumps(item.parameters))}</code>: held-out "
+                     f"{_um(e.heldout_rms_before_um)} &rarr; {_um(e.heldout_rms_after_um)}; "
+                     f"{html.escape(e.why)}.</p>")
     return "".join(parts)
 
 

@@ -74,9 +74,9 @@ def discover_machine(machine: MachineFolder, axis: str | None = None) -> dict[st
     """The Dask task: read this machine's runs and model, discover, return the findings as JSON.
 
     Bad data of one machine is that machine's error in the result, not the fleet's."""
-    from .discover import discover_runs
-    from .recording import load_runs
-    from .terms import Term, ThermalModel, load_model
+    from nckemu.thermal.discovery.discover import discover_runs
+    from nckemu.thermal.model.terms import Term, ThermalModel, load_model
+    from nckemu.thermal.recordings.recording import load_runs
 
     document: dict[str, Any] = {"machine": machine.name, "runs": [Path(run).name for run in machine.runs],
                                 "model": Path(machine.model).name if machine.model else None,
@@ -219,7 +219,7 @@ def _reduce(client: Any, machines: list[MachineFolder], root: str, step_s: float
     runs (a file that failed is left out and listed; a machine left without runs is not discovered)."""
     from distributed import as_completed
 
-    from .fleet_reduce import plan, reduce_file
+    from .reduce import plan, reduce_file
 
     tasks = plan(machines, root, step_s)
     todo = [task for task in tasks if not task.up_to_date()]

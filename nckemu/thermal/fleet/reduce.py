@@ -70,10 +70,9 @@ def window_means(recording: Any, step_s: float) -> Any:
 def reduce_file(task: ReduceTask, step_s: float) -> dict[str, Any]:
     """The Dask task: read, bridge glitches, reduce, write atomically. A bad file is its own error."""
     from nckemu.errors import NckError
-
-    from .readings import bridge_glitches
-    from .recording import load_recording, write_recording
-    from .settings import Settings
+    from nckemu.thermal.discovery.readings import bridge_glitches
+    from nckemu.thermal.discovery.settings import Settings
+    from nckemu.thermal.recordings.recording import load_recording, write_recording
 
     result: dict[str, Any] = {"machine": task.machine, "source": task.source, "target": task.target}
     try:

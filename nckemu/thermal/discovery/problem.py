@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from nckemu.errors import NckConfigError
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording
 
 from .readings import Readings
-from .recording import Recording
-from .terms import Term, ThermalModel
 
 
 @dataclass
@@ -129,9 +129,9 @@ class Problem:
         sensors = list(p.get("sensors", [])) + ([p["sensor"]] if "sensor" in p else [])
         if any(f"temp_{s}_C" not in recording.temperatures_C for s in sensors):
             return False
-        if term.effect == "centrifugal_growth" and recording.spindle_rpm is None:
+        if term.spec.uses_spindle and recording.spindle_rpm is None:
             return False
-        return not (term.effect == "position_dependent_expansion" and self.axis not in recording.positions_mm)
+        return not (term.spec.uses_position and self.axis not in recording.positions_mm)
 
     def runs_with(self, term: Term) -> np.ndarray:
         """Per run: has it every column ``term`` needs?"""

@@ -8,9 +8,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import stats
+from nckemu.thermal import stats
+from nckemu.thermal.model import families
+from nckemu.thermal.recordings.recording import Recording
+
+from .findings import Alternative, Evidence, Likely, LikelyEvidence, Window
 from .library import label
-from .recording import Recording
 
 if TYPE_CHECKING:  # the selector imports this module for its words
     from .selector import Evaluation
@@ -132,31 +135,22 @@ def recalibration_words(found: list[str], calibrated_here: bool, gain_note: str 
 
 def evidence(chosen: Evaluation, best: Evaluation, equivalent: list[Evaluation], margin: float,
              before_um: float, t_critical: float, folds: int, window: tuple[float, float] | None,
-             why_text: str) -> dict[str, Any]:
+             why_text: str) -> Evidence:
     """The evidence record of one admitted effect."""
-    record: dict[str, Any] = {
-        "heldout_rms_before_um": round(before_um, 4), "heldout_rms_after_um": round(chosen.cv.rms_um, 4),
-        "heldout_rms_without_sensor_noise_um": round(chosen.ranked_rms_um, 4),
-        "t_value_ar1_corrected": finite(chosen.t_value), "t_critical": round(t_critical, 3),
-        "folds_improved": f"{chosen.fold_wins}/{folds}",
-        "window": {"t_start_s": window[0], "t_end_s": window[1]} if window else None,
-        "equivalent": [{"effect": e.candidate.label, "heldout_rms_um": round(e.cv.rms_um, 4),
-                        "heldout_rms_without_sensor_noise_um": round(e.ranked_rms_um, 4)}
-                       for e in equivalent if e is not chosen],
-        "why": why_text,
-    }
-    if chosen is not best:
-        record["resolved_to_simpler"] = best.candidate.label
-    record["preferred"] = preference_words(chosen, best, equivalent, margin)
-    return record
+    return Evidence(
+        heldout_rms_before_um=round(before_um, 4), heldout_rms_after_um=round(chosen.cv.rms_um, 4),
+        heldout_rms_without_sensor_noise_um=round(chosen.ranked_rms_um, 4),
+        t_value_ar1_corrected=finite(chosen.t_value), t_critical=round(t_critical, 3),
+        folds_improved=f"{chosen.fold_wins}/{folds}",
+        window=Window(window[0], window[1]) if window else None,
+        equivalent=[Alternative(e.candidate.label, round(e.cv.rms_um, 4), round(e.ranked_rms_um, 4))
+                    for e in equivalent if e is not chosen],
+        why=why_text,
+        resolved_to_simpler=best.candidate.label if chosen is not best else None,
+        preferred=preference_words(chosen, best, equivalent, margin))
 
 
 # ---------------------------------------------------------------------- when nothing passes
-FAMILY_ORDER = ("offset", "time_drift", "temperature", "quadratic_temperature", "thermal_gradient",
-                "centrifugal_growth", "position_dependent_expansion", "thermal_lag", "heating_cooling_hysteresis",
-                "transient_gradient")
-
-
 def detectable_um(evaluations: list[Evaluation], base_rms_um: float, t_critical: float,
                   min_improvement: float) -> dict[str, float]:
     """Per candidate family, the smallest effect (RMS of its contribution over the gauge samples, um)
@@ -182,7 +176,7 @@ def detectable_um(evaluations: list[Evaluation], base_rms_um: float, t_critical:
         size = max(t_critical * se * e.own_rms, held_out_um, own_um)
         family = e.candidate.term.effect
         out[family] = min(out.get(family, math.inf), size)
-    return {k: out[k] for k in FAMILY_ORDER if k in out}
+    return {k: out[k] for k in families.names() if k in out}
 
 
 def residual_structure(residual: np.ndarray, lags: int = 20) -> dict[str, Any]:
@@ -217,21 +211,27 @@ def nothing_passed(units: int, unit_name: str, detectable: dict[str, float], aut
             f"could have shown (RMS over the gauge samples, um): {sizes}; {autocorrelation}")
 
 
-def likely_record(evaluation: Evaluation, before_um: float, t_critical: float, folds: int,
-                  bar: float) -> dict[str, Any]:
-    """A correctly named term below the held-out bar: "likely, not proven", with its figures."""
+def bar_words(gain: float, bar: float, figure: str, held_back: str = "") -> str:
+    """How a figure stands against the held-out bar, in words that follow the figure: "below" only
+    of a figure below the bar; a figure that clears it says so, and what held the term back."""
+    if gain < bar:
+        return f"lowers {figure} by {gain:.1%}, below the {bar:.0%} an effect must clear"
+    return (f"lowers {figure} by {gain:.1%}, above the {bar:.0%} bar, but "
+            f"{held_back or 'another guard held it back'}")
+
+
+def likely_record(evaluation: Evaluation, before_um: float, after_um: float, gain: float, figure: str,
+                  t_critical: float, folds: int, bar: float, unit: str = "folds", held_back: str = "") -> Likely:
+    """A correctly named term below the held-out bar: "likely, not proven", with its figures: the
+    held-out figure admission judged it on (``figure``: held-out RMS, or with several runs the median
+    over runs), before and after, and its relative drop ``gain``."""
     term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
-    gain = 1 - evaluation.cv.rms_um / before_um if before_um > 0 else 0.0
-    return {"effect": term.effect, "label": label(term),
-            "parameters": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
-            "status": "likely, not proven",
-            "evidence": {"heldout_rms_before_um": round(before_um, 4),
-                         "heldout_rms_after_um": round(evaluation.cv.rms_um, 4),
-                         "heldout_improvement": round(gain, 4), "heldout_bar": bar,
-                         "t_value_ar1_corrected": finite(evaluation.t_value), "t_critical": round(t_critical, 3),
-                         "folds_improved": f"{evaluation.fold_wins}/{folds}",
-                         "why": (f"passes the t-test and improves {evaluation.fold_wins} of {folds} folds, but lowers "
-                                 f"held-out RMS by {gain:.1%}, below the {bar:.0%} an effect must clear")}}
+    return Likely(term.effect, label(term),
+                  {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
+                  LikelyEvidence(round(before_um, 4), round(after_um, 4), round(gain, 4), bar,
+                                 finite(evaluation.t_value), round(t_critical, 3), f"{evaluation.fold_wins}/{folds}",
+                                 f"passes the t-test and improves {evaluation.fold_wins} of {folds} {unit}, but "
+                                 + bar_words(gain, bar, figure, held_back)))
 
 
 # ---------------------------------------------------------------------- several runs

@@ -12,14 +12,25 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
-from . import explain, stats
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import Term
+
+from . import explain
+from .findings import (
+    AdmissionRuns,
+    Alternative,
+    Evidence,
+    Finding,
+    GainEvidence,
+    MoveAlternative,
+    MoveEvidence,
+    finding,
+)
 from .library import Candidate, Library, bounded, extends, present_key, time_constants
 from .settings import Settings
-from .terms import EFFECTS, Term
 
 
 @dataclass
@@ -99,7 +110,7 @@ class Path:
     design: np.ndarray
     base_cv: stats.CrossValidation
     noise: np.ndarray               # sensor noise carried by each column of design
-    discovered: list[dict[str, Any]] = field(default_factory=list)
+    discovered: list[Finding] = field(default_factory=list)
     added: list[Term] = field(default_factory=list)
     present: set[str] = field(default_factory=set)
     final: stats.Fit | None = None
@@ -107,6 +118,18 @@ class Path:
     # rests on (the smallest detectable effects, a term that is likely but not proven).
     rejected: list[Evaluation] = field(default_factory=list)
     rejected_t_critical: float = math.nan
+
+
+def runs_improve(before_ms: np.ndarray, after_ms: np.ndarray, level: float, min_share: float,
+                 min_runs: int = 10) -> bool:
+    """Do the runs improve, as paired samples (each run's held-out mean squared error before and
+    after)? The one-sided Wilcoxon signed-rank test at ``level``; with fewer than ``min_runs`` runs
+    (a few days of data: the test could hardly reach the level with one run not improving), or too
+    few to reach it at all, ``min_share`` of the runs must improve."""
+    before_ms, after_ms = np.asarray(before_ms), np.asarray(after_ms)
+    if len(before_ms) < min_runs or 0.5 ** len(before_ms) > level:
+        return int(np.sum(after_ms < before_ms)) >= math.ceil(min_share * len(before_ms))
+    return stats.paired_improvement_p(before_ms, after_ms) <= level
 
 
 def t_critical(alpha: float, tests: int, dof: int) -> float:
@@ -124,6 +147,8 @@ class Selector:
         self.library = library
         self.settings = settings
         self.baseline = baseline
+        # Several runs: how many candidates of the round reach the runs' paired test (its correction).
+        self.paired_tests = 1
 
     # ------------------------------------------------------------------ one candidate
     def evaluate(self, design: np.ndarray, noise: np.ndarray, candidate: Candidate,
@@ -152,7 +177,7 @@ class Selector:
         return given.fold_rms_um if self.baseline.given_heldout_um < base_cv.rms_um else base_cv.fold_rms_um
 
     def run_figures(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
-                    runs_with: np.ndarray | None) -> dict[str, Any]:
+                    runs_with: np.ndarray | None) -> AdmissionRuns:
         """Several runs: each run's held-out RMS (its own offset fitted on it, everything else on the
         other runs) before and after, over the runs that have the columns: the median, how many
         improve, the worst run."""
@@ -161,11 +186,11 @@ class Selector:
         counted = np.ones(len(after), dtype=bool) if runs_with is None else np.asarray(runs_with, dtype=bool)
         names = [run.name for run in self.library.problem.runs]
         worst = int(np.flatnonzero(counted)[np.argmax(after[counted])])
-        return {"median_before_um": round(float(np.median(before[counted])), 4),
-                "median_after_um": round(float(np.median(after[counted])), 4),
-                "runs_improved": int(np.sum(after[counted] < before[counted])), "runs": int(counted.sum()),
-                "worst_before_um": round(float(np.max(before[counted])), 4),
-                "worst_after_um": round(float(after[worst]), 4), "worst_run": names[worst]}
+        return AdmissionRuns(median_before_um=round(float(np.median(before[counted])), 4),
+                             median_after_um=round(float(np.median(after[counted])), 4),
+                             runs_improved=int(np.sum(after[counted] < before[counted])), runs=int(counted.sum()),
+                             worst_before_um=round(float(np.max(before[counted])), 4),
+                             worst_after_um=round(float(after[worst]), 4), worst_run=names[worst])
 
     def heldout_gain(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
                      runs_with: np.ndarray | None = None) -> float:
@@ -184,31 +209,70 @@ class Selector:
         reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
         return 1.0 - cv.rms_um / reference_um if reference_um > 0 else 0.0
 
+    def runs_consistent(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
+                        runs_with: np.ndarray | None) -> bool:
+        """Several runs: the runs' held-out mean squared errors, before and after, as pairs. The
+        paired test (``stats.paired_improvement_p``) at ``runs_alpha`` / ``paired_tests``: a term that
+        helps most runs a little and a few a lot passes, one that helps one run a lot and hurts many
+        does not. With fewer than ``runs_test_min`` runs the share of runs that improve decides, as
+        for the blocks of one run."""
+        before = np.square(np.asarray(base_cv.fold_rms_um))
+        after = np.square(np.asarray(cv.fold_rms_um))
+        if runs_with is not None:
+            before, after = before[runs_with], after[runs_with]
+        return runs_improve(before, after, self.settings.runs_alpha / max(self.paired_tests, 1),
+                            self.settings.min_fold_share, self.settings.runs_test_min)
+
+    def heldout_figures(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
+                        runs_with: np.ndarray | None = None) -> tuple[float, float, float, str]:
+        """(before, after, relative drop, what the figure is): the held-out figure admission rests on
+        (``heldout_gain``), for words that must follow it."""
+        gain = self.heldout_gain(cv, base_cv, runs_with)
+        if self.per_run:
+            before = np.asarray(self.reference_folds(base_cv))
+            after = np.asarray(cv.fold_rms_um)
+            if runs_with is not None:
+                before, after = before[runs_with], after[runs_with]
+            return float(np.median(before)), float(np.median(after)), gain, "the median over runs of held-out RMS"
+        return min(base_cv.rms_um, self.baseline.given_heldout_um), cv.rms_um, gain, "held-out RMS"
+
     def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
               t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
-              t_crit: float) -> tuple[bool, bool]:
+              t_crit: float, *, paired: bool = True) -> tuple[bool, bool]:
         """Every guard, on a single effect or on a move of two as a whole: (passes every guard, passes
-        every guard but the held-out bar)."""
+        every guard but the held-out bar). ``paired=False`` leaves out the runs' paired test (to count
+        the candidates it is corrected over)."""
         s = self.settings
         # Several runs: a candidate is judged on the runs that have its columns.
         folds = len(base_cv.fold_rms_um) if runs_with is None else int(runs_with.sum())
-        consistent = fold_wins >= math.ceil(s.min_fold_share * folds)
+        if self.per_run:
+            consistent = not paired or self.runs_consistent(cv, base_cv, runs_with)
+        else:
+            consistent = fold_wins >= math.ceil(s.min_fold_share * folds)
         significant = all(abs(t) >= t_crit for t in t_values)
         rest = consistent and significant and all(bounded(term) for term in terms)
         if rest and self.per_run:  # ... and it must not leave the worst run worse
             figures = self.run_figures(cv, base_cv, runs_with)
-            rest = figures["worst_after_um"] <= (1 + s.equivalence) * figures["worst_before_um"]
+            rest = figures.worst_after_um <= (1 + s.equivalence) * figures.worst_before_um
         gain = self.heldout_gain(cv, base_cv, runs_with)
         return gain >= s.min_improvement and rest, rest and gain >= s.likely_min_improvement
 
-    def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> tuple[bool, bool]:
+    def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float,
+                paired: bool = True) -> tuple[bool, bool]:
         """(passes every guard, passes every guard but the held-out bar)."""
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         return self.judge(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
-                          (evaluation.t_value,), (term,), base_cv, t_crit)
+                          (evaluation.t_value,), (term,), base_cv, t_crit, paired=paired)
 
     def passes(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> bool:
         return self._guards(evaluation, base_cv, t_crit)[0]
+
+    def count_paired_tests(self, evaluations: list[Evaluation], base_cv: stats.CrossValidation,
+                           t_crit: float) -> None:
+        """The runs' paired test is corrected over the candidates that reach it: those that pass every
+        other guard, the held-out bar included."""
+        if self.per_run:
+            self.paired_tests = max(1, sum(self._guards(e, base_cv, t_crit, paired=False)[0] for e in evaluations))
 
     def margin(self, *evaluations: Evaluation) -> float:
         """Held-out RMS within this share is "as good": a time constant is picked on the whole record,
@@ -255,12 +319,9 @@ class Selector:
             gain, gain_se, gain_cv = setup.gain
             path = Path(True, setup.given[:, None], gain_cv, setup.given_noise[:, None])
             path.present.add("gain_error")
-            path.discovered.append({"effect": "gain_error", "parameters": {"gain": round(gain, 5)},
-                                    "evidence": {"heldout_rms_before_um": round(setup.baseline_rms, 4),
-                                                 "heldout_rms_after_um": round(gain_cv.rms_um, 4),
-                                                 "baseline_rms_um": round(setup.baseline_rms, 4),
-                                                 "gain_se": round(gain_se, 5), "equivalent": [],
-                                                 "why": "one common factor on the whole model explains the mismatch"}})
+            path.discovered.append(Finding("gain_error", {"gain": round(gain, 5)}, GainEvidence(
+                round(setup.baseline_rms, 4), round(gain_cv.rms_um, 4), round(setup.baseline_rms, 4),
+                round(gain_se, 5), [], "one common factor on the whole model explains the mismatch")))
         else:
             path = Path(False, setup.base_design, setup.recal_cv, setup.base_noise)
         if self.library.problem.per_run_offset:
@@ -282,6 +343,7 @@ class Selector:
         tests = sum(c.grid_points for c in candidates)
         t_crit = t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1 - setup.extra_parameters)
         evaluations = [self.evaluate(design, path.noise, c, path.base_cv) for c in candidates]
+        self.count_paired_tests(evaluations, path.base_cv, t_crit)
         passing = [e for e in evaluations if self.passes(e, path.base_cv, t_crit)]
         if not passing and s.pair_moves and len(path.added) + 2 <= s.max_effects \
                 and self.pair_round(path, evaluations, tests):
@@ -297,11 +359,10 @@ class Selector:
         window = [] if self.library.problem.per_run_offset else explain.locate(
             self.t_s, chosen.coefficient * (chosen.candidate.feature - np.median(chosen.candidate.feature)))
         record = explain.evidence(chosen, best, equivalent, margin, path.base_cv.rms_um, t_crit, len(folds),
-                                  window[0][:2] if window else None, EFFECTS[term.effect].description)
+                                  window[0][:2] if window else None, term.spec.description)
         if self.per_run:
-            record["runs"] = self.run_figures(chosen.cv, path.base_cv, chosen.candidate.runs_with)
-        path.discovered.append({"effect": term.effect, "parameters": {
-            k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()}, "evidence": record})
+            record.runs = self.run_figures(chosen.cv, path.base_cv, chosen.candidate.runs_with)
+        path.discovered.append(finding(term.effect, term.parameters, record))
         path.added.append(term)
         path.present.add(present_key(term))
         path.design = np.column_stack([design, chosen.candidate.feature])
@@ -384,13 +445,16 @@ class Selector:
         grid = np.array([e.candidate.grid_points for e in pool], dtype=float)
         tests = single_tests + int((grid.sum() ** 2 - float(np.sum(grid ** 2))) / 2)
         t_crit = t_critical(s.alpha, tests, len(self.y) - path.design.shape[1] - 2 - setup.extra_parameters)
-        passing = []
-        for first, second in pairs:
-            move = self.evaluate_pair(path, pool[first], pool[second])
-            if self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv, t_crit)[0] \
-                    and all(self.heldout_gain(move.cv, alone.cv, move.runs_with) >= s.min_improvement
-                            for alone in move.alone):
-                passing.append(move)
+        moves = [self.evaluate_pair(path, pool[first], pool[second]) for first, second in pairs]
+
+        def guarded(move: Move, paired: bool) -> bool:
+            return self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
+                              t_crit, paired=paired)[0] \
+                and all(self.heldout_gain(move.cv, alone.cv, move.runs_with) >= s.min_improvement
+                        for alone in move.alone)
+        if self.per_run:
+            self.paired_tests = max(1, sum(guarded(move, paired=False) for move in moves))
+        passing = [move for move in moves if guarded(move, paired=True)]
         if not passing:
             return False
         best = min(passing, key=lambda m: m.ranked_rms_um)
@@ -403,25 +467,20 @@ class Selector:
     def admit_move(self, path: Path, move: Move, equivalent: list[Move], t_crit: float) -> None:
         folds = len(self.baseline.folds)
         figures = self.run_figures(move.cv, path.base_cv, move.runs_with) if self.per_run else None
-        together = {"terms": [e.candidate.label for e in move.alone],
-                    "heldout_rms_after_um": round(move.cv.rms_um, 4),
-                    "alone_heldout_rms_um": [round(e.cv.rms_um, 4) for e in move.alone],
-                    "shares": [round(share, 3) for share in move.shares],
-                    "equivalent": [{"effects": m.label, "heldout_rms_um": round(m.cv.rms_um, 4)} for m in equivalent],
-                    "why": "no single effect passed the guards; these two pass them together, and each is "
-                           "needed (the pair clears the held-out bar over either alone)"}
         for index, (alone, term) in enumerate(zip(move.alone, move.terms, strict=True)):
             member = Evaluation(alone.candidate, move.cv, move.t_values[index], move.coefficients[index],
                                 move.fold_wins, move.ranked_rms_um)
             record = explain.evidence(member, member, [member], 0.0, path.base_cv.rms_um, t_crit, folds, None,
-                                      EFFECTS[term.effect].description)
-            record["move"] = {**together, "share": round(move.shares[index], 3)}
-            record["preferred"] = f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
-            if figures is not None:
-                record["runs"] = figures
-            path.discovered.append({"effect": term.effect, "parameters": {
-                k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
-                "evidence": record})
+                                      term.spec.description)
+            record.move = MoveEvidence(
+                [e.candidate.label for e in move.alone], round(move.cv.rms_um, 4),
+                [round(e.cv.rms_um, 4) for e in move.alone], [round(share, 3) for share in move.shares],
+                [MoveAlternative(m.label, round(m.cv.rms_um, 4)) for m in equivalent],
+                "no single effect passed the guards; these two pass them together, and each is "
+                "needed (the pair clears the held-out bar over either alone)", round(move.shares[index], 3))
+            record.preferred = f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
+            record.runs = figures
+            path.discovered.append(finding(term.effect, term.parameters, record))
             path.added.append(term)
             path.present.add(present_key(term))
         path.design = np.column_stack([path.design] + [e.candidate.feature for e in move.alone])
@@ -476,9 +535,9 @@ class Selector:
         joint_gain, joint_se = (float(final.coefficients[0]), float(final.standard_errors[0])) \
             if final is not None else (math.nan, math.nan)
         cv_gain, cv_recal = with_gain.base_cv.rms_um, recalibrate.base_cv.rms_um
-        alternative = {"effect": "recalibration" + "".join(f" + {d['effect']}" for d in recalibrate.discovered),
-                       "heldout_rms_um": round(cv_recal, 4)}
-        found = [d["effect"] for d in recalibrate.discovered]
+        alternative = Alternative("recalibration" + "".join(f" + {d.effect}" for d in recalibrate.discovered),
+                                  round(cv_recal, 4))
+        found = [d.effect for d in recalibrate.discovered]
         if not self.gain_physical(joint_gain, joint_se):
             why = (f"a common gain was considered and withdrawn: with the other effects in, it is {joint_gain:.3g} "
                    f"(physical range {s.gain_range[0]:g}..{s.gain_range[1]:g}, and it must depart from 1)")
@@ -491,15 +550,17 @@ class Selector:
                       f"gain x model explains held-out data better ({cv_gain:.3f} um) than recalibrating and "
                       f"adding physics ({cv_recal:.3f} um)")
             if not single:  # with one coefficient, recalibration is the same model as the gain
-                with_gain.discovered[0]["evidence"]["equivalent"] = [alternative]
+                with_gain.discovered[0].evidence.equivalent = [alternative]
             words = f"gain_error preferred: {reason}"
-            with_gain.discovered[0]["evidence"]["preferred"] = words
+            with_gain.discovered[0].evidence.preferred = words
             return with_gain, words
         why = (f"a common gain of {joint_gain:.3g} was considered: held-out {cv_gain:.3f} um against "
                f"{cv_recal:.3f} um for recalibration + physics, not better by {s.equivalence:.0%}")
         for record in recalibrate.discovered:
-            record["evidence"]["note"] = "a common gain on the model was considered and set aside"
+            evidence = record.evidence
+            assert isinstance(evidence, Evidence)  # the recalibrated path names no gain
+            evidence.note = "a common gain on the model was considered and set aside"
         if recalibrate.discovered:
-            recalibrate.discovered[0]["evidence"]["equivalent"].append(
-                {"effect": "gain_error", "gain": round(joint_gain, 5), "heldout_rms_um": round(cv_gain, 4)})
+            recalibrate.discovered[0].evidence.equivalent.append(
+                Alternative("gain_error", round(cv_gain, 4), gain=round(joint_gain, 5)))
         return recalibrate, explain.recalibration_words(found, setup.calibrated_here, why)

@@ -11,7 +11,14 @@ import numpy as np
 class Settings:
     folds: int = 5
     min_improvement: float = 0.10       # relative drop of held-out RMS
-    min_fold_share: float = 0.8         # share of folds that must improve
+    min_fold_share: float = 0.8         # share of folds (blocks of one run) that must improve
+    # Several runs: instead of a share of runs that must improve, a paired test on each run's held-out
+    # mean squared error before and after (Wilcoxon signed-rank, one-sided), at this level corrected
+    # (Bonferroni) over the candidates of the round that reach it. With fewer than runs_test_min runs
+    # (a few days of data: the test could hardly reach its level with one run not improving),
+    # min_fold_share of the runs must improve, as before.
+    runs_alpha: float = 0.05
+    runs_test_min: int = 10
     alpha: float = 0.01                 # family-wise, Bonferroni over the candidates of a round
     equivalence: float = 0.03           # held-out RMS within 3 % of the best: equivalent
     max_effects: int = 4

@@ -48,7 +48,7 @@ def run_fleet_discover(args: argparse.Namespace) -> int:
     for option, path in (("--json-out", args.json_out), ("--report", args.report)):
         check_output(path, option)
 
-    from .fleet import discover_fleet, scan_root, write_fleet_report
+    from .discover import discover_fleet, scan_root, write_fleet_report
 
     machines = scan_root(args.fleet)
     quiet = bool(args.json) or args.json_out == "-"

@@ -30,16 +30,18 @@ from typing import Any
 import numpy as np
 
 from nckemu.errors import NckConfigError
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording
 
-from . import explain, stats
+from . import explain
+from .findings import Finding, Likely
 from .library import Library
 from .problem import Problem
 from .readings import prepare, resampled
-from .recording import Recording
 from .selector import Baseline, Path, Selector
 from .settings import Settings
 from .splitters import Blocks, LeaveOneRunOut, Splitter, held_out_masks
-from .terms import Term, ThermalModel
 
 __all__ = ["Discoverer", "Discovery", "Settings", "discover", "discover_runs"]
 
@@ -52,7 +54,7 @@ class Discovery:
     heldout_rms_before_um: float
     heldout_rms_after_um: float
     mismatch: list[dict[str, Any]]
-    missing_physics: list[dict[str, Any]]
+    missing_physics: list[Finding]
     improved_model: ThermalModel
     data_quality: list[str] = field(default_factory=list)
     samples: int = 0
@@ -66,7 +68,7 @@ class Discovery:
     why_nothing: str = ""
     smallest_detectable_um: dict[str, float] = field(default_factory=dict)
     # A term that passes every guard but the held-out bar: "likely, not proven", with its figures.
-    likely: list[dict[str, Any]] = field(default_factory=list)
+    likely: list[Likely] = field(default_factory=list)
     # Several runs: the figures of each (leave-one-run-out), which columns some runs lack.
     runs: list[dict[str, Any]] = field(default_factory=list)
     coverage: list[dict[str, Any]] = field(default_factory=list)
@@ -91,12 +93,12 @@ class Discovery:
             "heldout_rms_before_um": round(self.heldout_rms_before_um, 4),
             "heldout_rms_after_um": round(self.heldout_rms_after_um, 4),
             "heldout_before_is": self.before_is,
-            "mismatch": self.mismatch, "missing_physics": self.missing_physics,
+            "mismatch": self.mismatch, "missing_physics": [f.to_json() for f in self.missing_physics],
             "data_quality": self.data_quality, "preferred": self.preferred,
             "calibrated_on_record": self.calibrated_on_record,
             "why_nothing": self.why_nothing,
             "smallest_detectable_um": {k: round(v, 4) for k, v in self.smallest_detectable_um.items()},
-            "likely_not_proven": self.likely,
+            "likely_not_proven": [item.to_json() for item in self.likely],
             "residual_structure": self.residual_structure,
         }
         if self.baseline_constant_um is not None:
@@ -269,7 +271,7 @@ class Discoverer:
         selector = Selector(self.y, self.problem.t_s, Library(self.problem, self.settings), self.settings, setup)
         recalibrate = selector.search(gain_mode=False)
         chosen, preferred = recalibrate, explain.recalibration_words(
-            [d["effect"] for d in recalibrate.discovered], setup.calibrated_here, None)
+            [d.effect for d in recalibrate.discovered], setup.calibrated_here, None)
         if selector.gain_eligible():
             with_gain = selector.search(gain_mode=True)
             chosen, preferred = selector.prefer(recalibrate, with_gain)
@@ -301,20 +303,27 @@ class Discoverer:
             final_residual = self.problem.within(final_residual)
         result.residual_structure = explain.residual_structure(final_residual)
         near = selector.near_misses(path)
-        found = {(m["effect"], str(m["parameters"].get("sensor", m["parameters"].get("sensors", ""))))
+        found = {(m.effect, str(m.parameters.get("sensor", m.parameters.get("sensors", ""))))
                  for m in result.missing_physics}
         for evaluation in near[:1]:
             term = evaluation.candidate.term
             if (term.effect, str(term.parameters.get("sensor", term.parameters.get("sensors", "")))) in found:
                 continue
-            result.likely.append(explain.likely_record(evaluation, path.base_cv.rms_um, path.rejected_t_critical,
-                                                       len(setup.folds), self.settings.min_improvement))
-        if result.missing_physics or not path.rejected:
+            before_um, after_um, gain, figure = selector.heldout_figures(evaluation.cv, path.base_cv,
+                                                                         evaluation.candidate.runs_with)
+            result.likely.append(explain.likely_record(
+                evaluation, before_um, after_um, gain, figure, path.rejected_t_critical, len(setup.folds),
+                self.settings.min_improvement, "runs" if self.problem.per_run_offset else "folds"))
+        # The smallest effect each family could have shown: when nothing passed, and whenever what is
+        # left is structure (what the last round could not name, and how large it would have had to be).
+        if not path.rejected or (result.missing_physics and not result.residual_is_structure):
             return
         for evaluation in path.rejected:
             evaluation.own_rms = selector.own_rms(path.design, evaluation.candidate.feature)
         result.smallest_detectable_um = explain.detectable_um(path.rejected, path.base_cv.rms_um,
                                                               path.rejected_t_critical, self.settings.min_improvement)
+        if result.missing_physics:
+            return
         residual = path.final.residual if path.final is not None else self.y - setup.given
         _beyond, words = explain.autocorrelation_words(residual)
         runs = len(self.problem.runs)
@@ -407,7 +416,7 @@ class Discoverer:
         )
 
     def _improved_terms(self, final: stats.Fit | None, gain_mode: bool, added: list[Term],
-                        discovered: list[dict[str, Any]]) -> list[Term]:
+                        discovered: list[Finding]) -> list[Term]:
         """The model as given with refitted coefficients, plus the discovered terms.
 
         For a ``sim_`` baseline there are no terms to carry: the gain then applies to that column."""
@@ -418,7 +427,7 @@ class Discoverer:
         if gain_mode:
             gain = float(coefficients.pop(0))
             terms = [Term("gain_error", {"gain": round(gain * problem.model.gain, 6)})] + list(problem.base_terms)
-            discovered[0]["parameters"]["gain"] = round(gain, 5)
+            discovered[0].parameters["gain"] = round(gain, 5)
             records = discovered[1:]
         else:
             terms = [term.with_coefficient(c) for term, c in zip(problem.base_terms, coefficients, strict=False)]
@@ -427,7 +436,7 @@ class Discoverer:
         for term, coefficient, record in zip(added, coefficients, records, strict=False):
             updated = term.with_coefficient(float(coefficient))
             terms.append(updated)
-            record["parameters"][updated.spec.coefficient] = round(float(coefficient), 6)
+            record.parameters[updated.spec.coefficient] = round(float(coefficient), 6)
         return terms
 
 

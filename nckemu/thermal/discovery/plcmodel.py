@@ -20,10 +20,11 @@ from typing import Any
 import numpy as np
 
 from nckemu.errors import NckConfigError
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import Term, ThermalModel
+from nckemu.thermal.recordings.recording import Recording
 
-from . import stats
-from .recording import Recording
-from .terms import Term, ThermalModel
+from .findings import Finding
 
 
 @dataclass
@@ -43,7 +44,7 @@ class PlcModel:
 
 def _sensors_of(term: Term) -> list[str]:
     p = term.parameters
-    if term.effect == "centrifugal_growth":
+    if term.spec.uses_spindle:
         return []
     if "sensors" in p:
         return [str(s) for s in p["sensors"]]
@@ -51,9 +52,9 @@ def _sensors_of(term: Term) -> list[str]:
 
 
 def why_not_compensable(term: Term, plc_sensors: set[str], spindle_input: bool = False) -> str | None:
-    if term.effect == "time_drift":
-        return "the PLC cannot know how long the machine has drifted (no physical input carries it)"
-    if term.effect == "centrifugal_growth" and not spindle_input:
+    if term.spec.plc_refusal:
+        return term.spec.plc_refusal
+    if term.spec.uses_spindle and not spindle_input:
         return ("no spindle speed: the machine file wires none to the PLC (a [[sensor]] named spindle_rpm) "
                 "and has no spindle whose actual speed FB2 GET could read")
     missing = [s for s in _sensors_of(term) if s not in plc_sensors]
@@ -98,8 +99,8 @@ def read_program_law(recording: Recording, axis: str, plc_sensors: list[str],
     return [t.with_coefficient(float(c)) for t, c in zip(chosen, coefficients, strict=True)], left
 
 
-def terms_of(missing_physics: list[dict[str, Any]]) -> list[Term]:
-    return [Term(m["effect"], dict(m["parameters"])) for m in missing_physics if m["effect"] != "gain_error"]
+def terms_of(missing_physics: list[Finding]) -> list[Term]:
+    return [Term(m.effect, dict(m.parameters)) for m in missing_physics if m.effect != "gain_error"]
 
 
 def plc_model(recording: Recording, axis: str, found: list[Term], plc_sensors: list[str],

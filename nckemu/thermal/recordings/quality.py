@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import median_filter
 
-from .stats import robust_sigma
+from nckemu.thermal.stats import robust_sigma
 
 
 @dataclass(frozen=True)

@@ -15,17 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import stats
+from nckemu.thermal import stats
+from nckemu.thermal.model import families
+from nckemu.thermal.model.lags import asymmetric_lag, first_order_lag
+from nckemu.thermal.model.terms import Term
+
 from .problem import Problem, Run
 from .settings import Settings
-from .terms import Term, asymmetric_lag, first_order_lag
-
-# Effects of one sensor that contain another as a special case (a time constant going to zero, or
-# heating and cooling at the same rate).
-# A transient gradient whose time constant goes to infinity is the sensor's temperature (less its
-# value at the start, which each run's offset or the offset term holds).
-_EXTENDS = {("thermal_lag", "temperature"), ("heating_cooling_hysteresis", "temperature"),
-            ("heating_cooling_hysteresis", "thermal_lag"), ("transient_gradient", "temperature")}
 
 
 @dataclass
@@ -54,31 +50,21 @@ def label(term: Term) -> str:
 
 def present_key(term: Term) -> str:
     """What a found term rules out of later rounds: the effect, or the effect of that sensor (pair)."""
-    if term.effect in ("offset", "time_drift", "centrifugal_growth"):
-        return term.effect
-    return f"{term.effect}:{term.parameters.get('sensor') or '-'.join(term.parameters.get('sensors', []))}"
+    return term.spec.present_key(term.parameters)
 
 
 def bounded(term: Term) -> bool:
     """Parameters a machine can have."""
-    p = term.parameters
-    c = term.coefficient
-    if term.effect in ("thermal_lag", "transient_gradient"):
-        return 60.0 <= float(p["tau_s"]) <= 48 * 3600.0
-    if term.effect == "heating_cooling_hysteresis":
-        return all(60.0 <= float(p[key]) <= 48 * 3600.0 for key in ("tau_heat_s", "tau_cool_s"))
-    if term.effect == "gain_error":
-        return 0.2 <= c <= 5.0
-    return math.isfinite(c)
+    return term.spec.bounded(term.parameters, term.coefficient)
 
 
 def time_constants(term: Term) -> int:
-    return sum(key in term.parameters for key in ("tau_s", "tau_heat_s", "tau_cool_s"))
+    return sum(key in term.parameters for key in term.spec.time_constants)
 
 
 def extends(complex_term: Term, simple_term: Term) -> bool:
     """``complex_term`` is ``simple_term`` of the same sensor plus a time constant."""
-    return (complex_term.effect, simple_term.effect) in _EXTENDS \
+    return simple_term.effect in complex_term.spec.extends \
         and complex_term.parameters.get("sensor") == simple_term.parameters.get("sensor") is not None
 
 
@@ -114,6 +100,9 @@ class Library:
         self._version = problem.version
         self._signals: dict[tuple[int, str], tuple[np.ndarray, np.ndarray]] = {}
         self.unavailable: dict[str, list[str]] = self._unavailable()
+        self._design = np.empty((len(problem.y), 0))
+        # The round's time-constant searches: (kind, sensor) -> (in-sample RMS, tau_s).
+        self._searched: dict[tuple[str, str], tuple[float, float]] = {}
 
     # ------------------------------------------------------------------ what every run has
     def _enough(self, have: int) -> bool:
@@ -235,10 +224,12 @@ class Library:
         plain = self._filtered_column(("plain", sensor), sensor, lambda t, signal: signal)
         return plain - self.lag_column(sensor, tau_s)
 
-    def best_time_constant(self, design: np.ndarray, column: Callable[[float], np.ndarray],
-                           duration_s: float) -> tuple[float, float, int] | None:
-        """(in-sample RMS, tau_s, values tried): the grid of ``Settings.lag_grid_s`` up to a third of a
-        run, then refined around the best grid point."""
+    def best_time_constant(self, column: Callable[[float], np.ndarray], key: tuple[str, str]
+                           ) -> tuple[float, float, int] | None:
+        """(in-sample RMS, tau_s, values tried) against the round's design: the grid of
+        ``Settings.lag_grid_s`` up to a third of a run, then refined around the best grid point. The
+        result is kept for the round under ``key`` (kind, sensor): ``best_searched`` ranks them."""
+        design, duration_s = self._design, self.duration_s()
         best: tuple[float, float] | None = None
         tried = 0
         for tau in self.settings.lag_grid_s:
@@ -255,7 +246,41 @@ class Library:
             score = self._in_sample(design, column(float(tau)))
             if score < best[0]:
                 best = (score, float(tau))
+        self._searched[key] = (best[0], best[1])
         return best[0], best[1], tried
+
+    def best_searched(self, kind: str, count: int) -> list[str]:
+        """The ``count`` sensors whose time-constant search of ``kind`` fitted best this round."""
+        found = sorted((score, sensor, tau) for (k, sensor), (score, tau) in self._searched.items() if k == kind)
+        return [sensor for _score, sensor, _tau in found[:count]]
+
+    def best_asymmetric_lag(self, sensor: str) -> tuple[float, float, float, int] | None:
+        """(in-sample RMS, tau_heat_s, tau_cool_s, values tried): the pairs of
+        ``Settings.hysteresis_grid_s`` up to a third of a run, then refined around the best grid point."""
+        design, duration_s = self._design, self.duration_s()
+        best_h: tuple[float, float, float] | None = None
+        tried = 0
+        grid = [(h, c) for h, c in itertools.product(self.settings.hysteresis_grid_s, repeat=2)
+                if h != c and max(h, c) <= duration_s / 3]
+        for (tau_heat, tau_cool), column in zip(grid, self.asymmetric_columns(sensor, grid), strict=True):
+            tried += 1
+            score = self._in_sample(design, column)
+            if best_h is None or score < best_h[0]:
+                best_h = (score, tau_heat, tau_cool)
+        if best_h is None:
+            return None
+        # Refine around the grid point (not around the last improvement: that compounded, and walked a
+        # cooling time constant to 21 h on a 36 h null record).
+        grid_heat, grid_cool = best_h[1], best_h[2]
+        near = [(grid_heat * float(fh), grid_cool * float(fc))
+                for fh, fc in itertools.product(np.geomspace(0.7, 1.4, 5), repeat=2)]
+        near = [(h, c) for h, c in near if max(h, c) <= duration_s / 3]
+        for (tau_heat, tau_cool), column in zip(near, self.asymmetric_columns(sensor, near), strict=True):
+            tried += 1
+            score = self._in_sample(design, column)
+            if score < best_h[0]:
+                best_h = (score, tau_heat, tau_cool)
+        return best_h[0], best_h[1], best_h[2], tried
 
     def asymmetric_column(self, sensor: str, tau_heat_s: float, tau_cool_s: float) -> np.ndarray:
         return self._filtered_column(("hysteresis", sensor, tau_heat_s, tau_cool_s), sensor,
@@ -299,87 +324,28 @@ class Library:
         return stats.rms(y - full @ stats.least_squares(full, y))
 
     # ------------------------------------------------------------------ the round's candidates
-    def candidates(self, design: np.ndarray, present: set[str]) -> list[Candidate]:
+    def needs_offset(self) -> bool:
+        """A common offset is a candidate unless the baseline has one (or each run has its own)."""
         problem = self.problem
-        duration_s = self.duration_s()
-        out: list[Candidate] = []
+        return not problem.per_run_offset and not any(t.effect == "offset" for t in problem.base_terms)
 
-        def add(term: Term, grid_points: int = 1) -> None:
-            if term.effect == "gain_error":
-                return
-            candidate = self.candidate(term, grid_points)
-            if candidate is not None:
-                out.append(candidate)
+    def modelled(self, effect: str, sensor: str) -> bool:
+        return any(t.effect == effect and t.parameters.get("sensor") == sensor for t in self.problem.base_terms)
 
-        modelled = {(t.effect, t.parameters.get("sensor")) for t in problem.base_terms}
-        if "offset" not in present and not problem.per_run_offset \
-                and not any(t.effect == "offset" for t in problem.base_terms):
-            add(Term("offset", {"value_um": 0.0}))
-        if "time_drift" not in present:
-            add(Term("time_drift", {"um_per_h": 0.0}))
-        if self.has_spindle() and "centrifugal_growth" not in present:
-            add(Term("centrifugal_growth", {"coeff_um_per_krpm2": 0.0}))
-        sensors = self.sensors()
-        positions = self.has_positions()
-        for sensor in sensors:
-            t_ref = self.t_ref(sensor)
-            if ("temperature", sensor) not in modelled and f"temperature:{sensor}" not in present:
-                add(Term("temperature", {"sensor": sensor, "t_ref_C": t_ref, "coeff_um_per_K": 0.0}))
-            if f"quadratic_temperature:{sensor}" not in present:
-                add(Term("quadratic_temperature", {"sensor": sensor, "t_ref_C": t_ref, "coeff_um_per_K2": 0.0}))
-            if positions and f"position_dependent_expansion:{sensor}" not in present \
-                    and ("position_dependent_expansion", sensor) not in modelled:
-                add(Term("position_dependent_expansion", {"sensor": sensor, "t_ref_C": t_ref, "p0_mm": 0.0,
-                                                          "slope_um_per_m_per_K": 0.0}))
-        for a, b in itertools.combinations(sensors, 2):
-            if f"thermal_gradient:{a}-{b}" not in present:
-                add(Term("thermal_gradient", {"sensors": [a, b], "coeff_um_per_K": 0.0}))
-        # Lags: the best time constant per sensor (grid in-sample), then the asymmetric variant
-        # for the two sensors whose lag fits best.
-        lag_scores = []
-        for sensor in sensors:
-            if f"thermal_lag:{sensor}" in present:
+    def candidates(self, design: np.ndarray, present: set[str]) -> list[Candidate]:
+        """Every family's candidates of the round (``families``: each family proposes its own)."""
+        self._design = design
+        self._searched = {}
+        sensors = {name: index for index, name in enumerate(self.sensors())}
+        ranked: list[tuple[tuple[int, int, int], Candidate]] = []
+        # Generated in registry order (a family may build on an earlier one's search: the hysteresis
+        # on the lags), listed by each family's stage, then sensor.
+        for rank, entry in enumerate(families.families()):
+            if entry.candidates is None or entry.feature is None:
                 continue
-            found = self.best_time_constant(design, lambda tau, sensor=sensor: self.lag_column(sensor, tau),
-                                            duration_s)
-            if found is not None:
-                lag_scores.append((found[0], sensor, found[1]))
-                add(Term("thermal_lag", {"sensor": sensor, "t_ref_C": self.t_ref(sensor), "tau_s": found[1],
-                                         "coeff_um_per_K": 0.0}), found[2])
-        # Transients (skin-core): the sensor less its own lag, the time constant picked the same way.
-        for sensor in sensors:
-            if f"transient_gradient:{sensor}" in present:
-                continue
-            found = self.best_time_constant(design, lambda tau, sensor=sensor: self.transient_column(sensor, tau),
-                                            duration_s)
-            if found is not None:
-                add(Term("transient_gradient", {"sensor": sensor, "tau_s": found[1], "coeff_um_per_K": 0.0}),
-                    found[2])
-        for _score, sensor, _tau in sorted(lag_scores)[:2]:
-            if f"heating_cooling_hysteresis:{sensor}" in present:
-                continue
-            best_h: tuple[float, float, float] | None = None
-            tried = 0
-            grid = [(h, c) for h, c in itertools.product(self.settings.hysteresis_grid_s, repeat=2)
-                    if h != c and max(h, c) <= duration_s / 3]
-            for (tau_heat, tau_cool), column in zip(grid, self.asymmetric_columns(sensor, grid), strict=True):
-                tried += 1
-                score = self._in_sample(design, column)
-                if best_h is None or score < best_h[0]:
-                    best_h = (score, tau_heat, tau_cool)
-            if best_h is not None:
-                # Refine around the grid point (not around the last improvement: that compounded,
-                # and walked a cooling time constant to 21 h on a 36 h null record).
-                grid_heat, grid_cool = best_h[1], best_h[2]
-                near = [(grid_heat * float(fh), grid_cool * float(fc))
-                        for fh, fc in itertools.product(np.geomspace(0.7, 1.4, 5), repeat=2)]
-                near = [(h, c) for h, c in near if max(h, c) <= duration_s / 3]
-                for (tau_heat, tau_cool), column in zip(near, self.asymmetric_columns(sensor, near), strict=True):
-                    tried += 1
-                    score = self._in_sample(design, column)
-                    if score < best_h[0]:
-                        best_h = (score, tau_heat, tau_cool)
-                add(Term("heating_cooling_hysteresis", {"sensor": sensor, "t_ref_C": self.t_ref(sensor),
-                                                        "tau_heat_s": best_h[1], "tau_cool_s": best_h[2],
-                                                        "coeff_um_per_K": 0.0}), tried)
-        return out
+            for effect, parameters, grid_points in entry.candidates(self, present):
+                candidate = self.candidate(Term(effect, parameters), grid_points)
+                if candidate is not None:
+                    sensor = sensors.get(parameters.get("sensor"), 0) if entry.stage == 1 else 0
+                    ranked.append(((entry.stage, sensor, rank), candidate))
+        return [candidate for _key, candidate in sorted(ranked, key=lambda item: item[0])]

@@ -7,9 +7,11 @@ from typing import Any
 
 import numpy as np
 
-from . import explain, stats
+from nckemu.thermal import stats
+from nckemu.thermal.model.families import family
+
+from . import explain
 from .discover import Discovery
-from .terms import EFFECTS
 
 
 def _parameters(parameters: dict[str, Any]) -> str:
@@ -44,7 +46,7 @@ def program_findings(discovery: Discovery, law: str | None = None) -> list[tuple
         short = "The residual has no structured window: it does not fall short anywhere the data can show."
     if discovery.missing_physics:
         physics = "It leaves out: " + "; ".join(
-            f"{m['effect']} ({EFFECTS[m['effect']].description}: {_parameters(m['parameters'])})"
+            f"{m.effect} ({family(m.effect).description}: {_parameters(m.parameters)})"
             for m in discovery.missing_physics) + "."
     elif discovery.residual_is_structure:
         physics = ("No candidate of the vocabulary passed the guards, but what it leaves is structure, not noise "
@@ -69,13 +71,17 @@ def finding_lines(discovery: Discovery) -> list[str]:
     """The text output's lines after the headline: found, likely, why nothing, coverage, data quality."""
     import json
 
-    lines = [f"missing: {m['effect']} {json.dumps(m['parameters'])}" for m in discovery.missing_physics]
+    lines = [f"missing: {m.effect} {json.dumps(m.parameters)}" for m in discovery.missing_physics]
     for item in discovery.likely:
-        e = item["evidence"]
-        lines.append(f"likely, not proven: {item['label']} {json.dumps(item['parameters'])}: held-out "
-                     f"{e['heldout_rms_before_um']:.3f} -> {e['heldout_rms_after_um']:.3f} um "
-                     f"({e['heldout_improvement']:.1%}, the bar is {e['heldout_bar']:.0%}), t = "
-                     f"{e['t_value_ar1_corrected']} (critical {e['t_critical']}), folds {e['folds_improved']}")
+        e = item.evidence
+        lines.append(f"likely, not proven: {item.label} {json.dumps(item.parameters)}: held-out "
+                     f"{e.heldout_rms_before_um:.3f} -> {e.heldout_rms_after_um:.3f} um "
+                     f"({e.heldout_improvement:.1%}, the bar is {e.heldout_bar:.0%}), t = "
+                     f"{e.t_value_ar1_corrected} (critical {e.t_critical}), folds {e.folds_improved}")
+    if discovery.missing_physics and discovery.residual_is_structure:
+        sizes = ", ".join(f"{family} {size:.2g}" for family, size in discovery.smallest_detectable_um.items())
+        lines.append(f"left: the residual is still structure ({structure_words(discovery)})"
+                     + (f"; the smallest effect each family could have shown next (RMS, um): {sizes}" if sizes else ""))
     if not discovery.missing_physics:
         # A residual that is structure (r(1) near 1, a huge Ljung-Box Q) is never "nothing missing".
         head = (f"nothing named, but the residual is structure ({structure_words(discovery)})"

@@ -14,8 +14,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from . import quality, stats
-from .recording import Recording
+from nckemu.thermal import stats
+from nckemu.thermal.recordings import quality
+from nckemu.thermal.recordings.recording import Recording
+
 from .settings import Settings
 
 
