@@ -229,9 +229,12 @@ async def _child(client: Client, node: Any, name: str) -> Any:
 @needs_models
 @pytest.mark.slow  # 20 faces start (about 0.3 s each from the models' cache)
 async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> None:
-    """Each machine of a fleet has its own name, serial number (equal to MD18030 over S7), ProductInstanceUri
-    and ApplicationUri; an asset registry keyed by ProductInstanceUri finds 20."""
+    """Each machine of a fleet has its own name, serial number (equal to MD18030 over S7 and to SZL 0x001C
+    as python-snap7's get_cpu_info reads it), ProductInstanceUri and ApplicationUri; an asset registry keyed
+    by ProductInstanceUri finds 20."""
     from importlib import resources
+
+    import snap7
 
     import nckemu
     from nckemu.clients import AsyncNckClient
@@ -249,6 +252,12 @@ async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> No
         for running in fleet.machines:
             async with AsyncNckClient("127.0.0.1", running.port) as s7:
                 md18030, md18040 = await s7.get("MD18030", "MD18040[u1,1]")
+            plc = snap7.Client()
+            try:
+                await asyncio.to_thread(plc.connect, "127.0.0.1", 0, 2, running.port)
+                cpu = await asyncio.to_thread(plc.get_cpu_info)
+            finally:
+                plc.disconnect()
             async with Client(running.ready()["opcua"], timeout=10) as client:
                 namespaces = await client.get_namespace_array()
                 machines = await client.nodes.objects.get_child(f"{namespaces.index(nodesets.MACHINERY)}:Machines")
@@ -265,6 +274,7 @@ async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> No
                     "name": (await tool.read_browse_name()).Name, "serial": await read("SerialNumber"),
                     "software": await read("SoftwareRevision"), "md18030": str(md18030).rstrip(),
                     "md18040": str(md18040).rstrip(), "application": endpoints[0].Server.ApplicationUri,
+                    "cpu_name": cpu.ASName.decode(), "cpu_serial": cpu.SerialNumber.decode(),
                     "product": f"{build.ProductName} {build.SoftwareVersion} {build.ProductUri}",
                 }
     finally:
@@ -275,6 +285,7 @@ async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> No
     assert len({asset["application"] for asset in assets.values()}) == 20
     for uri, asset in assets.items():
         assert asset["serial"] == asset["md18030"] and asset["software"] == asset["md18040"], asset
+        assert (asset["cpu_name"], asset["cpu_serial"]) == (asset["name"], asset["serial"]), asset
         assert uri.startswith("urn:nckemu:") and asset["name"] in uri and asset["serial"] in uri and "-:" not in uri
         assert asset["application"] == f"urn:nckemu:{asset['name']}"
         assert asset["product"] == f"nckemu {nckemu.__version__} urn:nckemu"
