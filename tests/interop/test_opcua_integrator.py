@@ -372,6 +372,58 @@ def test_the_siemens_machine_axis_path_reads_the_extension_row(faces: tuple[Emul
     assert siemens[3] == pytest.approx(-12.5)
 
 
+def test_the_geometric_axis_paths_count_the_channels_wcs_axes(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """``/Channel/GeometricAxis/...[u1,n]`` counts X, Y, Z of channel 1 (machine axes 1, 2 and 4 on the
+    default machine, whose axis 3 is the spindle). With no work offset and no tool offset active, the tool
+    base and the programmed point equal the machine-axis rows; with G54 and a tool edge active, the tool
+    base is the SEGA workPosition row and the programmed point lies the tool length below it along Z.
+    The same over S7 and OPC UA."""
+    from nckemu.clients import NckClient
+
+    emulator, face = faces
+    nck = emulator.emulator.nck
+    state = nck.channels[1].state
+    before = (nck.frames.active[1], state.t_number, state.d_number)
+    paths = ("actToolBasePos", "cmdToolBasePos", "actProgPos", "cmdProgPos")
+
+    def read_all(s7: NckClient) -> dict[str, list[Any]]:
+        values = {path: s7.get(*[f"/Channel/GeometricAxis/{path}[u1,{n}]" for n in (1, 2, 3)]) for path in paths}
+        values["name"] = s7.get(*[f"/Channel/GeometricAxis/name[u1,{n}]" for n in (1, 2, 3, 4)])
+        values["machine"] = s7.get(*[f"/Channel/MachineAxis/actToolBasePos[u1,{n}]" for n in (1, 2, 4)])
+        values["work"] = s7.get(*[f"workPosition[u1,{n}]" for n in (1, 2, 4)])
+        values["length"] = s7.get("/Channel/State/actOriToolLength3[u1]")
+        return values
+
+    async def read_ua() -> dict[str, list[Any]]:
+        client = await connect(face)
+        try:
+            ns = await client.get_namespace_index(NS_URI)
+            return {path: [await client.get_node(ua.NodeId(f"/Channel/GeometricAxis/{path}[u1,{n}]", ns)).read_value()
+                           for n in (1, 2, 3)] for path in (*paths, "name")}
+        finally:
+            await client.disconnect()
+
+    emulator.call(lambda: nck.axes.set_position(4, -12.5))
+    try:
+        with NckClient("127.0.0.1", emulator.port) as s7:
+            emulator.call(lambda: (nck.select_frame(0), nck.select_tool(0, 0)))  # G500, T0 D0
+            plain, plain_ua = read_all(s7), run(read_ua())
+            emulator.call(lambda: (nck.select_frame(1), nck.select_tool(1, 1)))  # G54, T1 D1
+            offset, offset_ua = read_all(s7), run(read_ua())
+    finally:
+        emulator.call(lambda: (nck.axes.set_position(4, 0.0), nck.select_frame(before[0]),
+                               nck.select_tool(before[1], before[2])))
+    assert plain["name"] == ["X", "Y", "Z", ""] and plain_ua["name"] == ["X", "Y", "Z"]
+    for path in paths:
+        assert plain[path] == plain["machine"] == plain_ua[path], path
+        assert offset[path] == offset_ua[path], path
+    assert plain["machine"][2] == pytest.approx(-12.5)
+    assert offset["actToolBasePos"] == offset["cmdToolBasePos"] == offset["work"] != offset["machine"]
+    assert offset["length"][0] > 0  # the default machine's T1 D1 has a length along Z
+    assert offset["actProgPos"][:2] == offset["work"][:2]
+    assert offset["actProgPos"][2] == pytest.approx(offset["work"][2] - offset["length"][0])
+
+
 @needs_models
 def test_identification_equals_the_s7_face_and_build_info_names_nckemu(faces: tuple[EmulatorThread, OpcUaFace]
                                                                        ) -> None:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.nck.alarms import alarm_number
 from nckemu.emulator.machine.nck.drives import DRIVE_READERS
+from nckemu.emulator.machine.nck.geometric_axes import GEOMETRIC_AXIS_READERS
 from nckemu.errors import NckAccessDenied, NckAddressOutOfRange, NckPiStateError
 
 if TYPE_CHECKING:
@@ -295,4 +296,6 @@ SOURCES: dict[str, Source] = {
             _sensor_name(model, line), float(value))),  # type: ignore[arg-type]
     # SINAMICS drive parameters (area V): drives.py computes them
     **{name: Source(read) for name, read in DRIVE_READERS.items()},
+    # SGA (/Channel/GeometricAxis): lines are the channel's axes in the WCS, geometric_axes.py
+    **{name: Source(read) for name, read in GEOMETRIC_AXIS_READERS.items()},
 }
