@@ -126,9 +126,10 @@ def _spindle(model: NckParts, unit: int, line: int) -> Spindle:
 
 
 def _selected(model: NckParts, unit: int) -> str:
-    """The channel's selected program (channel 1's is also the program store's selection)."""
+    """The channel's selected program (channel 1's is also the program store's selection); with none,
+    the name a run without a program is shown under (a recording's run)."""
     channel = model.channels.get(unit)
-    selected = channel.selected if channel is not None else ""
+    selected = (channel.selected or channel.recorded_program) if channel is not None else ""
     return selected or (model.programs.selected if unit == 1 else "")
 
 
