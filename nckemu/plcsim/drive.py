@@ -13,16 +13,20 @@ HMI would see it. When the spindle starts, the channel is started (active, progr
 program time counting; the mode group is in AUTOMATIC, the machine file's default); when it has stood
 still for ``PROGRAM_END_IDLE_S`` of recording time, the program has ended (M30: a part counted, the
 net time kept as the last program's, the channel reset). A stop shorter than that (a tool change)
-leaves the program running.
+leaves the program running. That run is shown under the recording's name as a main program
+(``recording_program_path``: ``day-1.csv`` runs as ``/_N_MPF_DIR/_N_DAY_1_MPF``), so progName,
+workPandProgName, umati ActiveProgram Name and CNC ActProgramName name it; no such program is stored.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
+from nckemu.catalogue.program_names import MAX_NAME_CHARS, program_path
 from nckemu.emulator.machine.machine_file import Machine
 from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE
 from nckemu.emulator.machine.nck.model import NckModel
@@ -39,6 +43,16 @@ NCK_SPINDLE = 1
 SPINDLE_TURNING_RPM = 1.0
 # A spindle standing this long (recording time) has ended its program: the channel counts a part.
 PROGRAM_END_IDLE_S = 600.0
+
+
+def recording_program_path(run_name: str) -> str:
+    """The main program a recording's run is shown as: the run's name (the file's name without its
+    extension) in upper case, each character that is not a letter, digit or _ made _, at most 24
+    characters, ``REC_`` in front of a name that does not begin with a letter."""
+    stem = re.sub(r"[^A-Z0-9_]", "_", run_name.upper().encode("ascii", "replace").decode("ascii"))
+    if not stem[:1].isalpha():
+        stem = "REC_" + stem
+    return program_path(stem.rstrip("_")[:MAX_NAME_CHARS].rstrip("_") or "REC")
 
 
 def sensor_column(recording: Recording, name: str) -> np.ndarray | None:
@@ -118,6 +132,7 @@ class RecordingDrive:
         self._spindle = recording.spindle_rpm if recording.spindle_rpm is not None and nck_spindle_speed(machine) \
             else None
         self._idle_since_s: float | None = None  # recording time the spindle stopped, a program running
+        self.program = recording_program_path(recording.name)  # what the faces name the recording's run
         # The first pass is interpolated once for all its cycles (the offline run's hot loop).
         t_cycles = self.t0_s + self.cycle_s * np.arange(self.cycles)
         self._first = self._series(t_cycles)
@@ -179,7 +194,7 @@ class RecordingDrive:
         if abs(inputs.spindle_rpm) >= SPINDLE_TURNING_RPM:
             self._idle_since_s = None
             if not active:
-                channel.run_without_program()  # the recording says a program runs; none is selected
+                channel.run_without_program(self.program)  # the recording says a program runs; none is selected
             return
         if not active:
             return

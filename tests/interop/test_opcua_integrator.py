@@ -229,9 +229,12 @@ async def _child(client: Client, node: Any, name: str) -> Any:
 @needs_models
 @pytest.mark.slow  # 20 faces start (about 0.3 s each from the models' cache)
 async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> None:
-    """Each machine of a fleet has its own name, serial number (equal to MD18030 over S7), ProductInstanceUri
-    and ApplicationUri; an asset registry keyed by ProductInstanceUri finds 20."""
+    """Each machine of a fleet has its own name, serial number (equal to MD18030 over S7 and to SZL 0x001C
+    as python-snap7's get_cpu_info reads it), ProductInstanceUri and ApplicationUri; an asset registry keyed
+    by ProductInstanceUri finds 20."""
     from importlib import resources
+
+    import snap7
 
     import nckemu
     from nckemu.clients import AsyncNckClient
@@ -249,6 +252,12 @@ async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> No
         for running in fleet.machines:
             async with AsyncNckClient("127.0.0.1", running.port) as s7:
                 md18030, md18040 = await s7.get("MD18030", "MD18040[u1,1]")
+            plc = snap7.Client()
+            try:
+                await asyncio.to_thread(plc.connect, "127.0.0.1", 0, 2, running.port)
+                cpu = await asyncio.to_thread(plc.get_cpu_info)
+            finally:
+                plc.disconnect()
             async with Client(running.ready()["opcua"], timeout=10) as client:
                 namespaces = await client.get_namespace_array()
                 machines = await client.nodes.objects.get_child(f"{namespaces.index(nodesets.MACHINERY)}:Machines")
@@ -265,6 +274,7 @@ async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> No
                     "name": (await tool.read_browse_name()).Name, "serial": await read("SerialNumber"),
                     "software": await read("SoftwareRevision"), "md18030": str(md18030).rstrip(),
                     "md18040": str(md18040).rstrip(), "application": endpoints[0].Server.ApplicationUri,
+                    "cpu_name": cpu.ASName.decode(), "cpu_serial": cpu.SerialNumber.decode(),
                     "product": f"{build.ProductName} {build.SoftwareVersion} {build.ProductUri}",
                 }
     finally:
@@ -275,6 +285,7 @@ async def test_a_fleet_of_twenty_registers_as_twenty_assets(tmp_path: Any) -> No
     assert len({asset["application"] for asset in assets.values()}) == 20
     for uri, asset in assets.items():
         assert asset["serial"] == asset["md18030"] and asset["software"] == asset["md18040"], asset
+        assert (asset["cpu_name"], asset["cpu_serial"]) == (asset["name"], asset["serial"]), asset
         assert uri.startswith("urn:nckemu:") and asset["name"] in uri and asset["serial"] in uri and "-:" not in uri
         assert asset["application"] == f"urn:nckemu:{asset['name']}"
         assert asset["product"] == f"nckemu {nckemu.__version__} urn:nckemu"
@@ -359,6 +370,58 @@ def test_the_siemens_machine_axis_path_reads_the_extension_row(faces: tuple[Emul
             emulator.call(lambda: axes.set_position(4, 0.0))
     assert siemens == extension == ua_siemens == ua_extension
     assert siemens[3] == pytest.approx(-12.5)
+
+
+def test_the_geometric_axis_paths_count_the_channels_wcs_axes(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """``/Channel/GeometricAxis/...[u1,n]`` counts X, Y, Z of channel 1 (machine axes 1, 2 and 4 on the
+    default machine, whose axis 3 is the spindle). With no work offset and no tool offset active, the tool
+    base and the programmed point equal the machine-axis rows; with G54 and a tool edge active, the tool
+    base is the SEGA workPosition row and the programmed point lies the tool length below it along Z.
+    The same over S7 and OPC UA."""
+    from nckemu.clients import NckClient
+
+    emulator, face = faces
+    nck = emulator.emulator.nck
+    state = nck.channels[1].state
+    before = (nck.frames.active[1], state.t_number, state.d_number)
+    paths = ("actToolBasePos", "cmdToolBasePos", "actProgPos", "cmdProgPos")
+
+    def read_all(s7: NckClient) -> dict[str, list[Any]]:
+        values = {path: s7.get(*[f"/Channel/GeometricAxis/{path}[u1,{n}]" for n in (1, 2, 3)]) for path in paths}
+        values["name"] = s7.get(*[f"/Channel/GeometricAxis/name[u1,{n}]" for n in (1, 2, 3, 4)])
+        values["machine"] = s7.get(*[f"/Channel/MachineAxis/actToolBasePos[u1,{n}]" for n in (1, 2, 4)])
+        values["work"] = s7.get(*[f"workPosition[u1,{n}]" for n in (1, 2, 4)])
+        values["length"] = s7.get("/Channel/State/actOriToolLength3[u1]")
+        return values
+
+    async def read_ua() -> dict[str, list[Any]]:
+        client = await connect(face)
+        try:
+            ns = await client.get_namespace_index(NS_URI)
+            return {path: [await client.get_node(ua.NodeId(f"/Channel/GeometricAxis/{path}[u1,{n}]", ns)).read_value()
+                           for n in (1, 2, 3)] for path in (*paths, "name")}
+        finally:
+            await client.disconnect()
+
+    emulator.call(lambda: nck.axes.set_position(4, -12.5))
+    try:
+        with NckClient("127.0.0.1", emulator.port) as s7:
+            emulator.call(lambda: (nck.select_frame(0), nck.select_tool(0, 0)))  # G500, T0 D0
+            plain, plain_ua = read_all(s7), run(read_ua())
+            emulator.call(lambda: (nck.select_frame(1), nck.select_tool(1, 1)))  # G54, T1 D1
+            offset, offset_ua = read_all(s7), run(read_ua())
+    finally:
+        emulator.call(lambda: (nck.axes.set_position(4, 0.0), nck.select_frame(before[0]),
+                               nck.select_tool(before[1], before[2])))
+    assert plain["name"] == ["X", "Y", "Z", ""] and plain_ua["name"] == ["X", "Y", "Z"]
+    for path in paths:
+        assert plain[path] == plain["machine"] == plain_ua[path], path
+        assert offset[path] == offset_ua[path], path
+    assert plain["machine"][2] == pytest.approx(-12.5)
+    assert offset["actToolBasePos"] == offset["cmdToolBasePos"] == offset["work"] != offset["machine"]
+    assert offset["length"][0] > 0  # the default machine's T1 D1 has a length along Z
+    assert offset["actProgPos"][:2] == offset["work"][:2]
+    assert offset["actProgPos"][2] == pytest.approx(offset["work"][2] - offset["length"][0])
 
 
 @needs_models

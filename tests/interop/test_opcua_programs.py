@@ -360,3 +360,54 @@ def test_the_docs_example_runs() -> None:
                 await client.disconnect()
         assert asyncio.run(ended()) == "Ended"
         assert emulator.emulator.nck.channels[1].state.actual_parts == 1
+
+
+def test_a_recording_s_run_is_named_by_the_recording_on_every_face(tmp_path: Path) -> None:
+    """A living machine whose recording turns the spindle runs no stored program, yet every face names the
+    run: the recording's file name as a main program (``day-1 shift.csv`` -> ``_N_DAY_1_SHIFT_MPF``), in
+    BTSS progName / workPandProgName over S7 and OPC UA, umati ActiveProgram Name and CNC ActProgramName,
+    while it runs and after its end (as a selected program stays selected)."""
+    from nckemu.clients import NckClient
+    from nckemu.plcsim.drive import PROGRAM_END_IDLE_S, RecordingDrive, recording_program_path
+    from nckemu.thermal.recording import load_recording
+
+    from .live_tools import MACHINE, write_recording
+
+    assert recording_program_path("day-1 shift") == "/_N_MPF_DIR/_N_DAY_1_SHIFT_MPF"
+    assert recording_program_path("2017-06-17") == "/_N_MPF_DIR/_N_REC_2017_06_17_MPF"
+    assert recording_program_path("Wärmegang über Nacht, Maschine 7") == "/_N_MPF_DIR/_N_W_RMEGANG__BER_NACHT__MA_MPF"  # 24 characters
+    recording = load_recording(write_recording(tmp_path / "day-1 shift.csv", hours=2.0, step_s=10.0))
+    path, name = "/_N_MPF_DIR/_N_DAY_1_SHIFT_MPF", "_N_DAY_1_SHIFT_MPF"
+
+    def seen_by_faces(emulator: EmulatorThread, face: OpcUaFace) -> dict[str, Any]:
+        with NckClient("127.0.0.1", emulator.port) as s7:
+            status, prog_name, file = s7.get("/Channel/State/progStatus[u1]", "/Channel/ProgramInfo/progName[u1]",
+                                             "/Channel/ProgramInfo/workPandProgName[u1]")
+
+        async def read() -> dict[str, Any]:
+            client = await connect(face)
+            try:
+                return await _view(client) | {"cnc file": await _instance(client, f"{CNC}/ActProgramFile")}
+            finally:
+                await client.disconnect()
+        return asyncio.run(read()) | {"s7": (status, str(prog_name).rstrip("\0"), str(file).rstrip("\0"))}
+
+    with two_faces(MACHINE) as (emulator, face):
+        drive = RecordingDrive(emulator.emulator.machine, recording, 1.0, warmup_s=0.0)
+        nck = emulator.emulator.nck
+
+        def apply(cycles: range) -> None:
+            for k in cycles:
+                drive.apply(nck, k)
+
+        before = seen_by_faces(emulator, face)
+        _on_loop(emulator, lambda: apply(range(0, 1500)))   # the spindle turns from 1200 s
+        running = seen_by_faces(emulator, face)
+        _on_loop(emulator, lambda: apply(range(1500, 2400 + int(PROGRAM_END_IDLE_S) + 60)))  # stood long: M30
+        ended = seen_by_faces(emulator, face)
+    assert before["s7"][1:] == ("", "") and before["name"] == before["cnc name"] == ""
+    assert running["s7"] == (3, name, path)
+    assert (running["name"], running["cnc name"], running["progName"], running["cnc file"]) == (name, name, name, path)
+    assert (running["program"], running["progStatus"]) == ("Running", 3)
+    assert ended["s7"][1:] == (name, path) and ended["program"] == "Ended"
+    assert (ended["name"], ended["cnc name"], ended["progName"], ended["cnc file"]) == (name, name, name, path)

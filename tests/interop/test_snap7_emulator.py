@@ -59,6 +59,26 @@ def test_get_cpu_info(client: snap7.Client) -> None:
     assert info.ModuleTypeName
 
 
+def test_get_cpu_info_names_the_machine_and_its_md18030(emulator: EmulatorThread) -> None:
+    """SZL 0x001C carries the machine's own name and serial number (MD18030), as umati Identification;
+    a name longer than the field's 24 characters is cut, never spilled into the reserved bytes."""
+    machine = emulator.emulator
+    serial = machine.serial_number
+    machine.name = "a machine with a rather long name"
+    client = snap7.Client()
+    client.connect("127.0.0.1", 0, 2, emulator.port)
+    try:
+        info = client.get_cpu_info()
+        raw = client.read_szl(0x001C, 0)
+    finally:
+        client.disconnect()
+        machine.name = machine.machine.name
+    assert (info.ASName.decode(), info.SerialNumber.decode()) == ("a machine with a rather ", serial)
+    assert serial.startswith("NCKEMU") and len(serial) == 20
+    first = bytes(b & 0xFF for b in raw.Data[4:38])
+    assert first[:2] == b"\x00\x01" and first[26:] == bytes(8)
+
+
 def test_db_write_then_read(client: snap7.Client) -> None:
     client.db_write(130, 0, bytearray(b"\x12\x34\x56\x78"))
     assert client.db_read(130, 0, 4) == bytearray(b"\x12\x34\x56\x78")

@@ -93,3 +93,19 @@ def test_an_szl_in_several_parts_is_named_whole_at_its_last_part(tmp_path: Path)
     assert details[1].startswith("next part of sequence")
     assert "-> last of 2 parts: component identification (SZL 0x001C index 0x0000): 9 records" in details[1]
     assert "index 10: " in details[1]  # the ninth record, carried by the second part only
+
+
+@requires_tshark
+def test_tshark_reads_the_machine_name_and_md18030_in_szl_001c(recorded: Path) -> None:
+    """Index 1 (the automation system's name) and index 5 (the serial number) as Wireshark's dissector
+    reads them: the machine's name and MD18030, the reserved bytes after them zero."""
+    from nckemu.emulator.machine.core import serial_number
+    from nckemu.emulator.machine.machine_file import load_machine
+
+    fields = ["s7comm.szl.001c.0001.name", "s7comm.szl.001c.0005.serialn", "s7comm.szl.001c.000x.res"]
+    rows = [row for row in tshark_fields(recorded, fields) if row["s7comm.szl.001c.0001.name"]]
+    assert len(rows) == 1
+    assert rows[0]["s7comm.szl.001c.0001.name"] == load_machine(None).name
+    assert rows[0]["s7comm.szl.001c.0005.serialn"] == serial_number(1)
+    reserved = rows[0]["s7comm.szl.001c.000x.res"].split(",")
+    assert len(reserved) >= 4 and all(field and set(field) <= {"0"} for field in reserved)

@@ -53,6 +53,7 @@ class Emulator:
         # The machine's own name among others (a fleet's machine: ``identify``); faces name it by this
         # (the OPC UA ApplicationUri, the umati instance), the machine file's name otherwise.
         self.name = self.machine.name
+        self.plc.identity = lambda: (self.name, self.serial_number)  # SZL 0x001C, as umati Identification
         # Parts of the machine's state that layers above the emulator report (a living machine's
         # recording and PLC program): name -> a function giving a JSON-able dict (the live page).
         self.status_sections: dict[str, Callable[[], dict[str, Any]]] = {}

@@ -119,6 +119,9 @@ class Channel:
         self._running_since: float | None = None
         self.parts: NckParts | None = None
         self.selected = ""
+        # The NC path a run without a program is shown under (a recording's run: progName and the
+        # program of the current block name it); kept after its end, as a selection is, until a select.
+        self.recorded_program = ""
         self.run: ProgramRun | None = None
         self.waiting = False
         self.last_run_blocks = 0          # blocks the last run executed (program run offline)
@@ -148,6 +151,7 @@ class Channel:
         if not parts.programs.exists(path):
             raise NckNoSuchFile(f"no program {path}")
         self.selected = path
+        self.recorded_program = ""
         if self.number == 1:
             parts.programs.select(path)
         self._tell("selected")
@@ -256,11 +260,16 @@ class Channel:
         else:
             self.run_without_program()
 
-    def run_without_program(self) -> None:
+    def run_without_program(self, shown_as: str = "") -> None:
         """The channel active with no program (a recording says the machine works): times and counters
-        run, nothing executes."""
+        run, nothing executes. ``shown_as``: the NC path the faces name the run by (nothing is stored
+        under it; a program selected in the channel names it instead)."""
         if self.state.status == CHAN_RESET:
             self._net_s = 0.0
+        if shown_as:
+            self.recorded_program = shown_as
+        if self.run is None and self.recorded_program and not self.selected:
+            self.state.program = self.recorded_program
         self._begin_timing()
         if self.state.status != CHAN_ACTIVE:
             self.state.start_counter += 1

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.nck.alarms import alarm_number
 from nckemu.emulator.machine.nck.drives import DRIVE_READERS
+from nckemu.emulator.machine.nck.geometric_axes import GEOMETRIC_AXIS_READERS
 from nckemu.errors import NckAccessDenied, NckAddressOutOfRange, NckPiStateError
 
 if TYPE_CHECKING:
@@ -125,9 +126,10 @@ def _spindle(model: NckParts, unit: int, line: int) -> Spindle:
 
 
 def _selected(model: NckParts, unit: int) -> str:
-    """The channel's selected program (channel 1's is also the program store's selection)."""
+    """The channel's selected program (channel 1's is also the program store's selection); with none,
+    the name a run without a program is shown under (a recording's run)."""
     channel = model.channels.get(unit)
-    selected = channel.selected if channel is not None else ""
+    selected = (channel.selected or channel.recorded_program) if channel is not None else ""
     return selected or (model.programs.selected if unit == 1 else "")
 
 
@@ -295,4 +297,6 @@ SOURCES: dict[str, Source] = {
             _sensor_name(model, line), float(value))),  # type: ignore[arg-type]
     # SINAMICS drive parameters (area V): drives.py computes them
     **{name: Source(read) for name, read in DRIVE_READERS.items()},
+    # SGA (/Channel/GeometricAxis): lines are the channel's axes in the WCS, geometric_axes.py
+    **{name: Source(read) for name, read in GEOMETRIC_AXIS_READERS.items()},
 }

@@ -7,6 +7,7 @@ channel at once.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import struct
 from collections.abc import Callable
@@ -29,6 +30,12 @@ ORDER_NUMBER = "6FC5372-0AA30-0AA0"  # NCU 720.3 PN; the PLC part answers as the
 HARDWARE_VERSION = 3
 FIRMWARE_VERSION = (3, 2, 6)  # of the PLC part (a CPU 317-2 PN/DP); not a measured value
 MODULE_NAME = "nckemu NCU"
+# SZL 0x001C (component identification): index -> the width of its text; the rest of the 32-byte text
+# field is reserved and stays zero (python-snap7's get_cpu_info reads the name and the serial number
+# 24 bytes wide).
+COMPONENT_TEXT_BYTES = {1: 24, 2: 24, 3: 32, 4: 26, 5: 24, 7: 32, 8: 32, 9: 32, 10: 32}
+COPYRIGHT = "Original Siemens Equipment"
+MODULE_TYPE_NAME = "CPU 317-2 PN/DP (NCU PLC)"
 # SZL 0x0424 record: event ID 0x5144, "ae" 0xFF, then the mode (0x08 RUN, 0x03 STOP), as the record
 # C snap7 took "from a physical CPU" (s7_firmware.h SZL_ID_0424_IDX_XXXX, node-snap7 1.0.9); bytes
 # 12..19 are the time of the last mode change as an S7 DATE_AND_TIME (same source).
@@ -44,7 +51,8 @@ PROTECTION = (1, 0, 1, 2, 0)
 
 
 def _text(value: str, size: int) -> bytes:
-    return value.encode("ascii")[:size].ljust(size, b"\x00")
+    # A name from a fleet file may hold any letter; the SZL's texts are ASCII.
+    return value.encode("ascii", "replace")[:size].ljust(size, b"\x00")
 
 
 class PlcModel:
@@ -74,6 +82,9 @@ class PlcModel:
         self.areas: dict[int, bytearray] = {S7Area.I: bytearray(AREA_BYTES), S7Area.Q: bytearray(AREA_BYTES),
                                             S7Area.M: bytearray(AREA_BYTES)}
         self.running = True
+        # The machine's name and serial number as every face shows them (SZL 0x001C): the emulator
+        # sets it to its own name (a fleet's machine's name) and MD18030.
+        self.identity: Callable[[], tuple[str, str]] = self._identity_from_machine
         # Told of every write (area, DB number, first byte, byte count) after it landed: the OPC UA face
         # pushes each change to its subscriptions instead of hoping a periodic sample catches it.
         self.write_listeners: list[Callable[[int, int, int, int], None]] = []
@@ -202,10 +213,12 @@ class PlcModel:
             records = [struct.pack(">H", index) + _text(ORDER_NUMBER, 20) + tail for index, tail in tails.items()]
             return self._szl(szl_id, szl_index, 28, records)
         if szl_id == 0x001C:
-            machine_name = getattr(self.machine, "name", "nckemu") if self.machine is not None else "nckemu"
-            texts = {1: machine_name, 2: MODULE_NAME, 3: "nckemu", 4: "Original Siemens Equipment",
-                     5: "NCKEMU-0001", 7: "CPU 317-2 PN/DP (NCU PLC)", 8: "", 9: "", 10: ""}
-            records = [struct.pack(">H", index) + _text(text, 32) for index, text in texts.items()]
+            # Index 1 names the automation system (the machine among others), 5 is its serial number.
+            name, serial_number = self.identity()
+            texts = {1: name, 2: MODULE_NAME, 3: "nckemu", 4: COPYRIGHT, 5: serial_number, 7: MODULE_TYPE_NAME,
+                     8: "", 9: "", 10: ""}
+            records = [struct.pack(">H", index) + _text(text, COMPONENT_TEXT_BYTES[index]).ljust(32, b"\x00")
+                       for index, text in texts.items()]
             return self._szl(szl_id, szl_index, 34, records)
         if szl_id == 0x0424:
             mode = 0x08 if self.running else 0x03
@@ -238,6 +251,15 @@ class PlcModel:
         raise NckServiceError(f"SZL 0x{szl_id:04X} index 0x{szl_index:04X} is not available",
                               error_class=self.szl_unknown_id_error >> 8,
                               error_code=self.szl_unknown_id_error & 0xFF)
+
+    def _identity_from_machine(self) -> tuple[str, str]:
+        """Without an emulator: the machine file's name and MD18030 as the NCK holds it."""
+        name = str(getattr(self.machine, "name", "nckemu")) if self.machine is not None else "nckemu"
+        serial_number = ""
+        if self.nck is not None:
+            with contextlib.suppress(NckError):
+                serial_number = str(self.nck.store.active_value("HW_SERIAL_NUMBER", 1)).rstrip()
+        return name, serial_number
 
     # ------------------------------------------------------------------ userdata: blocks and clock
     def now(self) -> datetime:
