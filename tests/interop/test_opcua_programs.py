@@ -369,7 +369,7 @@ def test_a_recording_s_run_is_named_by_the_recording_on_every_face(tmp_path: Pat
     while it runs and after its end (as a selected program stays selected)."""
     from nckemu.clients import NckClient
     from nckemu.plcsim.drive import PROGRAM_END_IDLE_S, RecordingDrive, recording_program_path
-    from nckemu.thermal.recording import load_recording
+    from nckemu.thermal.recordings.recording import load_recording
 
     from .live_tools import MACHINE, write_recording
 
