@@ -408,8 +408,11 @@ class ProgramRun:
         else:
             spindle_rpm = self._spindle_rpm(start_s)
             start_mm = {name: positions[number] for name, number in axes.items()}
-            centre = {self._axis_name(axis): value for axis, value in event.centre_mm.items()}
-            timed = self.planner.arc(start_mm, _with(event, targets, centre), self._overrides(), spindle_rpm)
+            centre = event.centre_mm
+            if targets is not event.target_mm or not all(axis in axes for axis in centre):
+                centre = {self._axis_name(axis): value for axis, value in centre.items()}
+                event = _with(event, targets, centre)
+            timed = self.planner.arc(start_mm, event, self._overrides(), spindle_rpm)
             duration_s, feed_mm_min = timed.duration_s, timed.feed_mm_min
         if duration_s == math.inf:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity is zero (F0, or G95 with the "
