@@ -304,7 +304,7 @@ class ProgramRun:
             motion = self._motion
             if motion is not None:
                 if motion.end_s > until_s:
-                    self._move_axes(until_s)
+                    self._move_axes(until_s, caught_up=True)
                     state.path_feed_mm_min = motion.feed_mm_min if until_s >= motion.start_s else 0.0
                     return "running"
                 self._arrive(motion)
@@ -394,7 +394,7 @@ class ProgramRun:
             start_s = max(start_s, self._spindle_ready_s)
         positions, axes = self.parts.axes.positions_mm, self.axes
         targets = event.target_mm
-        if not all(axis in axes for axis in targets):  # names as the interpreter wrote them: ours are upper case
+        if not axes.keys() >= targets.keys():  # names as the interpreter wrote them: ours are upper case
             targets = {self._axis_name(axis): value for axis, value in targets.items()}
         moving = self._check_travel(targets, positions)
         if event.__class__ is Move:
@@ -450,13 +450,14 @@ class ProgramRun:
             moving.append((name, number, positions[number], value))
         return moving
 
-    def _move_axes(self, t_s: float) -> None:
+    def _move_axes(self, t_s: float, caught_up: bool = False) -> None:
         motion = self._motion
         if motion is None or not motion.axes:
             return
         if t_s <= motion.start_s:
             return
-        self.parts.axes.catch_up(self._numbers)
+        if not caught_up:
+            self.parts.axes.catch_up(self._numbers)
         span = motion.end_s - motion.start_s
         if span <= 0 or t_s >= motion.end_s:
             self._arrive(motion)
