@@ -217,13 +217,13 @@ def page_child(http_port: int, wall_s: float) -> dict[str, Any]:
             "max_ms": round(1000.0 * latencies[-1], 2)}
 
 
-def served(speed: float, wall_s: float) -> dict[str, Any]:
+def served(speed: float, wall_s: float, text: str = WARM_UP) -> dict[str, Any]:
     from nckemu.emulator.faces.web import WebFace
     from nckemu.emulator.runner import EmulatorThread
 
     emulator = Emulator(clock=LiveClock(speed))
     emulator.cycle_s = 1.0
-    emulator.nck.programs.write(PATH, WARM_UP.encode())
+    emulator.nck.programs.write(PATH, text.encode())
     with EmulatorThread(emulator=emulator) as emu:
         page = WebFace(emulator, emu.server)
         emu.run(page.start())
