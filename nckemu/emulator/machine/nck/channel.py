@@ -123,9 +123,9 @@ class Channel:
         self.waiting = False
         self.last_run_blocks = 0          # blocks the last run executed (program run offline)
         # The net time of the last complete run (ended by M2/M30 or its last block, not by reset) of each
-        # program, by (path, hash of its text): what time_left_s counts down from. A changed text is
-        # another program (its old time says nothing about it).
-        self.completed_runs_s: dict[tuple[str, int], float] = {}
+        # program: path -> (hash of its text, seconds), what time_left_s counts down from. A changed text
+        # is another program (its old time says nothing about it) and replaces the entry.
+        self.completed_runs_s: dict[str, tuple[int, float]] = {}
         self._run_key: tuple[str, int] | None = None
         self._alarms: list[str] = []      # program alarms: the run stopped, reset clears them
         self._notices: list[str] = []     # refusals (NC start, mode): cleared by reset or the next start
@@ -283,7 +283,8 @@ class Channel:
         self.state.end_counter += 1
         had_run = self.run is not None
         if had_run and self._run_key is not None:
-            self.completed_runs_s[self._run_key] = self.state.old_net_time_s
+            path, text_hash = self._run_key
+            self.completed_runs_s[path] = (text_hash, self.state.old_net_time_s)
         self._finish_run()
         self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
         if had_run:
@@ -431,7 +432,9 @@ class Channel:
         since it was last changed, or nothing runs)."""
         if self.run is None or self._run_key is None:
             return None
-        return self.completed_runs_s.get(self._run_key)
+        path, text_hash = self._run_key
+        text_hash_then, seconds = self.completed_runs_s.get(path, (None, 0.0))
+        return seconds if text_hash_then == text_hash else None
 
     @property
     def time_left_s(self) -> float | None:
