@@ -145,7 +145,8 @@ def run_program_command(args: argparse.Namespace) -> int:
         print(f"\r  {t_s:10.1f} s simulated  {where:40s}", end="", file=sys.stderr, flush=True)
 
     try:
-        result = run_offline(emulator, target, sample_s=args.sample, max_time_s=args.max_time, on_block=block,
+        result = run_offline(emulator, target, sample_s=args.sample, max_time_s=args.max_time,
+                             on_block=block if blocks_out is not None or stdout_blocks else None,
                              on_sample=(lambda row: samples.writerow([repr(v) for v in row]))
                              if samples is not None else None,
                              on_progress=show if progress else None)

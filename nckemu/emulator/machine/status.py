@@ -76,7 +76,11 @@ def machine_status(emulator: Emulator, server: ClientList | None = None) -> dict
                          "net_time_s": channel.net_time_s,
                          # the part program (issue 41): selected, the block running and its line
                          "selected": channel.selected, "block_program": state.program,
-                         "line": state.line_number, "block": state.block_text, "message": state.message}
+                         "line": state.line_number, "block": state.block_text, "message": state.message,
+                         "block_number": state.block_number, "blocks": channel.run.blocks if channel.run else 0,
+                         # the last complete run's net time less this run's (Channel.time_left_s); None
+                         # until one run of the program has ended
+                         "time_left_s": channel.time_left_s, "last_run_s": channel.last_run_s}
         spindles = [{"number": number, "rpm": channel.spindle_speed_rpm(number)} for number in state.spindles]
     clients = server.clients() if server is not None else []
     document: dict[str, Any] = {

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 from nckemu.emulator.machine.machine_file import Axis, Machine
 from nckemu.errors import NckItemError, NckObjectDoesNotExist
@@ -38,6 +38,13 @@ class Axes:
                                return_code=self.machine.settings.limit_violation_return_code)
         self._before_change(axis)
         self.positions_mm[axis] = position_mm
+
+    def catch_up(self, axes: Iterable[int]) -> None:
+        """Let the compensation catch up on ``axes`` now; until the clock moves on, a caller that has
+        checked positions against the travel may then write ``positions_mm`` directly (a program run
+        moves its axes many times within one cycle of the machine)."""
+        for axis in axes:
+            self._before_change(axis)
 
     def position_mm(self, axis: int) -> float:
         self.check(axis)

@@ -125,6 +125,11 @@ class Channel:
         self.run: ProgramRun | None = None
         self.waiting = False
         self.last_run_blocks = 0          # blocks the last run executed (program run offline)
+        # The net time of the last complete run (ended by M2/M30 or its last block, not by reset) of each
+        # program: path -> (hash of its text, seconds), what time_left_s counts down from. A changed text
+        # is another program (its old time says nothing about it) and replaces the entry.
+        self.completed_runs_s: dict[str, tuple[int, float]] = {}
+        self._run_key: tuple[str, int] | None = None
         self._alarms: list[str] = []      # program alarms: the run stopped, reset clears them
         self._notices: list[str] = []     # refusals (NC start, mode): cleared by reset or the next start
         # Told of each change of the program's life, with one of CHANGES (the OPC UA face's umati states).
@@ -201,6 +206,7 @@ class Channel:
         from nckemu.emulator.machine.program.run import ProgramRun
 
         self.run = ProgramRun(self, self.parts, self.selected, program_text(text), now)
+        self._run_key = (self.selected, hash(text))
         self.parts.programs.running = self.selected if self.number == 1 else self.parts.programs.running
         self._net_s = 0.0
         self._begin_timing(now)
@@ -285,6 +291,9 @@ class Channel:
         self.state.total_parts += 1.0
         self.state.end_counter += 1
         had_run = self.run is not None
+        if had_run and self._run_key is not None:
+            path, text_hash = self._run_key
+            self.completed_runs_s[path] = (text_hash, self.state.old_net_time_s)
         self._finish_run()
         self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
         if had_run:
@@ -425,6 +434,25 @@ class Channel:
         """actProgNetTime: time the current program has been running, pauses excluded."""
         running = 0.0 if self._running_since is None else self._clock.now_s() - self._running_since
         return self._net_s + running
+
+    @property
+    def last_run_s(self) -> float | None:
+        """The net time the last complete run of the program running now took (None: it never ended
+        since it was last changed, or nothing runs)."""
+        if self.run is None or self._run_key is None:
+            return None
+        path, text_hash = self._run_key
+        text_hash_then, seconds = self.completed_runs_s.get(path, (None, 0.0))
+        return seconds if text_hash_then == text_hash else None
+
+    @property
+    def time_left_s(self) -> float | None:
+        """The live page's "time left": the last complete run's net time less this run's net time so far,
+        never below 0; None before one run of this text has ended. Chosen over planning the rest of the
+        program ahead because a run's path depends on what it reads as it runs (R parameters, $AA_IM,
+        loops, the overrides); for a program that runs the same way each time it is exact."""
+        last = self.last_run_s
+        return None if last is None else max(0.0, last - self.net_time_s)
 
     @property
     def cutting_time_s(self) -> float:

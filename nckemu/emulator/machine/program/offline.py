@@ -78,7 +78,9 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
         if on_block is not None:
             on_block(record)
 
-    channel.block_listeners.append(seen)
+    listening = on_block is not None or on_progress is not None
+    if listening:  # a block record is built only when someone reads it (--blocks, progress)
+        channel.block_listeners.append(seen)
     start_s = clock.now_s()
     channel.select(path)
     channel.start()
@@ -110,7 +112,8 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
             if t_s - start_s >= max_time_s:
                 break
     finally:
-        channel.block_listeners.remove(seen)
+        if listening:
+            channel.block_listeners.remove(seen)
     if on_sample is not None and next_sample_s - sample_s < clock.now_s() - 1e-9:
         on_sample(sample(emulator, clock.now_s()))
     alarms = [alarm.text for alarm in emulator.nck.alarm_list.pending]

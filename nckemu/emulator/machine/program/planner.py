@@ -120,6 +120,55 @@ class Planner:
             return self._rapid(deltas, length, overrides, move.exact_stop)
         return self._path(deltas, length, move.feed, move.feed_mode, overrides, spindle_rpm, move.exact_stop)
 
+    def straight(self, deltas: list[tuple[str, float]], feed: float | None, feed_mode: str, exact_stop: bool,
+                 feed_pct: float, rapid_pct: float, spindle_rpm: float) -> tuple[float, float, float]:
+        """:meth:`move` for the channel's hot path: ``deltas`` (axis, target - start) of the axes that
+        move (|delta| above EPSILON_MM), overrides as numbers; (duration_s, feed_mm_min, length_mm).
+        The same arithmetic in the same order as :meth:`move` (a property test holds them equal), with
+        no dictionaries or records built and the single-segment trapezoid inlined."""
+        squares = 0.0
+        for _, delta in deltas:
+            squares += delta * delta
+        length = math.sqrt(squares)
+        if feed is None:
+            if not deltas:
+                return 0.0, 0.0, 0.0
+            timed = self._rapid(dict(deltas), length, Overrides(feed_pct, rapid_pct, 100.0), exact_stop)
+            return timed.duration_s, timed.feed_mm_min, timed.length_mm
+        if length <= EPSILON_MM:
+            return 0.0, 0.0, 0.0
+        factor = max(feed_pct, 0.0) / 100.0
+        if feed_mode == "G95":
+            speed_mm_s = feed * abs(spindle_rpm) / S_PER_MIN
+        elif feed_mode == "G93":
+            speed_mm_s = length * feed / S_PER_MIN
+        else:
+            speed_mm_s = feed / S_PER_MIN
+        speed_mm_s *= factor
+        accel = math.inf
+        axes, default = self._axes, self._default
+        for axis, delta in deltas:
+            part = abs(delta) / length
+            if part <= 0.0:
+                continue
+            velocity, acceleration = axes.get(axis, default)
+            if velocity < speed_mm_s * part:
+                speed_mm_s = velocity / part
+            if acceleration < accel * part:
+                accel = acceleration / part
+        if speed_mm_s <= 0.0:
+            return math.inf, 0.0, length
+        ramps = (0 if self.moving else 1) + (1 if exact_stop else 0)
+        self.moving = not exact_stop
+        # ramp_time_s, inlined
+        if ramps <= 0 or accel == math.inf:
+            duration = length / speed_mm_s
+        elif length >= ramps * speed_mm_s * speed_mm_s / (2.0 * accel):
+            duration = length / speed_mm_s + ramps * speed_mm_s / (2.0 * accel)
+        else:
+            duration = ramps * math.sqrt(2.0 * (length / ramps) / accel)
+        return duration, speed_mm_s * S_PER_MIN, length
+
     def arc(self, start_mm: dict[str, float], arc: Arc, overrides: Overrides, spindle_rpm: float) -> Timed:
         first, second = _plane_axes(arc.plane)
         centre_a = arc.centre_mm.get(first, start_mm.get(first, 0.0))

@@ -32,12 +32,12 @@ from nckemu.emulator.machine.program.motions import (
     ToolSelect,
 )
 from nckemu.emulator.machine.program.planner import (
+    EPSILON_MM,
     AxisLimits,
     MotionLimits,
     Overrides,
     Planner,
     SpindleRamp,
-    Timed,
 )
 from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments
 
@@ -98,12 +98,12 @@ class BlockRecord:
     alarm: str = ""
 
 
-@dataclass
+@dataclass(slots=True)
 class _Motion:
     start_s: float
     end_s: float
-    from_mm: dict[str, float]
-    to_mm: dict[str, float]
+    # (machine axis number, position at the start, target) of every axis the block names
+    axes: list[tuple[int, float, float]]
     feed_mm_min: float
 
 
@@ -246,6 +246,12 @@ class ProgramRun:
         self.block_start_s = self.t_s
         self.planner = Planner(motion_limits(parts))
         self.axes = channel_axes(parts)
+        # What each move needs of an axis, looked up once: (number, travel min, travel max, checked),
+        # checked False for a rotary axis (no software limit switches).
+        self._travel = {name: (number, parts.axes.specs[number].travel_min_mm,
+                               parts.axes.specs[number].travel_max_mm, not parts.axes.specs[number].rotary)
+                        for name, number in self.axes.items()}
+        self._numbers = sorted(set(self.axes.values()))
         self.env = NckEnvironment(channel, parts, self)
         self._events: Iterator[Event] = Interpreter(self.env, path, text).events()
         self._motion: _Motion | None = None
@@ -293,14 +299,15 @@ class ProgramRun:
             return "ended" if self.ended else "running"
         blocks = 0
         state = self.channel.state
+        self.parts.axes.catch_up(self._numbers)  # once a cycle, not once a move: the clock stands meanwhile
         while True:
             motion = self._motion
             if motion is not None:
                 if motion.end_s > until_s:
-                    self._move_axes(until_s)
+                    self._move_axes(until_s, caught_up=True)
                     state.path_feed_mm_min = motion.feed_mm_min if until_s >= motion.start_s else 0.0
                     return "running"
-                self._set_positions(motion.to_mm)
+                self._arrive(motion)
                 self.t_s = motion.end_s
                 self._motion = None
                 state.path_feed_mm_min = 0.0
@@ -313,16 +320,17 @@ class ProgramRun:
                 event = next(self._events)
             except StopIteration:
                 return self._end()
-            if isinstance(event, Block):
+            kind = event.__class__  # the events are final (slotted) classes: a type, not isinstance
+            if kind is Block:
                 blocks += 1
                 self.blocks += 1
                 self._begin_block(event)
-            elif isinstance(event, Move | Arc):
+            elif kind is Move or kind is Arc:
                 if not self._start_path(event, until_s):
                     return "waiting"
-            elif isinstance(event, Dwell):
+            elif kind is Dwell:
                 timed = self.planner.dwell(event, self._spindle_rpm(self.t_s))
-                self._motion = _Motion(self.t_s, self.t_s + timed.duration_s, {}, {}, 0.0)
+                self._motion = _Motion(self.t_s, self.t_s + timed.duration_s, [], 0.0)
             elif isinstance(event, SpindleCommand):
                 self._spindle(event)
             elif isinstance(event, MFunction):
@@ -372,9 +380,10 @@ class ProgramRun:
                          spindle.override_pct if spindle is not None else 100.0)
 
     def _start_path(self, event: Move | Arc, until_s: float) -> bool:
-        overrides = self._overrides()
-        feed_move = event.feed is not None
-        if (overrides.feed_pct <= 0.0 if feed_move else overrides.rapid_pct <= 0.0):
+        state = self.channel.state
+        feed = event.feed
+        feed_move = feed is not None
+        if (state.feed_override_pct <= 0.0 if feed_move else state.rapid_override_pct <= 0.0):
             # override 0: the block waits (time passes) until the override opens again
             self._pending = event
             self._events = _prepend(event, self._events)
@@ -383,34 +392,38 @@ class ProgramRun:
         start_s = self.t_s
         if feed_move and self.parts.machine.program.wait_for_spindle:
             start_s = max(start_s, self._spindle_ready_s)
-        spindle_rpm = self._spindle_rpm(start_s)
         positions, axes = self.parts.axes.positions_mm, self.axes
         targets = event.target_mm
-        if not all(axis in axes for axis in targets):  # names as the interpreter wrote them: ours are upper case
+        if not axes.keys() >= targets.keys():  # names as the interpreter wrote them: ours are upper case
             targets = {self._axis_name(axis): value for axis, value in targets.items()}
-        self._check_travel(targets)
-        if isinstance(event, Arc):
-            start_mm = {name: positions[number] for name, number in axes.items()}
-            centre = {self._axis_name(axis): value for axis, value in event.centre_mm.items()}
-            timed = self.planner.arc(start_mm, _with(event, targets, centre), overrides, spindle_rpm)
+        moving = self._check_travel(targets, positions)
+        if event.__class__ is Move:
+            # the common case: the planner's straight move on the deltas, no records built
+            deltas = [(name, target - start) for name, _, start, target in moving
+                      if abs(target - start) > EPSILON_MM]
+            spindle_rpm = self._spindle_rpm(start_s) if event.feed_mode == "G95" else 0.0
+            duration_s, feed_mm_min, _ = self.planner.straight(
+                deltas, feed, event.feed_mode, event.exact_stop, state.feed_override_pct,
+                state.rapid_override_pct, spindle_rpm)
         else:
-            start_mm = {name: positions[axes[name]] for name in targets}
-            move = event if targets is event.target_mm else _with(event, targets)
-            timed = self.planner.move(start_mm, move, overrides, spindle_rpm)
-        if math.isinf(timed.duration_s):
+            spindle_rpm = self._spindle_rpm(start_s)
+            start_mm = {name: positions[number] for name, number in axes.items()}
+            centre = event.centre_mm
+            if targets is not event.target_mm or not all(axis in axes for axis in centre):
+                centre = {self._axis_name(axis): value for axis, value in centre.items()}
+                event = _with(event, targets, centre)
+            timed = self.planner.arc(start_mm, event, self._overrides(), spindle_rpm)
+            duration_s, feed_mm_min = timed.duration_s, timed.feed_mm_min
+        if duration_s == math.inf:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity is zero (F0, or G95 with the "
-                                                "spindle standing)", program=self.channel.state.program,
-                               line=self.channel.state.line_number, block=self.channel.state.block_number)
-        self._begin_motion(start_s, start_mm, targets, timed)
+                                                "spindle standing)", program=state.program,
+                               line=state.line_number, block=state.block_number)
+        self._motion = _Motion(start_s, start_s + duration_s,
+                               [(number, start, target) for _, number, start, target in moving], feed_mm_min)
         if self.record is not None:
-            self.record.feed_mm_min = event.feed or 0.0
-        self.channel.state.commanded_feed_mm_min = event.feed if event.feed is not None else 0.0
+            self.record.feed_mm_min = feed or 0.0
+        state.commanded_feed_mm_min = feed if feed_move else 0.0
         return True
-
-    def _begin_motion(self, start_s: float, start_mm: dict[str, float], targets: dict[str, float],
-                      timed: Timed) -> None:
-        moved = {axis: start_mm.get(axis, 0.0) for axis in targets}
-        self._motion = _Motion(start_s, start_s + timed.duration_s, moved, targets, timed.feed_mm_min)
 
     def _axis_name(self, axis: str) -> str:
         name = axis.upper()
@@ -419,34 +432,47 @@ class ProgramRun:
                                line=self.channel.state.line_number, block=self.channel.state.block_number)
         return name
 
-    def _check_travel(self, targets: dict[str, float]) -> None:
-        specs, axes = self.parts.axes.specs, self.axes
+    def _check_travel(self, targets: dict[str, float], positions: dict[int, float]
+                      ) -> list[tuple[str, int, float, float]]:
+        """(name, number, start, target) of every axis ``targets`` names, after the software limit
+        switches: a target beyond an axis' travel is the NCK's alarm before anything moves."""
+        travel = self._travel
+        moving = []
         for name, value in targets.items():
-            spec = specs[axes[name]]
-            if not spec.travel_min_mm <= value <= spec.travel_max_mm and not spec.rotary:
+            number, low_mm, high_mm, checked = travel[name]
+            if checked and not low_mm <= value <= high_mm:
+                spec = self.parts.axes.specs[number]
                 state = self.channel.state
                 raise ProgramAlarm(self.parts.machine.program.travel_alarm,
                                    f"axis {spec.name}: {value:.3f} mm beyond its travel {spec.travel_min_mm:g}.."
                                    f"{spec.travel_max_mm:g} mm (software limit switch)",
                                    program=state.program, line=state.line_number, block=state.block_number)
+            moving.append((name, number, positions[number], value))
+        return moving
 
-    def _move_axes(self, t_s: float) -> None:
+    def _move_axes(self, t_s: float, caught_up: bool = False) -> None:
         motion = self._motion
-        if motion is None or not motion.to_mm:
+        if motion is None or not motion.axes:
             return
         if t_s <= motion.start_s:
             return
+        if not caught_up:
+            self.parts.axes.catch_up(self._numbers)
         span = motion.end_s - motion.start_s
-        fraction = 1.0 if span <= 0 or t_s >= motion.end_s else (t_s - motion.start_s) / span
-        self._set_positions({axis: start + (motion.to_mm[axis] - start) * fraction
-                             for axis, start in motion.from_mm.items()})
+        if span <= 0 or t_s >= motion.end_s:
+            self._arrive(motion)
+            return
+        fraction = (t_s - motion.start_s) / span
+        positions = self.parts.axes.positions_mm
+        for number, start, target in motion.axes:
+            positions[number] = start + (target - start) * fraction
 
-    def _set_positions(self, positions: dict[str, float]) -> None:
-        axes = self.parts.axes
-        for name, value in positions.items():
-            number = self.axes[name]
-            if axes.positions_mm[number] != value:
-                axes.set_position(number, value)
+    def _arrive(self, motion: _Motion) -> None:
+        """Every axis of ``motion`` at its target (checked against the travel when the motion began;
+        the compensation caught up when this cycle began: :meth:`advance`)."""
+        positions = self.parts.axes.positions_mm
+        for number, _, target in motion.axes:
+            positions[number] = target
 
     def _spindle_rpm(self, t_s: float) -> float:
         spindle = self.channel.state.spindles.get(1)

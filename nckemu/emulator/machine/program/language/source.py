@@ -9,6 +9,7 @@ the text in the jump's direction) and remembered per jump.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from typing import Any
 
 _PREFIX = r"^[ \t]*(?:/\d?[ \t]*)?(?:[N:]\d+[ \t]*)?(?:[A-Z_][A-Z0-9_]*:[ \t]*)?"
@@ -18,8 +19,34 @@ _STRUCTURE = re.compile(
 _JUMP_IN_LINE = re.compile(r"\bGOTO[FBCS]?\b", re.IGNORECASE)
 _PROC = re.compile(_PREFIX + r"PROC\b", re.IGNORECASE | re.MULTILINE)
 
+# Every structure keyword contains one of these (ENDIF contains IF, ENDFOR FOR, ...).
+_KEYWORD_STEMS = ("IF", "ELSE", "WHILE", "FOR", "REPEAT", "UNTIL", "LOOP")
+
 _OPENERS = {"IF": "ENDIF", "WHILE": "ENDWHILE", "FOR": "ENDFOR", "REPEAT": "UNTIL", "LOOP": "ENDLOOP"}
 _CLOSERS = {closer: opener for opener, closer in _OPENERS.items()}
+
+
+def structure_matches(text: str, upper: str) -> Iterator[re.Match[str]]:
+    """``_STRUCTURE.finditer(text)`` (``upper`` is ``text.upper()``), found faster: a match starts a line
+    and lies within it, so only the lines holding a keyword's letters are tried (found with str.find at
+    C speed; the anchored regex tried at every offset of a 17 MB CAM program whose comment says "for"
+    took half a second). Text that is not ASCII, whose upper case may move offsets, takes the regex."""
+    if not text.isascii() or len(upper) != len(text):
+        yield from _STRUCTURE.finditer(text)
+        return
+    starts: set[int] = set()
+    for stem in _KEYWORD_STEMS:
+        at = upper.find(stem)
+        while at >= 0:
+            starts.add(upper.rfind("\n", 0, at) + 1)
+            line_end = upper.find("\n", at)
+            if line_end < 0:
+                break
+            at = upper.find(stem, line_end)
+    for start in sorted(starts):
+        match = _STRUCTURE.match(text, start)
+        if match is not None:
+            yield match
 
 
 class ProgramSource:
@@ -44,11 +71,11 @@ class ProgramSource:
         # needed: a CAM program without control structures costs a few passes at C speed.
         upper = text.upper()
         self.has_jumps = "GOTO" in upper
-        structures = any(word in upper for word in ("IF", "ELSE", "WHILE", "FOR", "REPEAT", "UNTIL", "LOOP"))
+        structures = any(word in upper for word in _KEYWORD_STEMS)
         has_proc = "PROC" in upper
-        del upper
         if structures:
-            self._scan()
+            self._scan(upper)
+        del upper
         self.proc_offset = self._find_proc() if has_proc else -1
         body_from = 0
         if self.proc_offset >= 0:
@@ -57,10 +84,10 @@ class ProgramSource:
         # a line that is a block (not blank, not only a comment, not a % header)
         self.has_blocks = re.compile(r"^[ \t]*[^ \t;%\n]", re.MULTILINE).search(text, body_from) is not None
 
-    def _scan(self) -> None:
+    def _scan(self, upper: str) -> None:
         text = self.text
         stack: list[tuple[str, int]] = []
-        for match in _STRUCTURE.finditer(text):
+        for match in structure_matches(text, upper):
             keyword = match.group(1).upper()
             start = match.start()
             if keyword == "IF":
