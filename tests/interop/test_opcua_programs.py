@@ -281,7 +281,8 @@ def _life(face: OpcUaFace) -> None:
     assert (m0["program"], m0["job"], m0["transition"]) == ("Interrupted", "Interrupted", "RunningToInterrupted")
     assert m0["cnc status"] == CNC_OF_PROG_STATUS[m0["progStatus"]]
     block, line, act_block, act_line = seen["m0 pointer"]
-    assert block == act_block and line == str(act_line) and "M0" in block   # the same block on both faces
+    assert block == [act_block] and line == str(act_line) and "M0" in act_block   # the same block on both faces
+    # (CNC ActProgramBlock is an array, OPC 40502: the current block, no blocks prepared ahead)
     assert seen["m0 programs"] == ("_N_PAUSE_SPF", "_N_LIFE_MPF", "/_N_SPF_DIR/_N_PAUSE_SPF")
     ended = seen["ended"]
     assert (ended["program"], ended["job"], ended["transition"]) == ("Ended", "Ended", "RunningToEnded")

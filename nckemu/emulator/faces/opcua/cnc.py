@@ -145,7 +145,10 @@ class CncInterfaceInstance:
         self._bind(made, "ActMainProgramFile", f"/Channel/ProgramInfo/workPandProgName{u}",
                    _first(ua.VariantType.String))
         self._current_program(made, channel)
-        self._bind(made, "ActProgramBlock", f"/Channel/ProgramInfo/actBlock{u}", _first(ua.VariantType.String))
+        # OPC 40502 declares the block as an array (the current block and those prepared after it); the
+        # channel prepares no blocks ahead, so it holds the current one alone.
+        self._bind(made, "ActProgramBlock", f"/Channel/ProgramInfo/actBlock{u}",
+                   lambda raw: ua.Variant([str(raw[0])], ua.VariantType.String))  # type: ignore[index]
         self._bind(made, "ActProgramLine", f"/Channel/ProgramInfo/actLineNumber{u}",
                    lambda raw: ua.Variant(str(int(raw[0])), ua.VariantType.String))  # type: ignore[index]
         self._bind(made, "ActModalOffsetFunction", f"/Channel/State/actFrameIndex{u}", _first(ua.VariantType.UInt32))
