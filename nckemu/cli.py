@@ -15,7 +15,6 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from nckemu import __version__
-from nckemu.cliutil import command_group  # noqa: F401 - areas below the CLI import it from cliutil
 from nckemu.errors import NckConfigError, NckError
 
 COMMAND_MODULES = (

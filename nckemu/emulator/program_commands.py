@@ -13,10 +13,10 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
+from nckemu.catalogue.program_names import program_path
 from nckemu.cliutil import check_output, command_group
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
-from nckemu.emulator.machine.nck.programs import program_path
 from nckemu.emulator.machine.program.offline import recording_columns, run_offline
 from nckemu.emulator.machine.program.run import BlockRecord
 from nckemu.errors import NckConfigError, NckError

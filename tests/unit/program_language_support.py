@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from nckemu.emulator.machine.nck.programs import program_path
+from nckemu.catalogue.program_names import program_path
 from nckemu.emulator.machine.program.environment import ProgramEnvironment, UndefinedName
 from nckemu.emulator.machine.program.language import Interpreter
 from nckemu.emulator.machine.program.motions import Arc, Block, Event, Move, ProgramAlarm

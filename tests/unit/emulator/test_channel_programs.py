@@ -80,7 +80,7 @@ def run(emu: Emulator, clock: SimulatedClock, until_s: float, cycle_s: float | N
 
 
 def store(emu: Emulator, name: str, text: str) -> str:
-    from nckemu.emulator.machine.nck.programs import program_path
+    from nckemu.catalogue.program_names import program_path
 
     path = program_path(name)
     emu.nck.programs.write(path, text.encode())

@@ -25,7 +25,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 
-from nckemu.emulator.machine.nck.programs import Programs, program_path
+from nckemu.catalogue.program_names import program_path
+from nckemu.emulator.machine.nck.programs import Programs
 from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments, NckPiStateError
 from nckemu.protocol import blocks, ncprog, s7
 from nckemu.protocol.errors import NckProtocolError

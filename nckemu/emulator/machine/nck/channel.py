@@ -148,7 +148,7 @@ class Channel:
         """Select ``path`` for execution (only in reset). NckNoSuchFile without such a program."""
         parts = self._parts()
         if not path.startswith("/"):
-            from nckemu.emulator.machine.nck.programs import program_path
+            from nckemu.catalogue.program_names import program_path
 
             path = program_path(path)
         if self.state.status != CHAN_RESET:

@@ -11,9 +11,9 @@ import logging
 from collections.abc import Callable, Sequence
 
 from nckemu.catalogue.pi_services import NC_SERVICE_ARGUMENTS, PI_LOAD_LEADSCREW, PI_NEW_CONFIG, PI_POWER_ON
+from nckemu.catalogue.program_names import directory_path, program_path
 from nckemu.emulator.machine.nck.access import AccessContext
 from nckemu.emulator.machine.nck.parts import NckParts
-from nckemu.emulator.machine.nck.programs import directory_path, program_path
 from nckemu.errors import (
     NckConfigError,
     NckNoSuchFile,

@@ -1,6 +1,6 @@
 """Part programs the NCK knows: their texts, the one selected for execution and the one running.
 
-Paths are the control's (``/_N_MPF_DIR/_N_TEST_MPF``); :func:`program_path` also takes the names
+Paths are the control's (``/_N_MPF_DIR/_N_TEST_MPF``); :func:`nckemu.catalogue.program_names.program_path` also takes the names
 users write (``TEST.MPF``, ``WARMUP_CYCLE.SPF``, ``/MPF_DIR/TEST.MPF``). A program's text is replaced
 whole or not at all (a transfer writes it only when it has ended); the program a channel is running
 cannot be replaced or deleted.
@@ -11,14 +11,7 @@ from __future__ import annotations
 import base64
 from typing import Any
 
-from nckemu.catalogue.program_names import (  # noqa: F401 - the names' home before the catalogue held them
-    DIRECTORIES,
-    MAX_NAME_CHARS,
-    TYPE_DIRECTORIES,
-    directory_path,
-    program_path,
-    user_name,
-)
+from nckemu.catalogue.program_names import DIRECTORIES, directory_path, program_path
 from nckemu.errors import NckNoSuchFile, NckPiStateError
 
 DEFAULT_PROGRAMS = ("/_N_MPF_DIR/_N_TEST_MPF", "/_N_MPF_DIR/_N_MAIN_MPF")

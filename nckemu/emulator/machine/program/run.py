@@ -201,7 +201,7 @@ class NckEnvironment(ProgramEnvironment):
         setattr(self._channel.state, attribute, float(value))  # type: ignore[arg-type]
 
     def find_program(self, name: str, caller: str) -> tuple[str, str] | None:
-        from nckemu.emulator.machine.nck.programs import program_path
+        from nckemu.catalogue.program_names import program_path
 
         programs = self._parts.programs
         stem = name.strip().upper()
