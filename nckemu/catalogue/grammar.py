@@ -362,7 +362,9 @@ def _parse_bare(text: str, source: str, table: tuple[VariableSpec, ...]) -> Node
     if numbered is not None and "[" not in numbered["number"]:
         first = _name_index(table).get(numbered["number"].lstrip("$").upper())
         name = _parse_bare(text, numbered["rest"].strip(), table)
-        if first is None or not isinstance(name, NcNodeName) or name.spec is not first:
+        # Rows of different areas may share a number (SSP3 is cmdSpeed in area N and in the channel):
+        # the name decides which, as long as its row carries that number.
+        if first is None or not isinstance(name, NcNodeName) or name.spec.number.upper() != first.number.upper():
             raise NckNodeIdUnknown(f"{text!r}: {numbered['number']!r} and {numbered['rest']!r} are not "
                                    "the number and name of one variable")
         return name
