@@ -138,8 +138,14 @@ class Emulator:
                 k += 1
                 busy = any(channel.run is not None for channel in self.nck.channels.values()) or self.heat.warm
                 wake.clear()
-                with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(wake.wait(), self.cycle_s if busy else max(self.cycle_s, IDLE_TICK_S))
+                # asyncio.wait, not wait_for: on Python 3.11 wait_for returns the result instead of
+                # raising when the wake-up and stop_cycle's cancel meet in one loop turn, and the
+                # ticker then never ends (stop hung under load, found by the help-example tests).
+                waiter = asyncio.ensure_future(wake.wait())
+                try:
+                    await asyncio.wait({waiter}, timeout=self.cycle_s if busy else max(self.cycle_s, IDLE_TICK_S))
+                finally:
+                    waiter.cancel()
         finally:
             for channel in self.nck.channels.values():
                 if changed in channel.state_listeners:
