@@ -479,7 +479,11 @@ def test_a_living_machine_three_paths_and_a_subscription(tmp_path: Path) -> None
                         await asyncio.sleep(0.05)
 
         run(go())
-    assert {speed for speed, _, _ in agreed} == {0.0, 6000.0}   # both the rest and the turning were read
+    speeds = {speed for speed, _, _ in agreed}
+    assert {0.0, 6000.0} <= speeds   # both the rest and the turning were read
+    # The drive interpolates between the recording's rows (60 s apart): a read inside the one step from
+    # rest to 6000 rpm sees a speed on that ramp (3000 at its middle), never anything outside it.
+    assert all(0.0 <= speed <= 6000.0 for speed in speeds), speeds
     assert all(s7 == btss == cnc for s7, btss, cnc in agreed), agreed[:10]
     assert True in seen and False in seen                       # IsRotating followed the recording
     assert all(a != b for a, b in zip(seen, seen[1:], strict=False))  # a change each time, none repeated
