@@ -354,6 +354,9 @@ class Selector:
         best, margin, equivalent = self.equivalent(passing)
         chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um))
         chosen = self.parsimonious(chosen, passing)
+        split = self.second_time_constant(path, chosen, design, tests)
+        if split is not None:
+            return True
         term = chosen.candidate.term.with_coefficient(chosen.coefficient)
         # Several runs share one clock from their own starts: a window in time names no run.
         window = [] if self.library.problem.per_run_offset else explain.locate(
@@ -369,6 +372,56 @@ class Selector:
         path.noise = np.column_stack([path.noise, chosen.candidate.noise])
         path.base_cv = chosen.cv
         return True
+
+    # ------------------------------------------------------------------ one sensor, two time constants
+    SPLIT_KINDS = {"thermal_lag": "lag", "transient_gradient": "transient"}
+
+    def second_time_constant(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int) -> Move | None:
+        """The round names a lag or a transient of one sensor: is it two, a fast skin and a slow core
+        (issue 42)? The sensor's best pair of time constants (``Library.best_time_constant_pair``, every
+        pair counted among the round's hypotheses) is judged as a move of two under every guard, and must
+        clear the held-out bar over the one time constant and over either of its own alone. Admitted,
+        it stands for the one; None leaves the round as it was."""
+        s = self.settings
+        term = chosen.candidate.term
+        kind = self.SPLIT_KINDS.get(term.effect)
+        if kind is None or not s.second_time_constant_ratio or len(path.added) + 2 > s.max_effects:
+            return None
+        found = self.library.best_time_constant_pair(kind, str(term.parameters["sensor"]), design,
+                                                     s.second_time_constant_ratio)
+        if found is None:
+            return None
+        _rms, fast_s, slow_s, tried = found
+        t_crit = t_critical(s.alpha, tests + tried, len(self.y) - design.shape[1] - 2 - self.baseline.extra_parameters)
+        alone = []
+        for tau_s in (fast_s, slow_s):
+            candidate = self.library.candidate(Term(term.effect, {**term.parameters, "tau_s": tau_s,
+                                                                  term.spec.coefficient: 0.0}), tried)
+            if candidate is None:
+                return None
+            alone.append(self.evaluate(design, path.noise, candidate, path.base_cv))
+        move = self.evaluate_pair(path, alone[0], alone[1])
+        if move.coefficients[0] * move.coefficients[1] <= 0:
+            # A skin and a core of one structure heated from one side move it the same way; two lags of
+            # one sensor pulling apart are a transient (a family of its own), two transients pulling
+            # apart one band of time constants, not two paths of heat.
+            return None
+        passes = self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
+                            t_crit)[0] \
+            and all(self.heldout_gain(move.cv, other.cv, move.runs_with) >= s.min_improvement
+                    for other in (chosen, *alone))
+        if not passes:
+            return None
+        hours = [f"{tau / 3600:.2g} h" for tau in (fast_s, slow_s)]
+        why = (f"one sensor at two time constants (a fast skin and a slow core): {hours[0]} and {hours[1]} "
+               f"together clear the held-out bar over the one time constant the round found "
+               f"({chosen.candidate.term.parameters['tau_s'] / 3600:.2g} h, held-out {chosen.cv.rms_um:.3f} um "
+               f"against {move.cv.rms_um:.3f} um) and over either alone")
+        single = MoveAlternative(f"{chosen.candidate.label} at one time constant", round(chosen.cv.rms_um, 4))
+        self.admit_move(path, move, [], t_crit, why=why, alternatives=[single],
+                        preferred=lambda index: (f"{chosen.candidate.label} at {hours[0]} and {hours[1]}: two time "
+                                                 f"constants of one sensor ({move.shares[index]:.0%} of it this one)"))
+        return move
 
     # ------------------------------------------------------------------ moves of two effects
     def screen_pairs(self, design: np.ndarray, pool: list[Evaluation]) -> list[tuple[int, int]]:
@@ -464,7 +517,11 @@ class Selector:
         self.admit_move(path, chosen, [m for m in equivalent if m is not chosen], t_crit)
         return True
 
-    def admit_move(self, path: Path, move: Move, equivalent: list[Move], t_crit: float) -> None:
+    def admit_move(self, path: Path, move: Move, equivalent: list[Move], t_crit: float, *,
+                   why: str = "no single effect passed the guards; these two pass them together, and each is "
+                              "needed (the pair clears the held-out bar over either alone)",
+                   alternatives: list[MoveAlternative] | None = None,
+                   preferred: Callable[[int], str] | None = None) -> None:
         folds = len(self.baseline.folds)
         figures = self.run_figures(move.cv, path.base_cv, move.runs_with) if self.per_run else None
         for index, (alone, term) in enumerate(zip(move.alone, move.terms, strict=True)):
@@ -475,10 +532,10 @@ class Selector:
             record.move = MoveEvidence(
                 [e.candidate.label for e in move.alone], round(move.cv.rms_um, 4),
                 [round(e.cv.rms_um, 4) for e in move.alone], [round(share, 3) for share in move.shares],
-                [MoveAlternative(m.label, round(m.cv.rms_um, 4)) for m in equivalent],
-                "no single effect passed the guards; these two pass them together, and each is "
-                "needed (the pair clears the held-out bar over either alone)", round(move.shares[index], 3))
-            record.preferred = f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
+                [MoveAlternative(m.label, round(m.cv.rms_um, 4)) for m in equivalent] + (alternatives or []),
+                why, round(move.shares[index], 3))
+            record.preferred = preferred(index) if preferred is not None else \
+                f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
             record.runs = figures
             path.discovered.append(finding(term.effect, term.parameters, record))
             path.added.append(term)

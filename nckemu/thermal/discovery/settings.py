@@ -54,3 +54,8 @@ class Settings:
     pair_moves: bool = True
     pair_pool: int = 60
     pair_beam: int = 8
+    # One sensor at two time constants (issue 42: a fast skin and a slow core). When a round names a
+    # lag or a transient, the same sensor's pair of time constants at least this ratio apart is tried
+    # as a move of two; it is named instead when it clears the held-out bar over the one time constant
+    # (and over either of its own alone) under every guard. 0 turns it off.
+    second_time_constant_ratio: float = 2.5

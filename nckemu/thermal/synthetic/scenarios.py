@@ -625,3 +625,61 @@ def make_duty_mix_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
                           else (None, {}))
     return RunFamily(name, recordings, baseline_model(), FamilyTruth(effect, parameters, tuple(offsets),
                                                                       tuple(labels)))
+
+
+# ---------------------------------------------------------------------- issue 42: one sensor, two time constants
+TWO_TAU_FAMILIES = ("two_tau_days", "null_two_tau_days")
+TWO_TAU_SENSOR = "front"
+TWO_TAU_FAST_S = 1800.0
+TWO_TAU_SLOW_S = 3 * 3600.0
+TWO_TAU_FAST_UM_PER_K = 3.0
+TWO_TAU_SLOW_UM_PER_K = 3.0
+
+
+def make_two_tau_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
+    """``runs`` days of 10-14 h logged every 2 min (deterministic per ``seed``; the two families share
+    inputs and noise draws seed for seed). Baseline: ``baseline_model()``.
+
+    - ``two_tau_days``: the column by the hydraulic unit bends twice over while the unit's heat crosses
+      it, a thin skin that evens out in half an hour and a thick core that takes three:
+      ``transient_gradient(front)`` at tau 0.5 h and again at tau 3 h, 3 um/K each, left out.
+    - ``null_two_tau_days``: the same days, nothing left out."""
+    if name not in TWO_TAU_FAMILIES:
+        raise ValueError(f"unknown run family {name!r}; known: {', '.join(TWO_TAU_FAMILIES)}")
+    if runs < 2:
+        raise ValueError("a family has at least 2 runs")
+    rng = np.random.default_rng([seed, 4242])
+    recordings: list[Recording] = []
+    offsets: list[float] = []
+    labels: list[str] = []
+    for index in range(runs):
+        duration_s = float(rng.uniform(10.0, 14.0)) * 3600.0
+        grid = np.arange(0.0, duration_s + 120.0, 120.0)
+        spindle_load, axis_load, hydraulic_load = (_duty_cycle(rng, grid) for _ in range(3))
+        ambient = rng.uniform(18.0, 24.0) + 0.4 * np.sin(2 * np.pi * (grid / 86400.0 + rng.random()))
+        sensors = {"spindle": _lag_from(grid, ambient + 8.0 * spindle_load, 1200.0),
+                   "bed": _lag_from(grid, ambient + 2.0 * spindle_load + 1.5 * axis_load, 3 * 3600.0),
+                   "front": _lag_from(grid, ambient + 10.0 * hydraulic_load, 600.0),
+                   "rear": _lag_from(grid, ambient + 4.0 * axis_load, 3600.0),
+                   "ambient": ambient,
+                   "coolant": _lag_from(grid, ambient + 1.0 * spindle_load, 2400.0)}
+        truth = 3.0 * (sensors["spindle"] - 20.0) + 2.0 * (sensors["bed"] - 20.0)
+        front = sensors[TWO_TAU_SENSOR]
+        if name == "two_tau_days":
+            truth = truth + TWO_TAU_FAST_UM_PER_K * (front - first_order_lag(grid, front, TWO_TAU_FAST_S)) \
+                + TWO_TAU_SLOW_UM_PER_K * (front - first_order_lag(grid, front, TWO_TAU_SLOW_S))
+        wander = _ar1(rng, grid, 0.3, 0.95)
+        offset = -float(truth[0] + wander[0])
+        measured = truth + wander + offset + rng.normal(0.0, 0.3, len(grid))
+        temperatures = {f"temp_{k}_C": v + rng.normal(0.0, 0.03, len(grid)) for k, v in sensors.items()}
+        rpm = np.round(spindle_load * 10000.0 / 250.0) * 250.0
+        run_name = f"{name}_s{seed}_run{index + 1:02d}"
+        recordings.append(Recording(f"<{run_name}>", grid, temperatures, rpm, {}, {AXIS: measured}, name=run_name))
+        offsets.append(offset)
+        labels.append(f"{duration_s / 3600:.1f} h")
+    effect, parameters = (("transient_gradient", {"fast_tau_s": TWO_TAU_FAST_S, "slow_tau_s": TWO_TAU_SLOW_S,
+                                                  "fast_um_per_K": TWO_TAU_FAST_UM_PER_K,
+                                                  "slow_um_per_K": TWO_TAU_SLOW_UM_PER_K})
+                          if name == "two_tau_days" else (None, {}))
+    return RunFamily(name, recordings, baseline_model(), FamilyTruth(effect, parameters, tuple(offsets),
+                                                                      tuple(labels)))
