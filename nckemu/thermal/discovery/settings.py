@@ -59,3 +59,8 @@ class Settings:
     # as a move of two; it is named instead when it clears the held-out bar over the one time constant
     # (and over either of its own alone) under every guard. 0 turns it off.
     second_time_constant_ratio: float = 2.5
+    # ... and beside it, the same sensor's lag (or transient) searched again with another sensor's plain
+    # temperature, when they share drivers (issue 42: a spindle lag and a bed that follows the ambient
+    # and part of the spindle's heat); named when it clears the same bars, before two time constants
+    # within the margin of equivalence (a measured sensor before a constructed one).
+    measured_partners: bool = True

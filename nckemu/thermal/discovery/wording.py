@@ -89,12 +89,29 @@ def time_constant_lines(discovery: Discovery) -> list[str]:
     return lines
 
 
+def attribution_lines(discovery: Discovery) -> list[str]:
+    """One line per move of two effects that was weighed against other explanations: why these two,
+    and the explanations set aside with their held-out figures."""
+    lines = []
+    seen: set[str] = set()
+    for m in discovery.missing_physics:
+        move = getattr(m.evidence, "move", None)
+        if move is None or not move.equivalent or " + ".join(move.terms) in seen:
+            continue
+        seen.add(" + ".join(move.terms))
+        weighed = ", ".join(f"{alt.effects} {alt.heldout_rms_um:.3f} um" for alt in move.equivalent)
+        lines.append(f"why {' + '.join(move.terms)} (held-out {move.heldout_rms_after_um:.3f} um): {move.why}; "
+                     f"weighed: {weighed}")
+    return lines
+
+
 def finding_lines(discovery: Discovery) -> list[str]:
     """The text output's lines after the headline: found, likely, why nothing, coverage, data quality."""
     import json
 
     lines = [f"missing: {m.effect} {json.dumps(m.parameters)}" for m in discovery.missing_physics]
     lines += time_constant_lines(discovery)
+    lines += attribution_lines(discovery)
     for item in discovery.likely:
         e = item.evidence
         lines.append(f"likely, not proven: {item.label} {json.dumps(item.parameters)}: held-out "

@@ -26,7 +26,7 @@ def test_a_skin_and_a_core_are_both_named_with_their_shares() -> None:
     moves = [m.evidence.move for m in transients]
     assert all(move is not None for move in moves)
     assert abs(sum(move.share for move in moves if move) - 1.0) < 0.01
-    assert any("at one time constant" in alt.effects for move in moves if move for alt in move.equivalent)
+    assert any(alt.effects == "transient_gradient(front) alone" for move in moves if move for alt in move.equivalent)
     assert "two time constants of one sensor" in transients[0].evidence.preferred
     line = next(line for line in finding_lines(result) if line.startswith("two time constants of front"))
     assert line.count("tau ") == 2 and line.count("um/K") == 2 and "of the two" in line
