@@ -637,7 +637,7 @@ TWO_TAU_SLOW_UM_PER_K = 3.0
 
 
 def make_two_tau_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
-    """``runs`` days of 10-14 h logged every 2 min (deterministic per ``seed``; the two families share
+    """``runs`` days of 10-14 h logged every 4 min (deterministic per ``seed``; the two families share
     inputs and noise draws seed for seed). Baseline: ``baseline_model()``.
 
     - ``two_tau_days``: the column by the hydraulic unit bends twice over while the unit's heat crosses
@@ -654,7 +654,7 @@ def make_two_tau_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
     labels: list[str] = []
     for index in range(runs):
         duration_s = float(rng.uniform(10.0, 14.0)) * 3600.0
-        grid = np.arange(0.0, duration_s + 120.0, 120.0)
+        grid = np.arange(0.0, duration_s + 240.0, 240.0)
         spindle_load, axis_load, hydraulic_load = (_duty_cycle(rng, grid) for _ in range(3))
         ambient = rng.uniform(18.0, 24.0) + 0.4 * np.sin(2 * np.pi * (grid / 86400.0 + rng.random()))
         sensors = {"spindle": _lag_from(grid, ambient + 8.0 * spindle_load, 1200.0),
@@ -692,7 +692,7 @@ CORRELATED_LAG_UM_PER_K = 3.0
 CORRELATED_BED_UM_PER_K = 1.2
 
 
-def make_correlated_family(name: str, seed: int = 1, runs: int | None = None) -> RunFamily:
+def make_correlated_family(name: str, seed: int = 1, runs: int | None = None, *, coolant: bool = False) -> RunFamily:
     """Two or three days (``runs``; by default 2 or 3 per ``seed``) of 10-14 h logged every minute, as a
     user with a few days of data has them, with no model: the baseline is each run's own offset.
 
@@ -700,7 +700,11 @@ def make_correlated_family(name: str, seed: int = 1, runs: int | None = None) ->
       3 um/K, and the bed grows 1.2 um/K with its own temperature; the bed follows the hall's ambient
       and part of the spindle's heat, so the two true terms share drivers (and a hysteresis of the
       spindle or a lag of the ambient can mimic their sum).
-    - ``null_correlated_lag_bed``: the same days and sensors, the gauge reads wander and noise only."""
+    - ``null_correlated_lag_bed``: the same days and sensors, the gauge reads wander and noise only.
+
+    The sensors are the spindle, the bed and the ambient (the workbook of the issue); ``coolant`` adds
+    a coolant sensor that follows the ambient and an eighth of the spindle's heating, a third sensor
+    that shares the bed's drivers (its noise draw shifts the draws that follow: other days)."""
     if name not in CORRELATED_FAMILIES:
         raise ValueError(f"unknown run family {name!r}; known: {', '.join(CORRELATED_FAMILIES)}")
     rng = np.random.default_rng([seed, 4243])
@@ -720,8 +724,9 @@ def make_correlated_family(name: str, seed: int = 1, runs: int | None = None) ->
         spindle = _lag_from(grid, ambient + 8.0 * spindle_load, 1200.0)
         sensors = {"spindle": spindle,
                    "bed": _lag_from(grid, ambient + 2.5 * spindle_load + 0.8 * axis_load, 2 * 3600.0),
-                   "ambient": ambient,
-                   "coolant": _lag_from(grid, ambient + 1.0 * spindle_load, 2400.0)}
+                   "ambient": ambient}
+        if coolant:
+            sensors["coolant"] = _lag_from(grid, ambient + 1.0 * spindle_load, 2400.0)
         if name == "correlated_lag_bed":
             truth = CORRELATED_LAG_UM_PER_K * (first_order_lag(grid, spindle, CORRELATED_LAG_TAU_S) - 20.0) \
                 + CORRELATED_BED_UM_PER_K * (sensors["bed"] - 20.0)

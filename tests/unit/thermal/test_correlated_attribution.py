@@ -12,7 +12,7 @@ from nckemu.thermal.synthetic.scenarios import AXIS, make_correlated_family
 
 
 def test_the_lag_and_the_bed_are_both_named_and_the_equivalent_explanation_is_said() -> None:
-    family = make_correlated_family("correlated_lag_bed", 5)
+    family = make_correlated_family("correlated_lag_bed", 4)
     result = discover_runs(family.runs, AXIS, family.model)
     named = [(m.effect, m.parameters["sensor"]) for m in result.missing_physics]
     assert named == [("thermal_lag", "spindle"), ("temperature", "bed")]
@@ -30,11 +30,11 @@ def test_the_lag_and_the_bed_are_both_named_and_the_equivalent_explanation_is_sa
 
 
 def test_without_the_partner_search_a_stand_in_or_a_longer_lag_takes_the_beds_place() -> None:
-    family = make_correlated_family("correlated_lag_bed", 5)
+    family = make_correlated_family("correlated_lag_bed", 4)
     result = discover_runs(family.runs, AXIS, family.model, Settings(measured_partners=False))
     assert ("temperature", "bed") not in [(m.effect, m.parameters.get("sensor")) for m in result.missing_physics]
 
 
 def test_the_null_names_nothing() -> None:
-    family = make_correlated_family("null_correlated_lag_bed", 5)
+    family = make_correlated_family("null_correlated_lag_bed", 4)
     assert not discover_runs(family.runs, AXIS, family.model).missing_physics
