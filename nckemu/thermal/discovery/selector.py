@@ -417,6 +417,7 @@ class Selector:
                     and item[1].ranked_rms_um <= best[1].ranked_rms_um * (1 + margin)]
         what, move, t_crit = measured[0] if measured else best
         others = [item for item in passing if item[1] is not move]
+
         def named(what: str, move: Move) -> str:
             if what != "split":
                 return move.label
