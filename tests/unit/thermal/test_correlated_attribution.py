@@ -5,6 +5,8 @@ measured sensor is named."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from nckemu.thermal.discovery.discover import discover_runs
 from nckemu.thermal.discovery.settings import Settings
 from nckemu.thermal.discovery.wording import finding_lines
@@ -27,6 +29,17 @@ def test_the_lag_and_the_bed_are_both_named_and_the_equivalent_explanation_is_sa
     assert document["why"] == move.why and len(document["equivalent"]) == len(weighed)
     line = next(line for line in finding_lines(result) if line.startswith("why thermal_lag(spindle)"))
     assert "weighed:" in line and "at two time constants" in line
+
+
+def test_the_html_report_says_what_was_weighed(tmp_path: Path) -> None:
+    from nckemu.thermal.discovery.report import write_report
+
+    family = make_correlated_family("correlated_lag_bed", 4)
+    result = discover_runs(family.runs, AXIS, family.model)
+    page = tmp_path / "report.html"
+    write_report(page, result, "correlated_lag_bed")
+    text = page.read_text()
+    assert "cannot tell them apart" in text and "weighed: thermal_lag(spindle) alone" in text
 
 
 def test_without_the_partner_search_a_stand_in_or_a_longer_lag_takes_the_beds_place() -> None:
