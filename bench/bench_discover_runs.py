@@ -1,5 +1,6 @@
 """Discovery over many runs: 30 runs x 24 h at 1 Hz with 6 sensors (issue 23: under 60 s here; issue 31:
-still under 60 s with pair moves on, the same discovery without pair moves printed as the anchor).
+still under 60 s with pair moves on, the same discovery without pair moves printed as the anchor; issue
+42: and with a second time constant and measured partners, the same without them printed too).
 
 The anchor, measured in the same run: single-run discovery on the same data, the runs laid end to end
 as one recording and averaged to the steps discover_runs works on (Settings.runs_resample_s, 30 s).
@@ -98,6 +99,12 @@ def main() -> int:
                                        lambda: discover_runs(runs, AXIS, family.model, without))
         named = [m.effect for m in getattr(result, "missing_physics", [])]
         print(f"  named: {', '.join(named) or '-'}; pair moves cost {elapsed_runs - elapsed_single:+.2f} s")
+        narrow = Settings(second_time_constant_ratio=0.0, measured_partners=False)
+        result, elapsed_narrow = timed("anchor: discover_runs, issue 42's searches off",
+                                       lambda: discover_runs(runs, AXIS, family.model, narrow))
+        named = [m.effect for m in getattr(result, "missing_physics", [])]
+        print(f"  named: {', '.join(named) or '-'}; a second time constant and measured partners cost "
+              f"{elapsed_runs - elapsed_narrow:+.2f} s")
     if not args.no_anchor:
         whole = end_to_end(runs)
         if not args.raw_anchor:

@@ -249,6 +249,91 @@ class Library:
         self._searched[key] = (best[0], best[1])
         return best[0], best[1], tried
 
+    def best_time_constant_pair(self, kind: str, sensor: str, design: np.ndarray, min_ratio: float
+                                ) -> tuple[float, float, float, int] | None:
+        """(in-sample RMS, fast tau_s, slow tau_s, pairs tried): one sensor's ``kind`` ("lag" or
+        "transient") at two time constants at least ``min_ratio`` apart (a fast skin and a slow core),
+        against ``design``: every pair of the grid of ``best_time_constant``, then refined around the
+        best. The columns and the gauge are projected off the design once; a pair is a 2 x 2 solve."""
+        column = self.lag_column if kind == "lag" else self.transient_column
+        duration_s = self.duration_s()
+        grid = [tau for tau in self.settings.lag_grid_s if tau <= duration_s / 3]
+        if len(grid) < 2:
+            return None
+        y = self.problem.y
+
+        def reductions(fast: list[float], slow: list[float]) -> list[tuple[float, float, float]]:
+            columns = np.column_stack([column(sensor, tau) for tau in fast + slow] + [y])
+            if design.shape[1]:
+                columns = columns - design @ stats.least_squares(design, columns)
+            features, target = columns[:, :-1], columns[:, -1]
+            gram, moment = features.T @ features, features.T @ target
+            found = []
+            for i, tau_fast in enumerate(fast):
+                for j, tau_slow in enumerate(slow, start=len(fast)):
+                    if tau_slow < min_ratio * tau_fast:
+                        continue
+                    determinant = gram[i, i] * gram[j, j] - gram[i, j] ** 2
+                    if not determinant > 1e-6 * gram[i, i] * gram[j, j]:
+                        continue  # one effect fitted twice
+                    drop = (gram[j, j] * moment[i] ** 2 - 2 * gram[i, j] * moment[i] * moment[j]
+                            + gram[i, i] * moment[j] ** 2) / determinant
+                    found.append((float(drop), tau_fast, tau_slow))
+            return found
+
+        tried = reductions(grid, grid)
+        if not tried:
+            return None
+        count = len(tried)
+        _drop, fast, slow = max(tried)
+        near = reductions([fast * float(f) for f in np.geomspace(0.8, 1.25, 5)],
+                          [slow * float(f) for f in np.geomspace(0.8, 1.25, 5) if slow * f <= duration_s / 3])
+        count += len(near)
+        best_drop, fast, slow = max(tried + near)
+        residual = y - design @ stats.least_squares(design, y) if design.shape[1] else y
+        rms = math.sqrt(max(float(residual @ residual) - best_drop, 0.0) / max(len(y), 1))
+        return rms, fast, slow, count
+
+    def best_with_partner(self, kind: str, sensor: str, design: np.ndarray, partners: dict[str, np.ndarray]
+                          ) -> tuple[float, str, int] | None:
+        """(tau_s, partner, pairs tried): one sensor's ``kind`` ("lag" or "transient") beside one of
+        ``partners`` (measured columns, by name), the time constant searched again with the partner in
+        (a time constant found alone absorbs what a correlated partner explains): every grid value
+        with every partner, 2 x 2 solves off the design, then the best refined."""
+        column = self.lag_column if kind == "lag" else self.transient_column
+        duration_s = self.duration_s()
+        grid = [tau for tau in self.settings.lag_grid_s if tau <= duration_s / 3]
+        if not grid or not partners:
+            return None
+        y, names = self.problem.y, list(partners)
+
+        def best(taus: list[float]) -> tuple[float, float, str]:
+            columns = np.column_stack([column(sensor, tau) for tau in taus] + [partners[n] for n in names] + [y])
+            if design.shape[1]:
+                columns = columns - design @ stats.least_squares(design, columns)
+            features, target = columns[:, :-1], columns[:, -1]
+            gram, moment = features.T @ features, features.T @ target
+            found = (-math.inf, taus[0], names[0])
+            for i, tau in enumerate(taus):
+                for j, name in enumerate(names, start=len(taus)):
+                    determinant = gram[i, i] * gram[j, j] - gram[i, j] ** 2
+                    if not determinant > 1e-6 * gram[i, i] * gram[j, j]:
+                        continue
+                    drop = (gram[j, j] * moment[i] ** 2 - 2 * gram[i, j] * moment[i] * moment[j]
+                            + gram[i, i] * moment[j] ** 2) / determinant
+                    if drop > found[0]:
+                        found = (float(drop), tau, name)
+            return found
+
+        drop, tau, partner = best(grid)
+        if not math.isfinite(drop):
+            return None
+        refined = [tau * float(f) for f in np.geomspace(0.8, 1.25, 9) if tau * f <= duration_s / 3]
+        drop_near, tau_near, partner_near = best(refined)
+        if drop_near > drop:
+            tau, partner = tau_near, partner_near
+        return tau, partner, (len(grid) + len(refined)) * len(names)
+
     def best_searched(self, kind: str, count: int) -> list[str]:
         """The ``count`` sensors whose time-constant search of ``kind`` fitted best this round."""
         found = sorted((score, sensor, tau) for (k, sensor), (score, tau) in self._searched.items() if k == kind)

@@ -62,6 +62,12 @@ def _row(finding: Finding) -> str:
     for text in (evidence.preferred, evidence.note if isinstance(evidence, Evidence) else None):
         if text:
             parts.append(html.escape(text))
+    move = evidence.move if isinstance(evidence, Evidence) else None
+    if move is not None:  # a move of two: why these two, and what was weighed against them
+        parts.append(html.escape(move.why))
+        if move.equivalent:
+            weighed = ", ".join(f"{m.effects} ({_um(m.heldout_rms_um)})" for m in move.equivalent)
+            parts.append(f"weighed: {html.escape(weighed)}")
     return (f"<tr><td>{html.escape(finding.effect)}</td>"
             f"<td><code>{html.escape(json.dumps(finding.parameters))}</code></td>"
             f"<td>{'<br>'.join(parts)}</td></tr>")

@@ -354,6 +354,8 @@ class Selector:
         best, margin, equivalent = self.equivalent(passing)
         chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um))
         chosen = self.parsimonious(chosen, passing)
+        if self.time_constant_moves(path, chosen, design, tests):
+            return True
         term = chosen.candidate.term.with_coefficient(chosen.coefficient)
         # Several runs share one clock from their own starts: a window in time names no run.
         window = [] if self.library.problem.per_run_offset else explain.locate(
@@ -369,6 +371,156 @@ class Selector:
         path.noise = np.column_stack([path.noise, chosen.candidate.noise])
         path.base_cv = chosen.cv
         return True
+
+    # ------------------------------------------------------------------ one sensor, two time constants
+    SPLIT_KINDS = {"thermal_lag": "lag", "transient_gradient": "transient"}
+    # A partner search starts from the one time constant family the chosen term extends or is.
+    PARTNER_FAMILIES = {"thermal_lag": "thermal_lag", "heating_cooling_hysteresis": "thermal_lag",
+                        "transient_gradient": "transient_gradient"}
+
+    def time_constant_moves(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int) -> bool:
+        """The round names an effect with a time constant of one sensor. Two questions before it is
+        admitted as one effect (issue 42), each a move of two judged under every guard, which must
+        clear the held-out bar over the effect the round chose and over either of its own alone:
+
+        - a measured partner: the sensor's lag (or transient) with its time constant searched again
+          beside another sensor's plain temperature (a lag found alone absorbs what a correlated
+          sensor explains: a bed that follows the ambient and part of the spindle's heat);
+        - two time constants of the sensor (a fast skin and a slow core), both of one sign.
+
+        A measured sensor comes before a constructed one: the partner is named when it is within the
+        margin of equivalence of the two time constants. Every value tried counts among the round's
+        hypotheses. True when a move was admitted."""
+        s = self.settings
+        term = chosen.candidate.term
+        sensor = term.parameters.get("sensor")
+        if sensor is None or not time_constants(term) or len(path.added) + 2 > s.max_effects:
+            return False
+        tried_moves: list[tuple[str, Move, float]] = []
+        partner_family = self.PARTNER_FAMILIES.get(term.effect)
+        if partner_family is not None and s.measured_partners:
+            found = self.partner_move(path, chosen, design, tests, partner_family, str(sensor))
+            if found is not None:
+                tried_moves.append(("partner", *found))
+        kind = self.SPLIT_KINDS.get(term.effect)
+        if kind is not None and s.second_time_constant_ratio:
+            found = self.split_move(path, chosen, design, tests, kind, str(sensor))
+            if found is not None:
+                tried_moves.append(("split", *found))
+        passing = [(what, move, t_crit) for what, move, t_crit in tried_moves
+                   if self.move_passes(path, move, chosen, t_crit)]
+        if not passing:
+            return False
+        best = min(passing, key=lambda item: item[1].ranked_rms_um)
+        margin = s.equivalence * (1 + sum(time_constants(t) for t in best[1].terms))
+        measured = [item for item in passing if item[0] == "partner"
+                    and item[1].ranked_rms_um <= best[1].ranked_rms_um * (1 + margin)]
+        what, move, t_crit = measured[0] if measured else best
+        others = [item for item in passing if item[1] is not move]
+
+        def named(what: str, move: Move) -> str:
+            if what != "split":
+                return move.label
+            taus = " and ".join(f"{t.parameters['tau_s'] / 3600:.2g} h" for t in move.terms)
+            return f"{move.alone[0].candidate.label} at two time constants, {taus}"
+
+        alternatives = [MoveAlternative(f"{chosen.candidate.label} alone", round(chosen.cv.rms_um, 4))] \
+            + [MoveAlternative(named(w, m), round(m.cv.rms_um, 4)) for w, m, _t in others]
+        hours = [f"{t.parameters['tau_s'] / 3600:.2g} h" for t in move.terms if "tau_s" in t.parameters]
+        if what == "split":
+            why = (f"one sensor at two time constants (a fast skin and a slow core): {hours[0]} and {hours[1]} "
+                   f"together clear the held-out bar over {chosen.candidate.label} alone (held-out "
+                   f"{chosen.cv.rms_um:.3f} um against {move.cv.rms_um:.3f} um) and over either alone")
+
+            def preferred(index: int) -> str:
+                return (f"{chosen.candidate.label} at {hours[0]} and {hours[1]}: two time constants of one sensor "
+                        f"({move.shares[index]:.0%} of it this one)")
+        else:
+            equivalent = [named(w, m) for w, m, _t in others if m.ranked_rms_um <= move.ranked_rms_um * (1 + margin)]
+            why = (f"a measured sensor beside the time constant: {move.label} clears the held-out bar over "
+                   f"{chosen.candidate.label} alone (held-out {chosen.cv.rms_um:.3f} um against "
+                   f"{move.cv.rms_um:.3f} um) and over either alone; the time constant alone had absorbed part "
+                   f"of what the measured sensor explains")
+            if equivalent:
+                why += (f". Equivalent on these data (held-out without the sensors' noise within {margin:.0%}): "
+                        f"{', '.join(equivalent)}; the data cannot tell them apart. Named: the measured sensor, "
+                        f"which needs no constructed signal and fewer parameters")
+
+            def preferred(index: int) -> str:
+                return (f"{move.label}: a time constant and a measured sensor that share drivers, judged together "
+                        f"({move.shares[index]:.0%} of it this one)")
+        self.admit_move(path, move, [], t_crit, why=why, alternatives=alternatives, preferred=preferred)
+        return True
+
+    def move_passes(self, path: Path, move: Move, chosen: Evaluation, t_crit: float) -> bool:
+        s = self.settings
+        return self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
+                          t_crit)[0] \
+            and all(self.heldout_gain(move.cv, other.cv, move.runs_with) >= s.min_improvement
+                    for other in (chosen, *move.alone))
+
+    def _alone(self, path: Path, design: np.ndarray, terms: list[Term], grid_points: int) -> list[Evaluation] | None:
+        alone = []
+        for term in terms:
+            candidate = self.library.candidate(term, grid_points)
+            if candidate is None:
+                return None
+            alone.append(self.evaluate(design, path.noise, candidate, path.base_cv))
+        return alone
+
+    def _move_t_critical(self, design: np.ndarray, tests: int) -> float:
+        return t_critical(self.settings.alpha, tests,
+                          len(self.y) - design.shape[1] - 2 - self.baseline.extra_parameters)
+
+    def partner_move(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int, effect: str,
+                     sensor: str) -> tuple[Move, float] | None:
+        """The sensor's ``effect`` beside the best other sensor's plain temperature, its time constant
+        searched again with the partner in."""
+        library = self.library
+        partners: dict[str, Term] = {}
+        for other in library.sensors():
+            if other == sensor or f"temperature:{other}" in path.present or library.modelled("temperature", other):
+                continue
+            partners[other] = Term("temperature", {"sensor": other, "t_ref_C": library.t_ref(other),
+                                                   "coeff_um_per_K": 0.0})
+        columns = {}
+        for name, partner in partners.items():
+            candidate = library.candidate(partner)
+            if candidate is not None:
+                columns[name] = candidate.feature
+        found = library.best_with_partner("lag" if effect == "thermal_lag" else "transient", sensor, design, columns)
+        if found is None:
+            return None
+        tau_s, partner_name, tried = found
+        base = {"sensor": sensor, "tau_s": tau_s, "coeff_um_per_K": 0.0}
+        if effect == "thermal_lag":
+            base = {"sensor": sensor, "t_ref_C": library.t_ref(sensor), **base}
+        alone = self._alone(path, design, [Term(effect, base), partners[partner_name]], tried)
+        if alone is None:
+            return None
+        return self.evaluate_pair(path, alone[0], alone[1]), self._move_t_critical(design, tests + tried)
+
+    def split_move(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int, kind: str,
+                   sensor: str) -> tuple[Move, float] | None:
+        """The sensor at its best pair of time constants (``Library.best_time_constant_pair``), both
+        coefficients of one sign."""
+        found = self.library.best_time_constant_pair(kind, sensor, design, self.settings.second_time_constant_ratio)
+        if found is None:
+            return None
+        _rms, fast_s, slow_s, tried = found
+        term = chosen.candidate.term
+        alone = self._alone(path, design, [Term(term.effect, {**term.parameters, "tau_s": tau_s,
+                                                              term.spec.coefficient: 0.0})
+                                           for tau_s in (fast_s, slow_s)], tried)
+        if alone is None:
+            return None
+        move = self.evaluate_pair(path, alone[0], alone[1])
+        if move.coefficients[0] * move.coefficients[1] <= 0:
+            # A skin and a core of one structure heated from one side move it the same way; two lags of
+            # one sensor pulling apart are a transient (a family of its own), two transients pulling
+            # apart one band of time constants, not two paths of heat.
+            return None
+        return move, self._move_t_critical(design, tests + tried)
 
     # ------------------------------------------------------------------ moves of two effects
     def screen_pairs(self, design: np.ndarray, pool: list[Evaluation]) -> list[tuple[int, int]]:
@@ -464,7 +616,11 @@ class Selector:
         self.admit_move(path, chosen, [m for m in equivalent if m is not chosen], t_crit)
         return True
 
-    def admit_move(self, path: Path, move: Move, equivalent: list[Move], t_crit: float) -> None:
+    def admit_move(self, path: Path, move: Move, equivalent: list[Move], t_crit: float, *,
+                   why: str = "no single effect passed the guards; these two pass them together, and each is "
+                              "needed (the pair clears the held-out bar over either alone)",
+                   alternatives: list[MoveAlternative] | None = None,
+                   preferred: Callable[[int], str] | None = None) -> None:
         folds = len(self.baseline.folds)
         figures = self.run_figures(move.cv, path.base_cv, move.runs_with) if self.per_run else None
         for index, (alone, term) in enumerate(zip(move.alone, move.terms, strict=True)):
@@ -475,10 +631,10 @@ class Selector:
             record.move = MoveEvidence(
                 [e.candidate.label for e in move.alone], round(move.cv.rms_um, 4),
                 [round(e.cv.rms_um, 4) for e in move.alone], [round(share, 3) for share in move.shares],
-                [MoveAlternative(m.label, round(m.cv.rms_um, 4)) for m in equivalent],
-                "no single effect passed the guards; these two pass them together, and each is "
-                "needed (the pair clears the held-out bar over either alone)", round(move.shares[index], 3))
-            record.preferred = f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
+                [MoveAlternative(m.label, round(m.cv.rms_um, 4)) for m in equivalent] + (alternatives or []),
+                why, round(move.shares[index], 3))
+            record.preferred = preferred(index) if preferred is not None else \
+                f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
             record.runs = figures
             path.discovered.append(finding(term.effect, term.parameters, record))
             path.added.append(term)

@@ -54,3 +54,13 @@ class Settings:
     pair_moves: bool = True
     pair_pool: int = 60
     pair_beam: int = 8
+    # One sensor at two time constants (issue 42: a fast skin and a slow core). When a round names a
+    # lag or a transient, the same sensor's pair of time constants at least this ratio apart is tried
+    # as a move of two; it is named instead when it clears the held-out bar over the one time constant
+    # (and over either of its own alone) under every guard. 0 turns it off.
+    second_time_constant_ratio: float = 2.5
+    # ... and beside it, the same sensor's lag (or transient) searched again with another sensor's plain
+    # temperature, when they share drivers (issue 42: a spindle lag and a bed that follows the ambient
+    # and part of the spindle's heat); named when it clears the same bars, before two time constants
+    # within the margin of equivalence (a measured sensor before a constructed one).
+    measured_partners: bool = True

@@ -67,11 +67,51 @@ def structure_words(discovery: Discovery) -> str:
         f"r(1) = {s.get('r1', float('nan')):.2f}"
 
 
+def time_constant_lines(discovery: Discovery) -> list[str]:
+    """One line per sensor named at two time constants (a fast skin and a slow core): each time
+    constant with its um/K and its share of what the two improve together."""
+    lines = []
+    seen: set[tuple[str, str]] = set()
+    for m in discovery.missing_physics:
+        key = (m.effect, str(m.parameters.get("sensor")))
+        twins = [t for t in discovery.missing_physics
+                 if (t.effect, str(t.parameters.get("sensor"))) == key and "tau_s" in t.parameters]
+        if len(twins) < 2 or key in seen:
+            continue
+        seen.add(key)
+        parts = []
+        for t in sorted(twins, key=lambda t: t.parameters["tau_s"]):
+            move = getattr(t.evidence, "move", None)
+            share = f", {move.share:.0%} of the two" if move is not None else ""
+            parts.append(f"tau {t.parameters['tau_s'] / 3600:.2f} h {t.parameters.get('coeff_um_per_K', 0.0):.3g} "
+                         f"um/K{share}")
+        lines.append(f"two time constants of {key[1]} ({key[0]}): " + "; ".join(parts))
+    return lines
+
+
+def attribution_lines(discovery: Discovery) -> list[str]:
+    """One line per move of two effects that was weighed against other explanations: why these two,
+    and the explanations set aside with their held-out figures."""
+    lines = []
+    seen: set[str] = set()
+    for m in discovery.missing_physics:
+        move = getattr(m.evidence, "move", None)
+        if move is None or not move.equivalent or " + ".join(move.terms) in seen:
+            continue
+        seen.add(" + ".join(move.terms))
+        weighed = ", ".join(f"{alt.effects} {alt.heldout_rms_um:.3f} um" for alt in move.equivalent)
+        lines.append(f"why {' + '.join(move.terms)} (held-out {move.heldout_rms_after_um:.3f} um): {move.why}; "
+                     f"weighed: {weighed}")
+    return lines
+
+
 def finding_lines(discovery: Discovery) -> list[str]:
     """The text output's lines after the headline: found, likely, why nothing, coverage, data quality."""
     import json
 
     lines = [f"missing: {m.effect} {json.dumps(m.parameters)}" for m in discovery.missing_physics]
+    lines += time_constant_lines(discovery)
+    lines += attribution_lines(discovery)
     for item in discovery.likely:
         e = item.evidence
         lines.append(f"likely, not proven: {item.label} {json.dumps(item.parameters)}: held-out "

@@ -625,3 +625,124 @@ def make_duty_mix_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
                           else (None, {}))
     return RunFamily(name, recordings, baseline_model(), FamilyTruth(effect, parameters, tuple(offsets),
                                                                       tuple(labels)))
+
+
+# ---------------------------------------------------------------------- issue 42: one sensor, two time constants
+TWO_TAU_FAMILIES = ("two_tau_days", "null_two_tau_days")
+TWO_TAU_SENSOR = "front"
+TWO_TAU_FAST_S = 1800.0
+TWO_TAU_SLOW_S = 3 * 3600.0
+TWO_TAU_FAST_UM_PER_K = 3.0
+TWO_TAU_SLOW_UM_PER_K = 3.0
+
+
+def make_two_tau_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
+    """``runs`` days of 10-14 h logged every 4 min (deterministic per ``seed``; the two families share
+    inputs and noise draws seed for seed). Baseline: ``baseline_model()``.
+
+    - ``two_tau_days``: the column by the hydraulic unit bends twice over while the unit's heat crosses
+      it, a thin skin that evens out in half an hour and a thick core that takes three:
+      ``transient_gradient(front)`` at tau 0.5 h and again at tau 3 h, 3 um/K each, left out.
+    - ``null_two_tau_days``: the same days, nothing left out."""
+    if name not in TWO_TAU_FAMILIES:
+        raise ValueError(f"unknown run family {name!r}; known: {', '.join(TWO_TAU_FAMILIES)}")
+    if runs < 2:
+        raise ValueError("a family has at least 2 runs")
+    rng = np.random.default_rng([seed, 4242])
+    recordings: list[Recording] = []
+    offsets: list[float] = []
+    labels: list[str] = []
+    for index in range(runs):
+        duration_s = float(rng.uniform(10.0, 14.0)) * 3600.0
+        grid = np.arange(0.0, duration_s + 240.0, 240.0)
+        spindle_load, axis_load, hydraulic_load = (_duty_cycle(rng, grid) for _ in range(3))
+        ambient = rng.uniform(18.0, 24.0) + 0.4 * np.sin(2 * np.pi * (grid / 86400.0 + rng.random()))
+        sensors = {"spindle": _lag_from(grid, ambient + 8.0 * spindle_load, 1200.0),
+                   "bed": _lag_from(grid, ambient + 2.0 * spindle_load + 1.5 * axis_load, 3 * 3600.0),
+                   "front": _lag_from(grid, ambient + 10.0 * hydraulic_load, 600.0),
+                   "rear": _lag_from(grid, ambient + 4.0 * axis_load, 3600.0),
+                   "ambient": ambient,
+                   "coolant": _lag_from(grid, ambient + 1.0 * spindle_load, 2400.0)}
+        truth = 3.0 * (sensors["spindle"] - 20.0) + 2.0 * (sensors["bed"] - 20.0)
+        front = sensors[TWO_TAU_SENSOR]
+        if name == "two_tau_days":
+            truth = truth + TWO_TAU_FAST_UM_PER_K * (front - first_order_lag(grid, front, TWO_TAU_FAST_S)) \
+                + TWO_TAU_SLOW_UM_PER_K * (front - first_order_lag(grid, front, TWO_TAU_SLOW_S))
+        wander = _ar1(rng, grid, 0.3, 0.95)
+        offset = -float(truth[0] + wander[0])
+        measured = truth + wander + offset + rng.normal(0.0, 0.3, len(grid))
+        temperatures = {f"temp_{k}_C": v + rng.normal(0.0, 0.03, len(grid)) for k, v in sensors.items()}
+        rpm = np.round(spindle_load * 10000.0 / 250.0) * 250.0
+        run_name = f"{name}_s{seed}_run{index + 1:02d}"
+        recordings.append(Recording(f"<{run_name}>", grid, temperatures, rpm, {}, {AXIS: measured}, name=run_name))
+        offsets.append(offset)
+        labels.append(f"{duration_s / 3600:.1f} h")
+    effect, parameters = (("transient_gradient", {"fast_tau_s": TWO_TAU_FAST_S, "slow_tau_s": TWO_TAU_SLOW_S,
+                                                  "fast_um_per_K": TWO_TAU_FAST_UM_PER_K,
+                                                  "slow_um_per_K": TWO_TAU_SLOW_UM_PER_K})
+                          if name == "two_tau_days" else (None, {}))
+    return RunFamily(name, recordings, baseline_model(), FamilyTruth(effect, parameters, tuple(offsets),
+                                                                      tuple(labels)))
+
+
+# ---------------------------------------------------------------------- issue 42: two true terms, shared drivers
+CORRELATED_FAMILIES = ("correlated_lag_bed", "null_correlated_lag_bed")
+CORRELATED_LAG_TAU_S = 2400.0
+CORRELATED_LAG_UM_PER_K = 3.0
+CORRELATED_BED_UM_PER_K = 1.2
+
+
+def make_correlated_family(name: str, seed: int = 1, runs: int | None = None, *, coolant: bool = False) -> RunFamily:
+    """Two or three days (``runs``; by default 2 or 3 per ``seed``) of 10-14 h logged every minute, as a
+    user with a few days of data has them, with no model: the baseline is each run's own offset.
+
+    - ``correlated_lag_bed``: the spindle structure follows its sensor through a lag of 2400 s at
+      3 um/K, and the bed grows 1.2 um/K with its own temperature; the bed follows the hall's ambient
+      and part of the spindle's heat, so the two true terms share drivers (and a hysteresis of the
+      spindle or a lag of the ambient can mimic their sum).
+    - ``null_correlated_lag_bed``: the same days and sensors, the gauge reads wander and noise only.
+
+    The sensors are the spindle, the bed and the ambient (the workbook of the issue); ``coolant`` adds
+    a coolant sensor that follows the ambient and an eighth of the spindle's heating, a third sensor
+    that shares the bed's drivers (its noise draw shifts the draws that follow: other days)."""
+    if name not in CORRELATED_FAMILIES:
+        raise ValueError(f"unknown run family {name!r}; known: {', '.join(CORRELATED_FAMILIES)}")
+    rng = np.random.default_rng([seed, 4243])
+    count = int(rng.integers(2, 4)) if runs is None else runs
+    if count < 2:
+        raise ValueError("a family has at least 2 runs")
+    recordings: list[Recording] = []
+    offsets: list[float] = []
+    labels: list[str] = []
+    for index in range(count):
+        duration_s = float(rng.uniform(10.0, 14.0)) * 3600.0
+        grid = np.arange(0.0, duration_s + 60.0, 60.0)
+        spindle_load, axis_load = _duty_cycle(rng, grid), _duty_cycle(rng, grid)
+        # The hall warms through the day by 1-3 K and swings a little with the doors.
+        ambient = rng.uniform(18.0, 23.0) + rng.uniform(1.0, 3.0) * np.sin(np.pi * grid / (2 * duration_s)) \
+            + _lag_from(grid, _ar1(rng, grid, 0.4, 0.999), 1800.0)
+        spindle = _lag_from(grid, ambient + 8.0 * spindle_load, 1200.0)
+        sensors = {"spindle": spindle,
+                   "bed": _lag_from(grid, ambient + 2.5 * spindle_load + 0.8 * axis_load, 2 * 3600.0),
+                   "ambient": ambient}
+        if coolant:
+            sensors["coolant"] = _lag_from(grid, ambient + 1.0 * spindle_load, 2400.0)
+        if name == "correlated_lag_bed":
+            truth = CORRELATED_LAG_UM_PER_K * (first_order_lag(grid, spindle, CORRELATED_LAG_TAU_S) - 20.0) \
+                + CORRELATED_BED_UM_PER_K * (sensors["bed"] - 20.0)
+        else:
+            truth = np.zeros_like(grid)
+        wander = _ar1(rng, grid, 0.3, 0.95)
+        offset = -float(truth[0] + wander[0])
+        measured = truth + wander + offset + rng.normal(0.0, 0.3, len(grid))
+        temperatures = {f"temp_{k}_C": v + rng.normal(0.0, 0.03, len(grid)) for k, v in sensors.items()}
+        rpm = np.round(spindle_load * 10000.0 / 250.0) * 250.0
+        run_name = f"{name}_s{seed}_run{index + 1:02d}"
+        recordings.append(Recording(f"<{run_name}>", grid, temperatures, rpm, {}, {AXIS: measured}, name=run_name))
+        offsets.append(offset)
+        labels.append(f"{duration_s / 3600:.1f} h")
+    effect, parameters = (("thermal_lag", {"tau_s": CORRELATED_LAG_TAU_S, "spindle_um_per_K": CORRELATED_LAG_UM_PER_K,
+                                           "bed_um_per_K": CORRELATED_BED_UM_PER_K})
+                          if name == "correlated_lag_bed" else (None, {}))
+    return RunFamily(name, recordings, ThermalModel(AXIS, [], "<each run's own offset>"),
+                     FamilyTruth(effect, parameters, tuple(offsets), tuple(labels)))
