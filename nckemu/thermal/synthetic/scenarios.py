@@ -500,6 +500,21 @@ def _duty_cycle(rng: np.random.Generator, grid_s: np.ndarray) -> np.ndarray:
     return level * ((hours >= start_h) & (phase < duty * period_h)).astype(float)
 
 
+def _logged_day(rng: np.random.Generator, run_name: str, grid: np.ndarray, truth: np.ndarray, wander: np.ndarray,
+                sensors: dict[str, np.ndarray], spindle_load: np.ndarray,
+                t: np.ndarray | None = None) -> tuple[Recording, float]:
+    """One day of a run family as its logger wrote it, at ``t`` (default: the simulation's grid): the
+    gauge reading truth and wander from zero (its offset returned) with 0.3 um of noise, the sensors
+    with 0.03 K, the spindle speed in 250 rpm steps. Noise is drawn gauge first, then the sensors in
+    order, so every family keeps its seeds' days."""
+    t = grid if t is None else t
+    offset = -float(np.interp(t[0], grid, truth + wander))
+    measured = np.interp(t, grid, truth + wander) + offset + rng.normal(0.0, 0.3, len(t))
+    temperatures = {f"temp_{k}_C": np.interp(t, grid, v) + rng.normal(0.0, 0.03, len(t)) for k, v in sensors.items()}
+    rpm = np.round(np.interp(t, grid, spindle_load) * 10000.0 / 250.0) * 250.0
+    return Recording(f"<{run_name}>", t, temperatures, rpm, {}, {AXIS: measured}, name=run_name), offset
+
+
 def _slow_sampling(rng: np.random.Generator, duration_s: float) -> np.ndarray:
     """Logged every 130-1 200 s (log-uniform: mostly a few minutes, now and then 20 min)."""
     steps = np.exp(rng.uniform(math.log(130.0), math.log(1200.0), int(duration_s / 130.0) + 2))
@@ -542,13 +557,9 @@ def make_transient_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily
         elif name == "pair_days":
             truth = truth + PAIR_REAR_UM_PER_K * (sensors["rear"] - 20.0) + PAIR_FRONT_UM_PER_K * (front - 20.0)
         wander = _ar1(rng, grid, 0.3, 0.95)
-        t = _slow_sampling(rng, duration_s)
-        offset = -float(np.interp(t[0], grid, truth + wander))
-        measured = np.interp(t, grid, truth + wander) + offset + rng.normal(0.0, 0.3, len(t))
-        temperatures = {f"temp_{k}_C": np.interp(t, grid, v) + rng.normal(0.0, 0.03, len(t)) for k, v in sensors.items()}
-        rpm = np.round(np.interp(t, grid, spindle_load) * 10000.0 / 250.0) * 250.0
-        run_name = f"{name}_s{seed}_run{index + 1:02d}"
-        recordings.append(Recording(f"<{run_name}>", t, temperatures, rpm, {}, {AXIS: measured}, name=run_name))
+        recording, offset = _logged_day(rng, f"{name}_s{seed}_run{index + 1:02d}", grid, truth, wander, sensors,
+                                        spindle_load, _slow_sampling(rng, duration_s))
+        recordings.append(recording)
         offsets.append(offset)
         labels.append(f"{duration_s / 3600:.1f} h")
     if name == "skin_core_days":
@@ -611,14 +622,9 @@ def make_duty_mix_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
         truth = 3.0 * (sensors["spindle"] - 20.0) + 2.0 * (sensors["bed"] - 20.0)
         if name == "duty_mix_days":
             truth = truth + DUTY_MIX_UM_PER_K * (rear_structure - 20.0)
-        wander = _ar1(rng, grid, 0.5, 0.99)
-        t = grid
-        offset = -float(truth[0] + wander[0])
-        measured = truth + wander + offset + rng.normal(0.0, 0.3, len(t))
-        temperatures = {f"temp_{k}_C": v + rng.normal(0.0, 0.03, len(t)) for k, v in sensors.items()}
-        rpm = np.round(spindle_load * 10000.0 / 250.0) * 250.0
-        run_name = f"{name}_s{seed}_run{index + 1:02d}"
-        recordings.append(Recording(f"<{run_name}>", t, temperatures, rpm, {}, {AXIS: measured}, name=run_name))
+        recording, offset = _logged_day(rng, f"{name}_s{seed}_run{index + 1:02d}", grid, truth,
+                                        _ar1(rng, grid, 0.5, 0.99), sensors, spindle_load)
+        recordings.append(recording)
         offsets.append(offset)
         labels.append("light" if light else "heavy")
     effect, parameters = (("temperature", {"sensor_um_per_K": DUTY_MIX_UM_PER_K}) if name == "duty_mix_days"
@@ -668,13 +674,9 @@ def make_two_tau_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
         if name == "two_tau_days":
             truth = truth + TWO_TAU_FAST_UM_PER_K * (front - first_order_lag(grid, front, TWO_TAU_FAST_S)) \
                 + TWO_TAU_SLOW_UM_PER_K * (front - first_order_lag(grid, front, TWO_TAU_SLOW_S))
-        wander = _ar1(rng, grid, 0.3, 0.95)
-        offset = -float(truth[0] + wander[0])
-        measured = truth + wander + offset + rng.normal(0.0, 0.3, len(grid))
-        temperatures = {f"temp_{k}_C": v + rng.normal(0.0, 0.03, len(grid)) for k, v in sensors.items()}
-        rpm = np.round(spindle_load * 10000.0 / 250.0) * 250.0
-        run_name = f"{name}_s{seed}_run{index + 1:02d}"
-        recordings.append(Recording(f"<{run_name}>", grid, temperatures, rpm, {}, {AXIS: measured}, name=run_name))
+        recording, offset = _logged_day(rng, f"{name}_s{seed}_run{index + 1:02d}", grid, truth,
+                                        _ar1(rng, grid, 0.3, 0.95), sensors, spindle_load)
+        recordings.append(recording)
         offsets.append(offset)
         labels.append(f"{duration_s / 3600:.1f} h")
     effect, parameters = (("transient_gradient", {"fast_tau_s": TWO_TAU_FAST_S, "slow_tau_s": TWO_TAU_SLOW_S,
@@ -732,13 +734,9 @@ def make_correlated_family(name: str, seed: int = 1, runs: int | None = None, *,
                 + CORRELATED_BED_UM_PER_K * (sensors["bed"] - 20.0)
         else:
             truth = np.zeros_like(grid)
-        wander = _ar1(rng, grid, 0.3, 0.95)
-        offset = -float(truth[0] + wander[0])
-        measured = truth + wander + offset + rng.normal(0.0, 0.3, len(grid))
-        temperatures = {f"temp_{k}_C": v + rng.normal(0.0, 0.03, len(grid)) for k, v in sensors.items()}
-        rpm = np.round(spindle_load * 10000.0 / 250.0) * 250.0
-        run_name = f"{name}_s{seed}_run{index + 1:02d}"
-        recordings.append(Recording(f"<{run_name}>", grid, temperatures, rpm, {}, {AXIS: measured}, name=run_name))
+        recording, offset = _logged_day(rng, f"{name}_s{seed}_run{index + 1:02d}", grid, truth,
+                                        _ar1(rng, grid, 0.3, 0.95), sensors, spindle_load)
+        recordings.append(recording)
         offsets.append(offset)
         labels.append(f"{duration_s / 3600:.1f} h")
     effect, parameters = (("thermal_lag", {"tau_s": CORRELATED_LAG_TAU_S, "spindle_um_per_K": CORRELATED_LAG_UM_PER_K,
