@@ -253,6 +253,25 @@ def test_m0_interrupts_until_nc_start() -> None:
     assert channel.state.status == CHAN_RESET and emu.nck.axes.positions_mm[1] == 20.0
 
 
+
+def test_a_frame_the_program_selects_becomes_the_nck_s_active_frame() -> None:
+    """G54/G55/G500 in a block make that settable frame the NCK's active one (actFrameIndex, work
+    positions), at that block: what the program moves in is what the NCK reports."""
+    machine = MACHINE + '[work_offsets]\nG54 = { X1 = 100.0 }\nG55 = { X1 = 300.0 }\n'
+    emu, clock = emulator(machine=machine)
+    channel = emu.nck.channels[1]
+    assert emu.nck.frames.active[1] == 0
+    channel.select(store(emu, "FRAMES.MPF", "G54\nG0 X10\nM0\nG55 X10\nM0\nG500 X10\nM30\n"))
+    channel.start()
+    run(emu, clock, 5.0)
+    assert emu.nck.frames.active[1] == 1 and emu.nck.axes.positions_mm[1] == 110.0
+    channel.start()
+    run(emu, clock, 10.0)
+    assert emu.nck.frames.active[1] == 2 and emu.nck.axes.positions_mm[1] == 310.0
+    channel.start()
+    run(emu, clock, 20.0)
+    assert emu.nck.frames.active[1] == 0 and emu.nck.axes.positions_mm[1] == 10.0
+
 def test_r_parameters_are_the_nck_s() -> None:
     from nckemu.emulator.machine.nck.access import AccessContext
     from nckemu.protocol.addresses import NckAddress, NckArea

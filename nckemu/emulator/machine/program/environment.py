@@ -49,6 +49,10 @@ class ProgramEnvironment:
         """Rotary axes take degrees and are not converted by G70/G700 (A, B, C unless told otherwise)."""
         return axis.upper() in ("A", "B", "C")
 
+    def select_settable_frame(self, frame: str) -> None:
+        """A block selected the settable frame ``frame`` (G500, G54...G57, G505...): the NCK makes it
+        the active one, so what it reports (actFrameIndex, work positions) follows the program."""
+
     def tool_length_mm(self, tool: int | str | None, edge: int | None) -> float:
         """The active tool edge's length 1 (applied along the infeed axis of the plane)."""
         return 0.0

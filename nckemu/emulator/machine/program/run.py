@@ -154,6 +154,13 @@ class NckEnvironment(ProgramEnvironment):
             return 0.0
         return frames.shifts_mm[self._channel.number][index].get(number, 0.0)
 
+    def select_settable_frame(self, frame: str) -> None:
+        from nckemu.emulator.machine.machine_file import SETTABLE_FRAMES
+
+        index = SETTABLE_FRAMES.get(frame.upper())
+        if index is not None and index < self._parts.frames.count:
+            self._parts.frames.select(self._channel.number, index)
+
     def tool_length_mm(self, tool: int | str | None, edge: int | None) -> float:
         number = self._tool_number(tool)
         if not number or not edge:

@@ -698,6 +698,7 @@ class Interpreter:
             flags["supa"] = True
         elif code == 500 or 54 <= code <= 57 or 505 <= code <= 599:
             self._load_settable(f"G{code}")
+            self.env.select_settable_frame(f"G{code}")
         elif code in (25, 26):
             flags["limit"] = True
         elif code in _SETTLED_G:
