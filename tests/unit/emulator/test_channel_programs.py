@@ -22,6 +22,7 @@ from nckemu.emulator.machine.nck.channel import (
     PROG_INTERRUPTED,
     PROG_RUNNING,
     PROG_STOPPED,
+    Channel,
 )
 from nckemu.emulator.machine.program.motions import Arc, Dwell, Move
 from nckemu.emulator.machine.program.offline import run_offline
@@ -85,6 +86,16 @@ def store(emu: Emulator, name: str, text: str) -> str:
     path = program_path(name)
     emu.nck.programs.write(path, text.encode())
     return path
+
+
+def started(emu: Emulator, name: str, text: str) -> tuple[Channel, list[str]]:
+    """Store the program, select it in channel 1 and start it; the list collects the channel's changes."""
+    channel = emu.nck.channels[1]
+    changes: list[str] = []
+    channel.on_change.append(changes.append)
+    channel.select(store(emu, name, text))
+    channel.start()
+    return channel, changes
 
 
 # ------------------------------------------------------------------ the planner, by hand
@@ -155,11 +166,7 @@ def test_program_takes_its_time_whatever_the_cycle() -> None:
     results = []
     for cycle_s in (0.1, 1.0, 0.37):
         emu, clock = emulator(cycle_s)
-        channel = emu.nck.channels[1]
-        changes: list[str] = []
-        channel.on_change.append(changes.append)
-        channel.select(store(emu, "TIMED.MPF", PROGRAM))
-        channel.start()
+        channel, changes = started(emu, "TIMED.MPF", PROGRAM)
         run(emu, clock, 20.0)
         assert changes == ["selected", "started", "ended"]
         state = channel.state
@@ -203,11 +210,7 @@ def test_positions_feed_and_spindle_while_it_runs() -> None:
 
 def test_stop_holds_and_start_resumes_the_remaining_path() -> None:
     emu, clock = emulator()
-    channel = emu.nck.channels[1]
-    changes: list[str] = []
-    channel.on_change.append(changes.append)
-    channel.select(store(emu, "TIMED.MPF", PROGRAM))
-    channel.start()
+    channel, changes = started(emu, "TIMED.MPF", PROGRAM)
     run(emu, clock, 5.0)
     channel.stop()
     x_stopped = emu.nck.axes.positions_mm[1]
@@ -224,11 +227,7 @@ def test_stop_holds_and_start_resumes_the_remaining_path() -> None:
 
 def test_reset_aborts_and_counts() -> None:
     emu, clock = emulator()
-    channel = emu.nck.channels[1]
-    changes: list[str] = []
-    channel.on_change.append(changes.append)
-    channel.select(store(emu, "TIMED.MPF", PROGRAM))
-    channel.start()
+    channel, changes = started(emu, "TIMED.MPF", PROGRAM)
     run(emu, clock, 3.0)
     assert emu.nck.programs.running == "/_N_MPF_DIR/_N_TIMED_MPF"
     with pytest.raises(NckPiStateError):
@@ -329,11 +328,7 @@ def test_select_start_and_mode_refusals() -> None:
 ])
 def test_bad_programs_end_in_an_alarm_and_reset_clears_it(text: str, number: int | None) -> None:
     emu, clock = emulator()
-    channel = emu.nck.channels[1]
-    changes: list[str] = []
-    channel.on_change.append(changes.append)
-    channel.select(store(emu, "BAD.MPF", text))
-    channel.start()
+    channel, changes = started(emu, "BAD.MPF", text)
     run(emu, clock, 5.0)
     assert (channel.state.status, channel.state.program_status) == (CHAN_INTERRUPTED, PROG_INTERRUPTED)
     assert changes[-1] == "interrupted" and len(channel.alarms) == 1
