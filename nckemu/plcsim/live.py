@@ -29,6 +29,12 @@ from nckemu.emulator.faces.s7.server import EmulatorServer
 from nckemu.emulator.machine.clock import LiveClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.cycle import CyclePacer, PacerStats
+from nckemu.emulator.machine.plc.channel_signals import (
+    BYTE_MODE_ACTIVE,
+    BYTE_STATE,
+    FIRST_CHANNEL_DB,
+    MODE_GROUP_DB,
+)
 from nckemu.errors import NckConfigError, NckError
 from nckemu.protocol.addresses import S7Area
 from nckemu.thermal.recordings.recording import Recording, load_recording
@@ -40,11 +46,6 @@ log = logging.getLogger(__name__)
 T = TypeVar("T")
 
 JOB_WAIT_S = 10.0
-# The NCK interface DBs a program may declare: DB11 (mode group) and DB21.. (channels); bytes below
-# the first NCK byte are the PLC's (requests), from it on the NCK's (states): DB11.DBB6, DB21.DBB35
-# (docs/programs.md). Whatever the program writes there reaches the NCK once per cycle.
-MODE_GROUP_DB, MODE_GROUP_FIRST_NCK_BYTE = 11, 6
-CHANNEL_DB, CHANNEL_FIRST_NCK_BYTE = 21, 35
 # A PLC cycle that takes this much wall time is taken for a hanging program (an endless loop).
 CYCLE_WATCHDOG_WALL_S = 1.0
 MINUTE_S = 60.0
@@ -236,11 +237,13 @@ class LiveMachine:
 
     # ------------------------------------------------------------------ the NCK interface DBs
     def _interface_dbs(self, runner: PlcRunner) -> list[tuple[int, bytearray, int]]:
-        """DB11 and DB21.. as the program declares them: (number, its memory in awlsim, first NCK byte)."""
+        """DB11 and DB21.. as the program declares them: (number, its memory in awlsim, first NCK byte).
+        Bytes below the first NCK byte are the PLC's (requests), from it on the NCK's (states: DB11.DBB6,
+        DB21.DBB35, docs/programs.md); whatever the program writes there reaches the NCK once per cycle."""
         found = []
         channels = len(self.emulator.nck.channels)
-        for number, first_nck in ((MODE_GROUP_DB, MODE_GROUP_FIRST_NCK_BYTE),
-                                  *((CHANNEL_DB + n, CHANNEL_FIRST_NCK_BYTE) for n in range(channels))):
+        for number, first_nck in ((MODE_GROUP_DB, BYTE_MODE_ACTIVE),
+                                  *((FIRST_CHANNEL_DB + n, BYTE_STATE) for n in range(channels))):
             try:
                 db = runner.sim.cpu.getDB(number)
                 memory = db.structInstance.memory.getDataBytes() if db is not None else None
