@@ -123,7 +123,6 @@ class Channel:
         # program of the current block name it); kept after its end, as a selection is, until a select.
         self.recorded_program = ""
         self.run: ProgramRun | None = None
-        self.waiting = False
         self.last_run_blocks = 0          # blocks the last run executed (program run offline)
         # The net time of the last complete run (ended by M2/M30 or its last block, not by reset) of each
         # program: path -> (hash of its text, seconds), what time_left_s counts down from. A changed text
@@ -319,8 +318,7 @@ class Channel:
             self.program_alarm(ProgramAlarm(12080, f"internal error: {type(exc).__name__}: {exc}"))
             return
         waiting = outcome == "waiting"
-        if waiting != self.waiting:
-            self.waiting = waiting
+        if waiting != (self.state.program_status == PROG_WAITING):
             self.state.program_status = PROG_WAITING if waiting else PROG_RUNNING
             self._tell_state()
         if outcome == "ended":
@@ -359,7 +357,6 @@ class Channel:
         self._hold(at_s)
         if self.run is not None:
             self.run.pause(at_s)
-        self.waiting = False
         self.state.status, self.state.program_status = CHAN_INTERRUPTED, program_status
         self.state.path_feed_mm_min = 0.0
         self._tell("interrupted")
@@ -367,7 +364,6 @@ class Channel:
 
     def _finish_run(self) -> None:
         run, self.run = self.run, None
-        self.waiting = False
         self.state.path_feed_mm_min = 0.0
         if run is not None:
             run.close(run.t_s if run.ended else self._clock.now_s())
