@@ -4,10 +4,8 @@ DB21.DBB35 and DB11.DBB6 always say what the channel says."""
 
 from __future__ import annotations
 
-import contextlib
-
 from hypothesis import strategies as st
-from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
+from hypothesis.stateful import invariant, rule
 
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
@@ -23,8 +21,9 @@ from nckemu.emulator.machine.nck.channel import (
     PROG_WAITING,
 )
 from nckemu.emulator.machine.plc.channel_signals import MODE_ACTIVE_BITS, state_byte
-from nckemu.errors import NckError
 from nckemu.protocol.addresses import S7Area
+
+from .channel_rules import ChannelCommandRules
 
 MACHINE = """
 name = "state machine mill"
@@ -48,7 +47,7 @@ PROGRAMS = {
 }
 
 
-class ChannelMachine(RuleBasedStateMachine):
+class ChannelMachine(ChannelCommandRules):
     def __init__(self) -> None:
         super().__init__()
         self.clock = SimulatedClock()
@@ -61,37 +60,13 @@ class ChannelMachine(RuleBasedStateMachine):
         self.channel.on_change.append(self.changes.append)
         self.counters = (0, 0, 0)
 
-    def _try(self, action) -> None:  # type: ignore[no-untyped-def]
-        with contextlib.suppress(NckError):
-            action()
-
     @rule(path=st.sampled_from(sorted(PROGRAMS)))
     def select(self, path: str) -> None:
         self._try(lambda: self.channel.select(path))
 
-    @rule()
-    def unselect(self) -> None:
-        self._try(self.channel.unselect)
-
-    @rule()
-    def start(self) -> None:
-        self._try(self.channel.start)
-
-    @rule()
-    def stop(self) -> None:
-        self._try(self.channel.stop)
-
-    @rule()
-    def reset(self) -> None:
-        self._try(self.channel.reset)
-
     @rule(mode=st.integers(0, 2))
     def mode(self, mode: int) -> None:
         self._try(lambda: self.channel.set_mode(mode))
-
-    @rule(value=st.integers(0, 255))
-    def db21_byte7(self, value: int) -> None:
-        self.emulator.plc.write(S7Area.DB, 21, 7, bytes([value]))
 
     @rule(value=st.integers(0, 7))
     def db11_byte0(self, value: int) -> None:

@@ -6,11 +6,9 @@ Interrupted while it is interrupted, Initializing, Ended or Aborted in reset."""
 
 from __future__ import annotations
 
-import contextlib
-
 import pytest
 from hypothesis import strategies as st
-from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
+from hypothesis.stateful import invariant, rule
 
 from nckemu.emulator.faces.opcua import nodesets
 from nckemu.emulator.faces.opcua.production import ProgramTracker
@@ -26,9 +24,8 @@ from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.machine_file import parse_machine
 from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE, CHAN_INTERRUPTED, CHAN_RESET
-from nckemu.errors import NckError
-from nckemu.protocol.addresses import S7Area
 
+from .channel_rules import ChannelCommandRules
 from .test_program_states import Transitions, _transitions
 
 MACHINE = """
@@ -55,7 +52,7 @@ pytestmark = pytest.mark.skipif(nodesets.find() is None, reason=nodesets.how_to_
 LEGAL: dict[str, Transitions] = {}
 
 
-class TrackedChannel(RuleBasedStateMachine):
+class TrackedChannel(ChannelCommandRules):
     def __init__(self) -> None:
         super().__init__()
         if not LEGAL:
@@ -72,33 +69,9 @@ class TrackedChannel(RuleBasedStateMachine):
                                                             self.steps["job"].extend(job)))
         self.tracker.start()
 
-    def _try(self, action) -> None:  # type: ignore[no-untyped-def]
-        with contextlib.suppress(NckError):
-            action()
-
     @rule(path=st.sampled_from(sorted(PROGRAMS)))
     def select(self, path: str) -> None:
         self._try(lambda: self.channel.select(path))
-
-    @rule()
-    def unselect(self) -> None:
-        self._try(self.channel.unselect)
-
-    @rule()
-    def start(self) -> None:
-        self._try(self.channel.start)
-
-    @rule()
-    def stop(self) -> None:
-        self._try(self.channel.stop)
-
-    @rule()
-    def reset(self) -> None:
-        self._try(self.channel.reset)
-
-    @rule(value=st.integers(0, 255))
-    def db21_byte7(self, value: int) -> None:
-        self.emulator.plc.write(S7Area.DB, 21, 7, bytes([value]))
 
     @rule(parts=st.integers(0, 3))
     def parts_planned(self, parts: int) -> None:

@@ -1,0 +1,46 @@
+"""The NC commands and DB21 control bytes a channel state machine test throws at channel 1, shared by
+the channel's own state machine and the umati program tracker's (each adds its own select rule)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, rule
+
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.nck.channel import Channel
+from nckemu.errors import NckError
+from nckemu.protocol.addresses import S7Area
+
+
+class ChannelCommandRules(RuleBasedStateMachine):
+    """Rules on ``self.channel`` of ``self.emulator`` (set by the subclass); a refused command is fine."""
+
+    emulator: Emulator
+    channel: Channel
+
+    def _try(self, action: Callable[[], object]) -> None:
+        with contextlib.suppress(NckError):
+            action()
+
+    @rule()
+    def unselect(self) -> None:
+        self._try(self.channel.unselect)
+
+    @rule()
+    def start(self) -> None:
+        self._try(self.channel.start)
+
+    @rule()
+    def stop(self) -> None:
+        self._try(self.channel.stop)
+
+    @rule()
+    def reset(self) -> None:
+        self._try(self.channel.reset)
+
+    @rule(value=st.integers(0, 255))
+    def db21_byte7(self, value: int) -> None:
+        self.emulator.plc.write(S7Area.DB, 21, 7, bytes([value]))
