@@ -18,7 +18,7 @@ from nckemu.cliutil import check_output, command_group
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.program.offline import recording_columns, run_offline
-from nckemu.emulator.machine.program.run import BlockRecord
+from nckemu.emulator.machine.program.run import BlockRecord, channel_axes
 from nckemu.errors import NckConfigError, NckError
 
 RUN_EXAMPLE = """\
@@ -168,8 +168,6 @@ def run_program_command(args: argparse.Namespace) -> int:
 
 
 def _axis_names(emulator: Emulator) -> list[str]:
-    from nckemu.emulator.machine.program.run import channel_axes
-
     names = channel_axes(emulator.nck)
     machine_names = {axis.name.upper() for axis in emulator.machine.axes}
     short = [name for name in names if name not in machine_names]
