@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.machine_file import Axis, Machine
 from nckemu.emulator.machine.nck.channel import CHAN_INTERRUPTED, CHAN_RESET
 from nckemu.emulator.machine.program.run import BlockRecord
 from nckemu.errors import NckConfigError
@@ -39,25 +40,34 @@ class OfflineResult:
     alarms: list[str] = field(default_factory=list)
 
 
+def _has_spindle(machine: Machine) -> bool:
+    return any(axis.spindle for axis in machine.axes)
+
+
+def _recorded_axes(machine: Machine) -> list[Axis]:
+    """The axes a recording has columns of (pos_ and err_): those with a recording name, no spindle."""
+    return [axis for axis in machine.axes if not axis.spindle and axis.recording]
+
+
 def recording_columns(emulator: Emulator) -> list[str]:
     machine = emulator.machine
+    axes = _recorded_axes(machine)
     columns = ["t_s", *(f"temp_{sensor.name}_C" for sensor in machine.sensors)]
-    if any(axis.spindle for axis in machine.axes):
+    if _has_spindle(machine):
         columns.append("spindle_rpm")
-    columns += [f"pos_{axis.recording}_mm" for axis in machine.axes if not axis.spindle and axis.recording]
-    columns += [f"err_{axis.recording}_um" for axis in machine.axes if not axis.spindle and axis.recording]
+    columns += [f"pos_{axis.recording}_mm" for axis in axes]
+    columns += [f"err_{axis.recording}_um" for axis in axes]
     return columns
 
 
 def sample(emulator: Emulator, t_s: float) -> list[float]:
-    nck = emulator.nck
-    row = [t_s, *(nck.sensor_temperature_C(sensor.name) for sensor in emulator.machine.sensors)]
-    if any(axis.spindle for axis in emulator.machine.axes):
+    nck, machine = emulator.nck, emulator.machine
+    axes = _recorded_axes(machine)
+    row = [t_s, *(nck.sensor_temperature_C(sensor.name) for sensor in machine.sensors)]
+    if _has_spindle(machine):
         row.append(nck.channels[1].spindle_speed_rpm(1) if nck.channels[1].state.spindles else 0.0)
-    row += [nck.actual_position_mm(axis.number) for axis in emulator.machine.axes
-            if not axis.spindle and axis.recording]
-    row += [emulator.heat.measured_error_um(axis.number) for axis in emulator.machine.axes
-            if not axis.spindle and axis.recording]
+    row += [nck.actual_position_mm(axis.number) for axis in axes]
+    row += [emulator.heat.measured_error_um(axis.number) for axis in axes]
     return row
 
 
