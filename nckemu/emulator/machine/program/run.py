@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from nckemu.emulator.machine.nck.channel import program_text
 from nckemu.emulator.machine.program.environment import ProgramEnvironment, UndefinedName
 from nckemu.emulator.machine.program.motions import (
     ALARM_FEED_ZERO,
@@ -49,6 +50,9 @@ if TYPE_CHECKING:
 SEARCH_DIRECTORIES = ("/_N_SPF_DIR", "/_N_CUS_DIR", "/_N_CMA_DIR", "/_N_CST_DIR", "/_N_MPF_DIR")
 TURN_STOPPED, TURN_CW, TURN_CCW = 0, 1, 2
 _DIRECTIONS = {"M3": TURN_CW, "M4": TURN_CCW, "M5": TURN_STOPPED}
+# The part counters a program reads and writes: system variable -> the channel state's field.
+PART_COUNTERS = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
+                 "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
 
 
 def channel_axes(parts: NckParts) -> dict[str, int]:
@@ -187,10 +191,8 @@ class NckEnvironment(ProgramEnvironment):
         if key in ("$AA_IM", "$AA_MM") and len(indices) == 1 and str(indices[0]).upper() in self._axes:
             # the actual machine position, with the compensation ($P_EP, $AA_IW: the interpreter's own)
             return self._parts.actual_position_mm(self._axes[str(indices[0]).upper()])
-        counters = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
-                    "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
-        if key in counters:
-            return getattr(state, counters[key])
+        if key in PART_COUNTERS:
+            return getattr(state, PART_COUNTERS[key])
         if key == "$AC_PROG":
             return self._channel.ac_prog
         if key == "$P_TOOLNO":
@@ -200,9 +202,7 @@ class NckEnvironment(ProgramEnvironment):
         raise UndefinedName(name)
 
     def set_system_variable(self, name: str, indices: tuple[object, ...], value: object) -> None:
-        counters = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
-                    "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
-        attribute = counters.get(name.upper())
+        attribute = PART_COUNTERS.get(name.upper())
         if attribute is None:
             raise UndefinedName(name)
         setattr(self._channel.state, attribute, float(value))  # type: ignore[arg-type]
@@ -230,11 +230,7 @@ class NckEnvironment(ProgramEnvironment):
         for path in dict.fromkeys(candidates):
             if programs.exists(path):
                 try:
-                    data = programs.read(path)
-                    try:
-                        return path, data.decode("utf-8")
-                    except UnicodeDecodeError:
-                        return path, data.decode("latin-1")
+                    return path, program_text(programs.read(path))
                 except NckNoSuchFile:
                     continue
         return None
