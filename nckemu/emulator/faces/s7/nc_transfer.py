@@ -213,7 +213,7 @@ class NcTransfers:
             lines = []
             for child in self.programs.children(path):
                 leaf = child.rsplit("/", 1)[-1]
-                size = len(self.programs.texts.get(child, b"")) if child in self.programs.paths else 0
+                size = len(self.programs.texts.get(child, b""))
                 lines.append(LISTING_LINE.format(name=leaf, size=size))
             return ncprog.build_transfer_content(ncprog.TransferContent(
                 path, "".join(lines).encode("ascii"), self._stamp(), length=None))
