@@ -185,8 +185,8 @@ class Dispatcher:
                              unsupported_function_error=settings.unsupported_function_error,
                              drive_transport_size=emulator.machine.drive_settings.answer_transport_size,
                              programs=emulator.nck.programs,
-                             program_store_bytes=getattr(settings, "program_store_bytes", DEFAULT_STORE_BYTES),
-                             nc_download_window=getattr(settings, "nc_download_window", DOWNLOAD_WINDOW))
+                             program_store_bytes=settings.program_store_bytes,
+                             nc_download_window=settings.nc_download_window)
             _BY_MACHINE[emulator] = dispatcher
         return dispatcher
 

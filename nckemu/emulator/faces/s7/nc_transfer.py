@@ -34,14 +34,6 @@ from nckemu.protocol.ncprog import NcData, NcParameter, NcSubfunction
 
 log = logging.getLogger("nckemu.emulator.nc_transfer")
 
-# The 2-byte error codes of the NC programming parameter (UNCONFIRMED: protocol/ncprog.py).
-ERROR_NO_SUCH_FILE = ncprog.ERROR_NO_SUCH_FILE
-ERROR_STORE_FULL = ncprog.ERROR_STORE_FULL
-ERROR_NOT_A_FILE_NAME = ncprog.ERROR_NOT_A_FILE_NAME
-ERROR_IN_USE = ncprog.ERROR_IN_USE
-ERROR_BAD_CONTENT = ncprog.ERROR_BAD_CONTENT
-ERROR_SEQUENCE = ncprog.ERROR_SEQUENCE
-
 # Telegrams a client may send before waiting (announced in the answer to request download, and the
 # count after which the NC pushes "continue download"; libnodave uses 8 after the first window). The
 # machine file's settings.nc_download_window overrides it.
@@ -58,14 +50,14 @@ LISTING_LINE = "{name} {size}\n"
 
 def _error_for(exc: NckError) -> int:
     if isinstance(exc, NckNoSuchFile):
-        return ERROR_NO_SUCH_FILE
+        return ncprog.ERROR_NO_SUCH_FILE
     if isinstance(exc, NckPiBadArguments):
-        return ERROR_NOT_A_FILE_NAME
+        return ncprog.ERROR_NOT_A_FILE_NAME
     if isinstance(exc, NckPiStateError):
-        return ERROR_IN_USE
+        return ncprog.ERROR_IN_USE
     if isinstance(exc, NckProtocolError):
-        return ERROR_BAD_CONTENT
-    return ERROR_SEQUENCE
+        return ncprog.ERROR_BAD_CONTENT
+    return ncprog.ERROR_SEQUENCE
 
 
 @dataclass
@@ -118,7 +110,7 @@ class NcTransfers:
             return [self._request_download(pdu.pdu_ref, data.payload)]
         if parameter.type == ncprog.NC_REQUEST and sub in (NcSubfunction.DOWNLOAD_BLOCK, NcSubfunction.CONTINUE_UPLOAD):
             # pushes sent as requests: a request is always answered, and these are not requests
-            return [self._answer(pdu.pdu_ref, sub, parameter.sequence, error=ERROR_SEQUENCE)]
+            return [self._answer(pdu.pdu_ref, sub, parameter.sequence, error=ncprog.ERROR_SEQUENCE)]
         if sub == NcSubfunction.DOWNLOAD_BLOCK:
             return self._download_block(pdu.pdu_ref, parameter, data.payload)
         if sub == NcSubfunction.DOWNLOAD_ENDED and parameter.type == ncprog.NC_REQUEST:
@@ -128,7 +120,7 @@ class NcTransfers:
         if sub == NcSubfunction.CONTINUE_UPLOAD:
             return self._continue_upload(pdu.pdu_ref, parameter)
         if parameter.type == ncprog.NC_REQUEST:
-            return [self._answer(pdu.pdu_ref, sub, parameter.sequence, error=ERROR_SEQUENCE)]
+            return [self._answer(pdu.pdu_ref, sub, parameter.sequence, error=ncprog.ERROR_SEQUENCE)]
         log.debug("NC programming %s from %s ignored", ncprog.describe(parameter), self.peer)
         return []
 
@@ -151,7 +143,7 @@ class NcTransfers:
             program_path(name)
         except (NckProtocolError, NckPiBadArguments) as exc:
             log.info("NC download from %s refused: %s", self.peer, exc)
-            return self._answer(pdu_ref, sub, 0, error=ERROR_NOT_A_FILE_NAME)
+            return self._answer(pdu_ref, sub, 0, error=ncprog.ERROR_NOT_A_FILE_NAME)
         sequence = self._next_sequence()
         self._download = _Download(sequence, name)
         log.info("NC download of %s from %s begins (sequence %d)", name, self.peer, sequence)
@@ -168,7 +160,7 @@ class NcTransfers:
         download.received_bytes += len(chunk)
         # The content's header and $PATH line come on top of the text: allow them beyond the store's room.
         if not download.error and download.received_bytes > self._room() + 1024:
-            download.error = ERROR_STORE_FULL
+            download.error = ncprog.ERROR_STORE_FULL
             download.pieces.clear()
         if not download.error:
             download.pieces.append(chunk)
@@ -184,7 +176,7 @@ class NcTransfers:
         sub = NcSubfunction.DOWNLOAD_ENDED
         download = self._download
         if download is None or parameter.sequence != download.sequence:
-            return self._answer(pdu_ref, sub, parameter.sequence, error=ERROR_SEQUENCE)
+            return self._answer(pdu_ref, sub, parameter.sequence, error=ncprog.ERROR_SEQUENCE)
         self._download = None
         error = download.error or self._store(download)
         if error:
@@ -200,7 +192,7 @@ class NcTransfers:
             path = program_path(name if name.startswith("/") else f"{content.path.rstrip('/')}/{name}")
             old = len(self.programs.texts.get(path, b""))
             if self.programs.stored_bytes() - old + len(content.text) > self.store_bytes:
-                return ERROR_STORE_FULL
+                return ncprog.ERROR_STORE_FULL
             self.programs.write(path, content.text)
         except NckError as exc:
             log.info("NC download of %s from %s: %s", download.name, self.peer, exc)
@@ -221,7 +213,7 @@ class NcTransfers:
             lines = []
             for child in self.programs.children(path):
                 leaf = child.rsplit("/", 1)[-1]
-                size = len(self.programs.texts.get(child, b"")) if child in self.programs.paths else 0
+                size = len(self.programs.texts.get(child, b""))
                 lines.append(LISTING_LINE.format(name=leaf, size=size))
             return ncprog.build_transfer_content(ncprog.TransferContent(
                 path, "".join(lines).encode("ascii"), self._stamp(), length=None))

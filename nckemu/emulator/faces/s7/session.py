@@ -234,11 +234,7 @@ class ServerSession:
                     and not self._fragments:
                 # The common case, a whole S7 PDU in one DT: skip building a DataTpdu for it.
                 if _is_nc_push(frame, _PDU_OFFSET):
-                    answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=False)
-                    if answer is not None:
-                        out.extend(self._data_frames(answer))
-                    if self._pushes:
-                        out.extend(self._flush_pushes())
+                    out.extend(self._answer_frames(self._handle_pdu(frame[_PDU_OFFSET:], over_amq=False)))
                     continue
                 jobs_in_flight += 1
                 over_amq = jobs_in_flight > self.info.amq
@@ -247,11 +243,7 @@ class ServerSession:
                     if answer_frame is not None:
                         out.append(answer_frame)
                         continue
-                answer = self._handle_pdu(frame[_PDU_OFFSET:], over_amq=over_amq)
-                if answer is not None:
-                    out.extend(self._data_frames(answer))
-                if self._pushes:
-                    out.extend(self._flush_pushes())
+                out.extend(self._answer_frames(self._handle_pdu(frame[_PDU_OFFSET:], over_amq=over_amq)))
                 continue
             try:
                 payload = tpkt.parse_tpkt(frame)
@@ -265,11 +257,7 @@ class ServerSession:
                     continue
                 if not _is_nc_push(pdu_bytes, 0):
                     jobs_in_flight += 1
-                answer = self._handle_pdu(pdu_bytes, over_amq=jobs_in_flight > self.info.amq)
-                if answer is not None:
-                    out.extend(self._data_frames(answer))
-                if self._pushes:
-                    out.extend(self._flush_pushes())
+                out.extend(self._answer_frames(self._handle_pdu(pdu_bytes, over_amq=jobs_in_flight > self.info.amq)))
             elif isinstance(tpdu, cotp.ConnectRequest):
                 out.extend(self._handle_connect(tpdu))
             elif isinstance(tpdu, cotp.DisconnectRequest):
@@ -424,8 +412,10 @@ class ServerSession:
         self._pushes.extend(answers[1:])
         return True, answers[0]
 
-    def _flush_pushes(self) -> list[bytes]:
-        frames = []
+    def _answer_frames(self, answer: bytes | None) -> list[bytes]:
+        """The DT frames of ``answer`` (none for a telegram that gets none), then of the pushes that
+        follow it (an upload's pieces)."""
+        frames = [] if answer is None else self._data_frames(answer)
         for push in self._pushes:
             frames.extend(self._data_frames(push))
         self._pushes.clear()
