@@ -143,9 +143,7 @@ def run_serve(args: argparse.Namespace, *, clock: Clock | None = None, faces: Se
         from nckemu.emulator.machine_check import opcua_settings
 
         # the [opcua] table refused with its line, as machine show refuses it (one path for both)
-        opcua_settings(emulator.machine)
-
-        built.append(OpcUaFace(emulator, args.host, args.opcua))
+        built.append(OpcUaFace(emulator, args.host, args.opcua, opcua_settings(emulator.machine)))
     try:
         with asyncio.Runner(loop_factory=loop_factory(args.event_loop)) as runner:
             return runner.run(_serve(server, args, built))

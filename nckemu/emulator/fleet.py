@@ -305,8 +305,8 @@ class Fleet:
                 from nckemu.emulator.machine_check import opcua_settings
 
                 try:
-                    opcua_settings(emulator.machine)  # names the machine file's line, as serve does
-                    opcua = OpcUaFace(emulator, entry.host, entry.opcua)
+                    # the settings as serve checks them: an error names the machine file's line
+                    opcua = OpcUaFace(emulator, entry.host, entry.opcua, opcua_settings(emulator.machine))
                 except NckConfigError as exc:
                     raise NckConfigError(f"machine {entry.name!r}: {exc}", path=spec.source, line=entry.line,
                                          field="opcua") from None

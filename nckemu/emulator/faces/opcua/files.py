@@ -39,7 +39,7 @@ def program_path(text: str) -> str | None:
         return None
 
 
-def _plain(argument: Any) -> Any:
+def plain(argument: Any) -> Any:
     """asyncua hands method arguments over as variants."""
     return argument.Value if isinstance(argument, ua.Variant) else argument
 
@@ -48,18 +48,40 @@ def _bad(name: str) -> ua.StatusCode:
     return ua.StatusCode(getattr(ua.StatusCodes, name))
 
 
+def refused(right: str, write: bool) -> ua.StatusCode | None:
+    """Why the request's session may not call a method needing ``right`` (None: it may)."""
+    if not request.user():
+        return _bad("BadRequestNotAllowed")  # as the controller: anonymous sessions call no methods
+    if not may(request.rights(), right, write):
+        return _bad("BadUserAccessDenied")
+    return None
+
+
+def argument(name: str, kind: ua.VariantType, description: str = "") -> ua.Argument:
+    """A scalar method argument (described by its name unless ``description`` is given)."""
+    return ua.Argument(Name=name, DataType=ua.NodeId(kind.value), ValueRank=-1, ArrayDimensions=[],
+                       Description=ua.LocalizedText(description or name))
+
+
+MethodRow = tuple[str, Callable[..., Awaitable[Any]], list[ua.Argument], list[ua.Argument],
+                  Callable[[str, frozenset[str]], bool]]
+
+
+async def add_method_nodes(server: Server, methods: Any, ns: int, table: list[MethodRow]) -> None:
+    """Each row's method below ``methods`` as ``/Methods/<name>``, with UserExecutable as the session
+    reads it decided by the row's last entry (user, rights), as the handler decides."""
+    for name, method, inputs, outputs, executable in table:
+        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
+                                        request.with_arguments(method, len(inputs)), inputs, outputs)
+        server.set_attribute_value_callback(node.nodeid, request.user_executable(executable),
+                                            ua.AttributeIds.UserExecutable)
+
+
 async def add_methods(face: MethodHost, server: Server) -> Any:
     ns = face.namespace
     root = await server.nodes.objects.get_child([f"{ns}:Sinumerik"])
     methods = await root.add_object(ua.NodeId("/Methods", ns), ua.QualifiedName("Methods", ns))
     programs = face.emulator.nck.programs
-
-    def refused(right: str, write: bool) -> ua.StatusCode | None:
-        if not request.user():
-            return _bad("BadRequestNotAllowed")  # as the controller: anonymous sessions call no methods
-        if not may(request.rights(), right, write):
-            return _bad("BadUserAccessDenied")
-        return None
 
     async def get_my_access_rights(_parent: Any) -> Any:
         if not request.user():
@@ -70,7 +92,7 @@ async def add_methods(face: MethodHost, server: Server) -> Any:
         status = refused("FS", True)
         if status is not None:
             return status
-        path, data, overwrite = _plain(path), _plain(data), _plain(overwrite)
+        path, data, overwrite = plain(path), plain(data), plain(overwrite)
         target = program_path(path) if isinstance(path, str) else None
         if target is None or not isinstance(data, bytes) or len(data) > MAX_PROGRAM_BYTES:
             return _bad("BadInvalidArgument")
@@ -88,7 +110,7 @@ async def add_methods(face: MethodHost, server: Server) -> Any:
         status = refused("FS", False)
         if status is not None:
             return status
-        path = _plain(path)
+        path = plain(path)
         target = program_path(path) if isinstance(path, str) else None
         if target is None:
             return _bad("BadInvalidArgument")
@@ -98,26 +120,15 @@ async def add_methods(face: MethodHost, server: Server) -> Any:
             return _bad("BadNotFound")
         return [ua.Variant(text, ua.VariantType.ByteString)]
 
-    def argument(name: str, kind: ua.VariantType) -> ua.Argument:
-        return ua.Argument(Name=name, DataType=ua.NodeId(kind.value), ValueRank=-1, ArrayDimensions=[],
-                           Description=ua.LocalizedText(name))
-
     text, blob, flag = ua.VariantType.String, ua.VariantType.ByteString, ua.VariantType.Boolean
-    table: list[tuple[str, Callable[..., Awaitable[Any]], list[ua.Argument], list[ua.Argument]]] = [
-        ("GetMyAccessRights", get_my_access_rights, [], [argument("rights", text)]),
-        ("CopyFileToServer", copy_to_server,
-         [argument("path", text), argument("data", blob), argument("overwrite", flag)], []),
-        ("CopyFileFromServer", copy_from_server, [argument("path", text)], [argument("data", blob)]),
-    ]
     # Who may call each (UserExecutable as the session reads it): as the handlers above decide.
-    executable: dict[str, Callable[[str, frozenset[str]], bool]] = {
-        "GetMyAccessRights": lambda user, _rights: bool(user),
-        "CopyFileToServer": lambda user, rights: bool(user) and may(rights, "FS", True),
-        "CopyFileFromServer": lambda user, rights: bool(user) and may(rights, "FS", False),
-    }
-    for name, method, inputs, outputs in table:
-        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
-                                        request.with_arguments(method, len(inputs)), inputs, outputs)
-        server.set_attribute_value_callback(node.nodeid, request.user_executable(executable[name]),
-                                            ua.AttributeIds.UserExecutable)
+    await add_method_nodes(server, methods, ns, [
+        ("GetMyAccessRights", get_my_access_rights, [], [argument("rights", text)],
+         lambda user, _rights: bool(user)),
+        ("CopyFileToServer", copy_to_server,
+         [argument("path", text), argument("data", blob), argument("overwrite", flag)], [],
+         lambda user, rights: bool(user) and may(rights, "FS", True)),
+        ("CopyFileFromServer", copy_from_server, [argument("path", text)], [argument("data", blob)],
+         lambda user, rights: bool(user) and may(rights, "FS", False)),
+    ])
     return methods

@@ -56,25 +56,20 @@ class _StateMachine:
         self.state, self.last = to_state, step
         steps.append(step)
 
-    def _run(self, steps: list[Step]) -> None:
-        """Started or resumed: into Running from wherever a start leads there."""
-        if self.state in _FINISHED:
-            self._go(INITIALIZING, steps)
-        if self.state in (INITIALIZING, INTERRUPTED):
-            self._go(RUNNING, steps)
-
-
-class ProgramStates(_StateMachine):
-    """The ActiveProgram's state machine."""
-
-    def on(self, event: str) -> list[Step]:
-        """The transitions ``event`` takes, in order (none when it changes nothing)."""
+    def _move(self, event: str, *, select_abandons_run: bool, another_run: bool) -> list[Step]:
+        """The transitions ``event`` takes, in order (none when it changes nothing); a job abandons
+        a run on a new selection and goes Running -> Running on an end while runs remain."""
         steps: list[Step] = []
         if event in ("selected", "unselected"):
+            if select_abandons_run and self.state == RUNNING:
+                self._go(ABORTED, steps)
             if self.state in _FINISHED:
                 self._go(INITIALIZING, steps)
         elif event in ("started", "resumed"):
-            self._run(steps)
+            if self.state in _FINISHED:
+                self._go(INITIALIZING, steps)
+            if self.state in (INITIALIZING, INTERRUPTED):
+                self._go(RUNNING, steps)
         elif event == "interrupted":
             if self.state == RUNNING:
                 self._go(INTERRUPTED, steps)
@@ -82,11 +77,19 @@ class ProgramStates(_StateMachine):
             if self.state == INTERRUPTED:
                 self._go(RUNNING, steps)
             if self.state == RUNNING:
-                self._go(ENDED, steps)
+                self._go(RUNNING if another_run else ENDED, steps)
         elif event == "aborted":
             if self.state in (RUNNING, INTERRUPTED):
                 self._go(ABORTED, steps)
         return steps
+
+
+class ProgramStates(_StateMachine):
+    """The ActiveProgram's state machine."""
+
+    def on(self, event: str) -> list[Step]:
+        """The transitions ``event`` takes, in order (none when it changes nothing)."""
+        return self._move(event, select_abandons_run=False, another_run=False)
 
 
 class JobStates(_StateMachine):
@@ -95,27 +98,8 @@ class JobStates(_StateMachine):
 
     def on(self, event: str, runs_completed: float, runs_planned: float) -> list[Step]:
         """The transitions ``event`` takes, with the job's counters as they are after it."""
-        steps: list[Step] = []
-        if event in ("selected", "unselected"):
-            if self.state == RUNNING:  # a new program: the runs left of this job are not made
-                self._go(ABORTED, steps)
-            if self.state in _FINISHED:
-                self._go(INITIALIZING, steps)
-        elif event in ("started", "resumed"):
-            self._run(steps)
-        elif event == "interrupted":
-            if self.state == RUNNING:
-                self._go(INTERRUPTED, steps)
-        elif event == "ended":
-            if self.state == INTERRUPTED:
-                self._go(RUNNING, steps)
-            if self.state == RUNNING:
-                more = runs_planned > 0 and runs_completed < runs_planned
-                self._go(RUNNING if more else ENDED, steps)
-        elif event == "aborted":
-            if self.state in (RUNNING, INTERRUPTED):
-                self._go(ABORTED, steps)
-        return steps
+        more = runs_planned > 0 and runs_completed < runs_planned
+        return self._move(event, select_abandons_run=True, another_run=more)
 
 
 # progStatus (BTSS): 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted. A program waiting (a

@@ -18,12 +18,11 @@ else ``BadUserAccessDenied``), as writing the DB21 start bit does.
 
 from __future__ import annotations
 
-from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
 
-from nckemu.emulator.faces.opcua import files, request
+from nckemu.emulator.faces.opcua import files
 from nckemu.emulator.faces.opcua.settings import may
 from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE, CHAN_RESET, Channel
 from nckemu.errors import NckError, NckNoSuchFile, NckPiStateError
@@ -93,19 +92,6 @@ def _channel(face: MethodHost, number: Any) -> Channel | None:
     return face.emulator.nck.channels.get(number)
 
 
-def _plain(argument: Any) -> Any:
-    return argument.Value if isinstance(argument, ua.Variant) else argument
-
-
-def refused() -> ua.StatusCode | None:
-    """Why the request's user may not select (None: they may)."""
-    if not request.user():
-        return ua.StatusCode(ua.StatusCodes.BadRequestNotAllowed)
-    if not may(request.rights(), REALM, write=True):
-        return ua.StatusCode(ua.StatusCodes.BadUserAccessDenied)
-    return None
-
-
 async def add_methods(face: MethodHost, server: Server, methods: Any) -> None:
     """Select and Unselect below ``methods`` (``Sinumerik/Methods``)."""
     ns = face.namespace
@@ -114,34 +100,28 @@ async def add_methods(face: MethodHost, server: Server, methods: Any) -> None:
         return [ua.Variant(value, ua.VariantType.Int32)]
 
     async def select_method(_parent: Any, file: Any, channel: Any) -> Any:
-        refusal = refused()
+        refusal = files.refused(REALM, True)
         if refusal is not None:
             return refusal
-        return status(select(face, _plain(file), _plain(channel)))
+        return status(select(face, files.plain(file), files.plain(channel)))
 
     async def unselect_method(_parent: Any, channel: Any) -> Any:
-        refusal = refused()
+        refusal = files.refused(REALM, True)
         if refusal is not None:
             return refusal
-        return status(unselect(face, _plain(channel)))
+        return status(unselect(face, files.plain(channel)))
 
-    def argument(name: str, kind: ua.VariantType, text: str) -> ua.Argument:
-        return ua.Argument(Name=name, DataType=ua.NodeId(kind.value), ValueRank=-1, ArrayDimensions=[],
-                           Description=ua.LocalizedText(text))
+    def executable(user: str, rights: frozenset[str]) -> bool:  # as ``files.refused`` decides
+        return bool(user) and may(rights, REALM, write=True)
 
+    argument, int32 = files.argument, ua.VariantType.Int32
     file = argument("file", ua.VariantType.String, "the program: /_N_MPF_DIR/_N_NAME_MPF, NAME.MPF or its file path")
     channel = argument("channel", ua.VariantType.UInt32, "the channel number (1 ...)")
-    table: list[tuple[str, Callable[..., Awaitable[Any]], list[ua.Argument], list[ua.Argument]]] = [
+    await files.add_method_nodes(server, methods, ns, [
         ("Select", select_method, [file, channel],
-         [argument("status", ua.VariantType.Int32, "0 ok, 1 no such channel, 2 no such program, "
-                                                   "3 channel not in reset, 4 rejected")]),
+         [argument("status", int32, "0 ok, 1 no such channel, 2 no such program, "
+                                    "3 channel not in reset, 4 rejected")], executable),
         ("Unselect", unselect_method, [channel],
-         [argument("status", ua.VariantType.Int32, "0 ok, 1 no such channel, 2 nothing selected, "
-                                                   "3 channel not in reset, 4 rejected, 5 program running")]),
-    ]
-    for name, method, inputs, outputs in table:
-        node = await methods.add_method(ua.NodeId(f"/Methods/{name}", ns), ua.QualifiedName(name, ns),
-                                        request.with_arguments(method, len(inputs)), inputs, outputs)
-        # UserExecutable as the session reads it: as ``refused`` decides
-        server.set_attribute_value_callback(node.nodeid, request.user_executable(
-            lambda user, rights: bool(user) and may(rights, REALM, write=True)), ua.AttributeIds.UserExecutable)
+         [argument("status", int32, "0 ok, 1 no such channel, 2 nothing selected, "
+                                    "3 channel not in reset, 4 rejected, 5 program running")], executable),
+    ])

@@ -62,15 +62,20 @@ def _tool_length_mm(model: NckParts, channel: int, geometry: int) -> float:
     return float(model.tools.active_length_mm(state.t_number, state.d_number, component))
 
 
-def tool_base_mm(model: NckParts, channel: int, line: int, *, actual: bool = True) -> float:
-    number, _geometry = _axis(model, channel, line)
+def _tool_base_of_mm(model: NckParts, channel: int, number: int, actual: bool) -> float:
+    """The tool base of machine axis ``number`` in the channel's WCS."""
     machine_mm = model.actual_position_mm(number) if actual else model.axes.positions_mm[number]
     return machine_mm - model.frames.active_shift_mm(channel, number)
 
 
+def tool_base_mm(model: NckParts, channel: int, line: int, *, actual: bool = True) -> float:
+    number, _geometry = _axis(model, channel, line)
+    return _tool_base_of_mm(model, channel, number, actual)
+
+
 def programmed_point_mm(model: NckParts, channel: int, line: int, *, actual: bool = True) -> float:
-    _number, geometry = _axis(model, channel, line)
-    return tool_base_mm(model, channel, line, actual=actual) - _tool_length_mm(model, channel, geometry)
+    number, geometry = _axis(model, channel, line)  # once: a read lists the channel's axes
+    return _tool_base_of_mm(model, channel, number, actual) - _tool_length_mm(model, channel, geometry)
 
 
 def axis_name(model: NckParts, channel: int, line: int) -> str:
