@@ -197,7 +197,8 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
 
     from nckemu.thermal.recordings.recording_map import load_recording
 
-    from .replay import run_on_recording, with_simulation, write_atomically
+    from .replay import run_on_recording, with_simulation
+    from .replay import write_atomically as write_recording_atomically
 
     if not args.inputs or not args.machine:
         raise NckConfigError("--out needs --inputs, and --inputs needs --machine (the sensors' PLC inputs)")
@@ -221,7 +222,7 @@ def run_plc_on_recording(args: argparse.Namespace) -> int:
         print(f"nckemu plc run: warning: {warning}", file=sys.stderr)
     column = run.axis.recording
     if args.out:
-        write_atomically(args.out, with_simulation(recording, column, run.sim_um))
+        write_recording_atomically(args.out, with_simulation(recording, column, run.sim_um))
     error = recording.errors_um.get(column)
     summary = {"axis": column, "machine_axis": run.axis.number, "rows": len(run.sim_um), "cycles": run.cycles,
                "puts": len(run.log.puts), "errors": run.log.errors[:10], "out": args.out,

@@ -192,18 +192,24 @@ class Selector:
                              worst_before_um=round(float(np.max(before[counted])), 4),
                              worst_after_um=round(float(after[worst]), 4), worst_run=names[worst])
 
+    def run_medians(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
+                    runs_with: np.ndarray | None) -> tuple[float, float]:
+        """Several runs: the median over the runs that have the columns of each run's held-out RMS,
+        before (``reference_folds``) and after."""
+        before = np.asarray(self.reference_folds(base_cv))
+        after = np.asarray(cv.fold_rms_um)
+        if runs_with is not None:
+            before, after = before[runs_with], after[runs_with]
+        return float(np.median(before)), float(np.median(after))
+
     def heldout_gain(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
                      runs_with: np.ndarray | None = None) -> float:
         """The relative drop of the held-out figure admission rests on: pooled RMS for one recording;
         with several runs, the median over runs of each run's held-out RMS (the few largest runs
         dominate a pooled figure)."""
         if self.per_run:
-            before = np.asarray(self.reference_folds(base_cv))
-            after = np.asarray(cv.fold_rms_um)
-            if runs_with is not None:
-                before, after = before[runs_with], after[runs_with]
-            reference = float(np.median(before))
-            return 1.0 - float(np.median(after)) / reference if reference > 0 else 0.0
+            reference, after = self.run_medians(cv, base_cv, runs_with)
+            return 1.0 - after / reference if reference > 0 else 0.0
         # Beat both the current model (refitted) and the model exactly as given: refitting a right
         # model on autocorrelated data can make it worse, and a candidate must not win by undoing that.
         reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
@@ -229,11 +235,7 @@ class Selector:
         (``heldout_gain``), for words that must follow it."""
         gain = self.heldout_gain(cv, base_cv, runs_with)
         if self.per_run:
-            before = np.asarray(self.reference_folds(base_cv))
-            after = np.asarray(cv.fold_rms_um)
-            if runs_with is not None:
-                before, after = before[runs_with], after[runs_with]
-            return float(np.median(before)), float(np.median(after)), gain, "the median over runs of held-out RMS"
+            return (*self.run_medians(cv, base_cv, runs_with), gain, "the median over runs of held-out RMS")
         return min(base_cv.rms_um, self.baseline.given_heldout_um), cv.rms_um, gain, "held-out RMS"
 
     def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,

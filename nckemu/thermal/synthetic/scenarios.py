@@ -327,6 +327,14 @@ class RunFamily:
     truth: FamilyTruth
 
 
+def _check_family(name: str, known: tuple[str, ...], runs: int) -> None:
+    """A run family's arguments: one of ``known``, at least 2 runs."""
+    if name not in known:
+        raise ValueError(f"unknown run family {name!r}; known: {', '.join(known)}")
+    if runs < 2:
+        raise ValueError("a family has at least 2 runs")
+
+
 def _lag_from(grid_s: np.ndarray, signal: np.ndarray, tau_s: float) -> np.ndarray:
     return first_order_lag(grid_s, signal, tau_s)
 
@@ -405,10 +413,7 @@ def make_run_family(name: str, seed: int = 1, runs: int = 8, hours_per_run: floa
     A share ``missing_share`` of the runs lacks the spindle speed, and as many one sensor of
     ``missing_from`` (by default one the concealed physics does not need; never spindle or bed, which
     the baseline needs)."""
-    if name not in RUN_FAMILIES:
-        raise ValueError(f"unknown run family {name!r}; known: {', '.join(RUN_FAMILIES)}")
-    if runs < 2:
-        raise ValueError("a family has at least 2 runs")
+    _check_family(name, RUN_FAMILIES, runs)
     base_name = name.removeprefix("null_")
     job_mix = base_name in ("job_mix", "job_mix_gradient")
     rng = np.random.default_rng([seed, 0 if job_mix else 1])
@@ -531,10 +536,7 @@ def make_transient_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily
       hydraulic unit's heat cancels, the chips' heat (seen by the rear alone, a quarter of its
       reading's swing) is left.
     - ``null_skin_core_days``: the same days, nothing left out."""
-    if name not in TRANSIENT_FAMILIES:
-        raise ValueError(f"unknown run family {name!r}; known: {', '.join(TRANSIENT_FAMILIES)}")
-    if runs < 2:
-        raise ValueError("a family has at least 2 runs")
+    _check_family(name, TRANSIENT_FAMILIES, runs)
     rng = np.random.default_rng([seed, 31])
     recordings: list[Recording] = []
     offsets: list[float] = []
@@ -592,10 +594,7 @@ def make_duty_mix_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
       so the light days (already near the gauge's own wander) come out slightly worse while the heavy days come out
       much better. A share of runs that must improve refuses it; the runs' paired test admits it.
     - ``null_duty_mix_days``: the same days, nothing left out."""
-    if name not in DUTY_MIX_FAMILIES:
-        raise ValueError(f"unknown run family {name!r}; known: {', '.join(DUTY_MIX_FAMILIES)}")
-    if runs < 2:
-        raise ValueError("a family has at least 2 runs")
+    _check_family(name, DUTY_MIX_FAMILIES, runs)
     rng = np.random.default_rng([seed, 42])
     recordings: list[Recording] = []
     offsets: list[float] = []
@@ -650,10 +649,7 @@ def make_two_tau_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
       it, a thin skin that evens out in half an hour and a thick core that takes three:
       ``transient_gradient(front)`` at tau 0.5 h and again at tau 3 h, 3 um/K each, left out.
     - ``null_two_tau_days``: the same days, nothing left out."""
-    if name not in TWO_TAU_FAMILIES:
-        raise ValueError(f"unknown run family {name!r}; known: {', '.join(TWO_TAU_FAMILIES)}")
-    if runs < 2:
-        raise ValueError("a family has at least 2 runs")
+    _check_family(name, TWO_TAU_FAMILIES, runs)
     rng = np.random.default_rng([seed, 4242])
     recordings: list[Recording] = []
     offsets: list[float] = []

@@ -17,8 +17,9 @@ from nckemu.thermal.synthetic.scenarios import (
     make_correlated_family,
 )
 
+from .seed_matrix import seed_outcomes
+
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(3600)]
-SEEDS = range(1, 21)
 STAND_INS = {"heating_cooling_hysteresis", "transient_gradient"}
 
 
@@ -45,10 +46,7 @@ def _outcome(name: str, seed: int) -> tuple[bool, list[str]]:
 
 @pytest.mark.parametrize("name", ["correlated_lag_bed", "null_correlated_lag_bed"])
 def test_twenty_seeds(name: str) -> None:
-    outcomes = {seed: _outcome(name, seed) for seed in SEEDS}
-    hits = [seed for seed, (ok, _) in outcomes.items() if ok]
-    print(f"{name}: {len(hits)}/20; misses: "
-          + (", ".join(f"seed {s} {outcomes[s][1] or 'nothing'}" for s in SEEDS if s not in hits) or "none"))
+    outcomes, hits = seed_outcomes(name, _outcome)
     if name == "correlated_lag_bed":
         assert len(hits) >= 18, outcomes
     else:

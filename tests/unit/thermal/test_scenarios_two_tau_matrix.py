@@ -15,8 +15,9 @@ from nckemu.thermal.synthetic.scenarios import (
     make_two_tau_family,
 )
 
+from .seed_matrix import seed_outcomes
+
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(3600)]
-SEEDS = range(1, 21)
 
 
 def _close(value: float, truth: float) -> bool:
@@ -40,10 +41,7 @@ def _outcome(name: str, seed: int) -> tuple[bool, list[str]]:
 
 @pytest.mark.parametrize("name", ["two_tau_days", "null_two_tau_days"])
 def test_twenty_seeds(name: str) -> None:
-    outcomes = {seed: _outcome(name, seed) for seed in SEEDS}
-    hits = [seed for seed, (ok, _) in outcomes.items() if ok]
-    print(f"{name}: {len(hits)}/20; misses: "
-          + (", ".join(f"seed {s} {outcomes[s][1] or 'nothing'}" for s in SEEDS if s not in hits) or "none"))
+    outcomes, hits = seed_outcomes(name, _outcome)
     if name == "two_tau_days":
         assert len(hits) >= 18, outcomes
     else:
