@@ -30,7 +30,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.bench_server import NCK_READ_PDU, free_port, process_cpu_s, process_figures, wait_port
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # run as a script from anywhere (make bench)
+
+from bench.bench_server import NCK_READ_PDU, free_port, process_cpu_s, process_figures, wait_port  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 
