@@ -40,6 +40,7 @@ from nckemu.emulator.machine.nck.channel_states import (  # noqa: F401 (also imp
     PROG_STOPPED,
     PROG_WAITING,
 )
+from nckemu.emulator.machine.nck.programs import program_text
 from nckemu.emulator.machine.program.motions import ProgramAlarm
 from nckemu.emulator.machine.program.planner import SpindleRamp
 from nckemu.errors import NckAddressOutOfRange, NckError, NckItemError, NckNoSuchFile, NckPiStateError
@@ -98,14 +99,6 @@ class ChannelState:
     end_counter: int = 0
     reset_counter: int = 0
     path_feed_mm_min: float = 0.0     # the path speed of the motion under way (0 when none)
-
-
-def program_text(data: bytes) -> str:
-    """A stored program as text: UTF-8 where it is (comments with a degree sign), else Latin-1 (any byte)."""
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        return data.decode("latin-1")
 
 
 class Channel:

@@ -17,6 +17,14 @@ from nckemu.errors import NckNoSuchFile, NckPiStateError
 DEFAULT_PROGRAMS = ("/_N_MPF_DIR/_N_TEST_MPF", "/_N_MPF_DIR/_N_MAIN_MPF")
 
 
+def program_text(data: bytes) -> str:
+    """A stored program as text: UTF-8 where it is (comments with a degree sign), else Latin-1 (any byte)."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
 class Programs:
     def __init__(self) -> None:
         self.paths: set[str] = set(DEFAULT_PROGRAMS)

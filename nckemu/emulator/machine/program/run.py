@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from nckemu.emulator.machine.nck.channel import program_text
+from nckemu.emulator.machine.nck.programs import program_text
 from nckemu.emulator.machine.program.environment import ProgramEnvironment, UndefinedName
 from nckemu.emulator.machine.program.motions import (
     ALARM_FEED_ZERO,
