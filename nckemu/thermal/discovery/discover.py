@@ -35,7 +35,7 @@ from nckemu.thermal.model.terms import Term, ThermalModel
 from nckemu.thermal.recordings.recording import Recording
 
 from . import explain
-from .findings import Finding, Likely
+from .findings import Closest, Finding, GuardFigure, Likely, Withdrawn
 from .library import Library
 from .problem import Problem
 from .readings import prepare, resampled
@@ -69,6 +69,10 @@ class Discovery:
     smallest_detectable_um: dict[str, float] = field(default_factory=dict)
     # A term that passes every guard but the held-out bar: "likely, not proven", with its figures.
     likely: list[Likely] = field(default_factory=list)
+    # The candidates of the last round that came closest, each with every guard's figure.
+    closest: list[Closest] = field(default_factory=list)
+    # Terms named in an early round, then withdrawn: the terms named after them explain what they did.
+    withdrawn: list[Withdrawn] = field(default_factory=list)
     # Several runs: the figures of each (leave-one-run-out), which columns some runs lack.
     runs: list[dict[str, Any]] = field(default_factory=list)
     coverage: list[dict[str, Any]] = field(default_factory=list)
@@ -99,6 +103,8 @@ class Discovery:
             "why_nothing": self.why_nothing,
             "smallest_detectable_um": {k: round(v, 4) for k, v in self.smallest_detectable_um.items()},
             "likely_not_proven": [item.to_json() for item in self.likely],
+            "closest_candidates": [item.to_json() for item in self.closest],
+            "withdrawn": [item.to_json() for item in self.withdrawn],
             "residual_structure": self.residual_structure,
         }
         if self.baseline_constant_um is not None:
@@ -277,6 +283,7 @@ class Discoverer:
             chosen, preferred = selector.prefer(recalibrate, with_gain)
         self.selector, self.setup, self.path = selector, setup, chosen
         result = self._finish(setup, chosen, preferred)
+        result.withdrawn = list(chosen.withdrawn)
         result.baseline_constant_um = self.constant_um
         self._honest(result, selector, setup, chosen)
         if len(self.problem.runs) > 1:
@@ -311,9 +318,16 @@ class Discoverer:
                 continue
             before_um, after_um, gain, figure = selector.heldout_figures(evaluation.cv, path.base_cv,
                                                                          evaluation.candidate.runs_with)
+            passed = [g.figure for g in selector.guards_with_time_constant(evaluation, path)[:-1]]
             result.likely.append(explain.likely_record(
                 evaluation, before_um, after_um, gain, figure, path.rejected_t_critical, len(setup.folds),
-                self.settings.min_improvement, "runs" if self.problem.per_run_offset else "folds"))
+                selector.bar, "runs" if self.problem.per_run_offset else "folds", passed=passed))
+        for evaluation, guards in selector.closest(path):
+            term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
+            result.closest.append(Closest(
+                term.effect, explain.label_with_time_constants(term),
+                {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
+                [GuardFigure(g.name, g.passes, g.figure) for g in guards]))
         # The smallest effect each family could have shown: when nothing passed, and whenever what is
         # left is structure (what the last round could not name, and how large it would have had to be).
         if not path.rejected or (result.missing_physics and not result.residual_is_structure):
@@ -321,7 +335,7 @@ class Discoverer:
         for evaluation in path.rejected:
             evaluation.own_rms = selector.own_rms(path.design, evaluation.candidate.feature)
         result.smallest_detectable_um = explain.detectable_um(path.rejected, path.base_cv.rms_um,
-                                                              path.rejected_t_critical, self.settings.min_improvement)
+                                                              path.rejected_t_critical, selector.bar)
         if result.missing_physics:
             return
         residual = path.final.residual if path.final is not None else self.y - setup.given

@@ -10,6 +10,7 @@ import numpy as np
 
 from nckemu.thermal import stats
 from nckemu.thermal.model import families
+from nckemu.thermal.model.terms import Term
 from nckemu.thermal.recordings.recording import Recording
 
 from .findings import Alternative, Evidence, Likely, LikelyEvidence, Window
@@ -220,17 +221,27 @@ def bar_words(gain: float, bar: float, figure: str, held_back: str = "") -> str:
             f"{held_back or 'another guard held it back'}")
 
 
+def label_with_time_constants(term: Term) -> str:
+    """``effect(sensor)``, and its time constants when it has any (a sensor may be named at two)."""
+    hours = [f"{float(term.parameters[key]) / 3600:.2g} h" for key in term.spec.time_constants
+             if key in term.parameters]
+    return label(term) + (f" at {' / '.join(hours)}" if hours else "")
+
+
 def likely_record(evaluation: Evaluation, before_um: float, after_um: float, gain: float, figure: str,
-                  t_critical: float, folds: int, bar: float, unit: str = "folds", held_back: str = "") -> Likely:
+                  t_critical: float, folds: int, bar: float, unit: str = "folds", held_back: str = "",
+                  passed: list[str] | None = None) -> Likely:
     """A correctly named term below the held-out bar: "likely, not proven", with its figures: the
     held-out figure admission judged it on (``figure``: held-out RMS, or with several runs the median
-    over runs), before and after, and its relative drop ``gain``."""
+    over runs), before and after, and its relative drop ``gain``; ``passed``: the figures of the guards
+    it passed, in words (``selector.Guard``)."""
     term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
     return Likely(term.effect, label(term),
                   {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},
                   LikelyEvidence(round(before_um, 4), round(after_um, 4), round(gain, 4), bar,
                                  finite(evaluation.t_value), round(t_critical, 3), f"{evaluation.fold_wins}/{folds}",
-                                 f"passes the t-test and improves {evaluation.fold_wins} of {folds} {unit}, but "
+                                 (f"passes every other guard ({'; '.join(passed)}), but " if passed is not None else
+                                  f"passes the t-test and improves {evaluation.fold_wins} of {folds} {unit}, but ")
                                  + bar_words(gain, bar, figure, held_back)))
 
 

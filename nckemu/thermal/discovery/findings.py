@@ -103,6 +103,8 @@ class Evidence:
     move: MoveEvidence | None = None
     runs: AdmissionRuns | None = None
     note: str | None = None
+    # A sensor named at two time constants in two rounds: this one's share of what the two improve.
+    twin_share: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -120,6 +122,8 @@ class Evidence:
             out["runs"] = self.runs.to_json()
         if self.note is not None:
             out["note"] = self.note
+        if self.twin_share is not None:
+            out["twin_share"] = self.twin_share
         return out
 
 
@@ -187,10 +191,50 @@ class Likely:
                 "evidence": self.evidence.to_json()}
 
 
+@dataclass
+class GuardFigure:
+    """How a candidate stands against one guard: its figure in words, and whether it passes."""
+    guard: str
+    passes: bool
+    figure: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"guard": self.guard, "passes": self.passes, "figure": self.figure}
+
+
+@dataclass
+class Closest:
+    """A candidate of the last round that came close, with every guard's figure: what stopped it."""
+    effect: str
+    label: str
+    parameters: dict[str, Any]
+    guards: list[GuardFigure]
+
+    @property
+    def held_back_by(self) -> list[str]:
+        return [g.guard for g in self.guards if not g.passes]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"effect": self.effect, "label": self.label, "parameters": self.parameters,
+                "held_back_by": self.held_back_by, "guards": [g.to_json() for g in self.guards]}
+
+
+@dataclass
+class Withdrawn:
+    """A term named in an early round and withdrawn at the end: later terms explain what it did."""
+    effect: str
+    label: str
+    parameters: dict[str, Any]
+    why: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"effect": self.effect, "label": self.label, "parameters": _rounded(self.parameters), "why": self.why}
+
+
 def finding(effect: str, parameters: dict[str, Any], evidence: Evidence | GainEvidence) -> Finding:
     """A finding with its parameters rounded as the JSON gives them."""
     return Finding(effect, _rounded(parameters), evidence)
 
 
-__all__ = ["AdmissionRuns", "Alternative", "Evidence", "Finding", "GainEvidence", "Likely", "LikelyEvidence",
-           "MoveAlternative", "MoveEvidence", "Window", "finding"]
+__all__ = ["AdmissionRuns", "Alternative", "Closest", "Evidence", "Finding", "GainEvidence", "GuardFigure", "Likely",
+           "LikelyEvidence", "MoveAlternative", "MoveEvidence", "Window", "Withdrawn", "finding"]

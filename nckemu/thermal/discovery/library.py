@@ -103,6 +103,7 @@ class Library:
         self._design = np.empty((len(problem.y), 0))
         # The round's time-constant searches: (kind, sensor) -> (in-sample RMS, tau_s).
         self._searched: dict[tuple[str, str], tuple[float, float]] = {}
+        self._added: tuple[Term, ...] = ()
 
     # ------------------------------------------------------------------ what every run has
     def _enough(self, have: int) -> bool:
@@ -224,16 +225,23 @@ class Library:
         plain = self._filtered_column(("plain", sensor), sensor, lambda t, signal: signal)
         return plain - self.lag_column(sensor, tau_s)
 
-    def best_time_constant(self, column: Callable[[float], np.ndarray], key: tuple[str, str]
-                           ) -> tuple[float, float, int] | None:
+    def best_time_constant(self, column: Callable[[float], np.ndarray], key: tuple[str, str],
+                           away_from: tuple[float, ...] = ()) -> tuple[float, float, int] | None:
         """(in-sample RMS, tau_s, values tried) against the round's design: the grid of
         ``Settings.lag_grid_s`` up to a third of a run, then refined around the best grid point. The
-        result is kept for the round under ``key`` (kind, sensor): ``best_searched`` ranks them."""
+        result is kept for the round under ``key`` (kind, sensor): ``best_searched`` ranks them.
+        ``away_from``: the sensor's time constants already named; the search keeps
+        ``second_time_constant_ratio`` away from each (a second time constant, not the same one)."""
         design, duration_s = self._design, self.duration_s()
+        ratio = self.settings.second_time_constant_ratio
+
+        def allowed(tau: float) -> bool:
+            return tau <= duration_s / 3 and all(max(tau, other) >= ratio * min(tau, other) for other in away_from)
+
         best: tuple[float, float] | None = None
         tried = 0
         for tau in self.settings.lag_grid_s:
-            if tau > duration_s / 3:
+            if not allowed(tau):
                 continue
             tried += 1
             score = self._in_sample(design, column(tau))
@@ -242,11 +250,14 @@ class Library:
         if best is None:
             return None
         for tau in best[1] * np.geomspace(0.8, 1.25, 9):
+            if not allowed(float(tau)):
+                continue
             tried += 1
             score = self._in_sample(design, column(float(tau)))
             if score < best[0]:
                 best = (score, float(tau))
-        self._searched[key] = (best[0], best[1])
+        if not away_from:  # a second time constant does not rank the sensor's lag (the hysteresis's pick)
+            self._searched[key] = (best[0], best[1])
         return best[0], best[1], tried
 
     def best_time_constant_pair(self, kind: str, sensor: str, design: np.ndarray, min_ratio: float
@@ -414,12 +425,23 @@ class Library:
         problem = self.problem
         return not problem.per_run_offset and not any(t.effect == "offset" for t in problem.base_terms)
 
+    def named_time_constants(self, effect: str, sensor: str) -> tuple[float, ...] | None:
+        """The time constants of ``effect`` on ``sensor`` named in earlier rounds; None when discovery
+        allows no second one (``second_time_constant_ratio`` 0)."""
+        if not self.settings.second_time_constant_ratio:
+            return None
+        return tuple(float(t.parameters["tau_s"]) for t in self._added
+                     if t.effect == effect and t.parameters.get("sensor") == sensor and "tau_s" in t.parameters)
+
     def modelled(self, effect: str, sensor: str) -> bool:
         return any(t.effect == effect and t.parameters.get("sensor") == sensor for t in self.problem.base_terms)
 
-    def candidates(self, design: np.ndarray, present: set[str]) -> list[Candidate]:
-        """Every family's candidates of the round (``families``: each family proposes its own)."""
+    def candidates(self, design: np.ndarray, present: set[str], added: tuple[Term, ...] = ()) -> list[Candidate]:
+        """Every family's candidates of the round (``families``: each family proposes its own);
+        ``added``: the terms earlier rounds named (a sensor's second time constant is searched away
+        from its first)."""
         self._design = design
+        self._added = added
         self._searched = {}
         sensors = {name: index for index, name in enumerate(self.sensors())}
         ranked: list[tuple[tuple[int, int, int], Candidate]] = []

@@ -27,6 +27,7 @@ from .findings import (
     GainEvidence,
     MoveAlternative,
     MoveEvidence,
+    Withdrawn,
     finding,
 )
 from .library import Candidate, Library, bounded, extends, present_key, time_constants
@@ -45,6 +46,16 @@ class Evaluation:
     ranked_rms_um: float
     # RMS of the part of the feature the design does not already hold (for the detectable size).
     own_rms: float = math.nan
+
+
+@dataclass(frozen=True)
+class Guard:
+    """One guard against false discovery as a candidate stands against it: its figure in words and
+    whether it passes (``gain``: the held-out bar's relative drop)."""
+    name: str
+    passes: bool
+    figure: str
+    gain: float = math.nan
 
 
 @dataclass
@@ -118,6 +129,9 @@ class Path:
     # rests on (the smallest detectable effects, a term that is likely but not proven).
     rejected: list[Evaluation] = field(default_factory=list)
     rejected_t_critical: float = math.nan
+    rejected_paired_tests: int = 1     # ... and how many candidates the runs' paired test was corrected over
+    # Terms named in a round and withdrawn at the end: the terms named after them explain what they did.
+    withdrawn: list[Withdrawn] = field(default_factory=list)
 
 
 def runs_improve(before_ms: np.ndarray, after_ms: np.ndarray, level: float, min_share: float,
@@ -170,6 +184,19 @@ class Selector:
     def per_run(self) -> bool:
         return len(self.library.problem.runs) > 1
 
+    @property
+    def paired_runs(self) -> bool:
+        """Enough runs for the runs' paired test (``runs_improve``) to carry admission."""
+        return len(self.library.problem.runs) >= max(self.settings.runs_test_min, 2)
+
+    @property
+    def bar(self) -> float:
+        """The relative drop of the held-out figure an effect must reach: ``min_improvement``; with
+        enough runs for the paired test, ``runs_min_improvement`` (the test carries the evidence that
+        the bar carries for blocks of one record; the bar keeps out what is too small to matter)."""
+        s = self.settings
+        return s.runs_min_improvement if self.paired_runs else s.min_improvement
+
     def reference_folds(self, base_cv: stats.CrossValidation) -> tuple[float, ...]:
         """Per fold, what a candidate must beat: the current model refitted, or the model exactly as
         given when that predicts held-out data better (as for the pooled reference)."""
@@ -215,19 +242,27 @@ class Selector:
         reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
         return 1.0 - cv.rms_um / reference_um if reference_um > 0 else 0.0
 
-    def runs_consistent(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
-                        runs_with: np.ndarray | None) -> bool:
+    def runs_guard(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
+                   runs_with: np.ndarray | None) -> Guard:
         """Several runs: the runs' held-out mean squared errors, before and after, as pairs. The
         paired test (``stats.paired_improvement_p``) at ``runs_alpha`` / ``paired_tests``: a term that
         helps most runs a little and a few a lot passes, one that helps one run a lot and hurts many
-        does not. With fewer than ``runs_test_min`` runs the share of runs that improve decides, as
-        for the blocks of one run."""
+        does not. With fewer than ``runs_test_min`` runs (or too few to reach the level at all) the
+        share of runs that improve decides, as for the blocks of one run (``runs_improve``)."""
+        s = self.settings
         before = np.square(np.asarray(base_cv.fold_rms_um))
         after = np.square(np.asarray(cv.fold_rms_um))
         if runs_with is not None:
             before, after = before[runs_with], after[runs_with]
-        return runs_improve(before, after, self.settings.runs_alpha / max(self.paired_tests, 1),
-                            self.settings.min_fold_share, self.settings.runs_test_min)
+        level = s.runs_alpha / max(self.paired_tests, 1)
+        passes = runs_improve(before, after, level, s.min_fold_share, s.runs_test_min)
+        if len(before) < s.runs_test_min or 0.5 ** len(before) > level:
+            improved, need = int(np.sum(after < before)), math.ceil(s.min_fold_share * len(before))
+            return Guard("runs improved", passes, f"{improved} of {len(before)} runs improve (at least {need} must)")
+        p = stats.paired_improvement_p(before, after)
+        return Guard("paired test", passes,
+                     f"the runs' paired test gives p = {p:.2g} (level {level:.2g}, {s.runs_alpha:g} over "
+                     f"{max(self.paired_tests, 1)} candidate{'s' if self.paired_tests > 1 else ''})")
 
     def heldout_figures(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
                         runs_with: np.ndarray | None = None) -> tuple[float, float, float, str]:
@@ -238,26 +273,50 @@ class Selector:
             return (*self.run_medians(cv, base_cv, runs_with), gain, "the median over runs of held-out RMS")
         return min(base_cv.rms_um, self.baseline.given_heldout_um), cv.rms_um, gain, "held-out RMS"
 
+    def guards(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
+               t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
+               t_crit: float, *, paired: bool = True) -> list[Guard]:
+        """Every guard's figure and verdict, on a single effect or on a move of two as a whole; the
+        held-out bar is the last. Admission and its words both read these (words follow the figures).
+        ``paired=False`` leaves out the runs' paired test (to count the candidates it is corrected over)."""
+        s = self.settings
+        out: list[Guard] = []
+        if self.per_run:
+            if paired:
+                out.append(self.runs_guard(cv, base_cv, runs_with))
+        else:
+            folds = len(base_cv.fold_rms_um)
+            need = math.ceil(s.min_fold_share * folds)
+            out.append(Guard("blocks improved", fold_wins >= need,
+                             f"{fold_wins} of {folds} blocks improve (at least {need} must)"))
+        if not (self.paired_runs and s.runs_replace_t_test):
+            t_words = ", ".join(f"{t:.2f}" for t in t_values)
+            out.append(Guard("t-test", all(abs(t) >= t_crit for t in t_values),
+                             f"t = {t_words} (critical {t_crit:.2f})"))
+        physical = all(bounded(term) for term in terms)
+        out.append(Guard("physical", physical, "parameters a machine can have" if physical else
+                         "parameters outside what a machine can have"))
+        if self.per_run:  # ... and it must not leave the worst run worse
+            figures = self.run_figures(cv, base_cv, runs_with)
+            limit = (1 + s.equivalence) * figures.worst_before_um
+            out.append(Guard("worst run", figures.worst_after_um <= limit,
+                             f"the worst run ({figures.worst_run}) {figures.worst_before_um:.3f} -> "
+                             f"{figures.worst_after_um:.3f} um (at most {limit:.3f})"))
+        before_um, after_um, gain, figure = self.heldout_figures(cv, base_cv, runs_with)
+        out.append(Guard("held-out", gain >= self.bar,
+                         f"{figure} {before_um:.3f} -> {after_um:.3f} um ({gain:.1%}; the bar is {self.bar:.0%})",
+                         round(gain, 4)))
+        return out
+
     def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
               t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
               t_crit: float, *, paired: bool = True) -> tuple[bool, bool]:
-        """Every guard, on a single effect or on a move of two as a whole: (passes every guard, passes
-        every guard but the held-out bar). ``paired=False`` leaves out the runs' paired test (to count
-        the candidates it is corrected over)."""
-        s = self.settings
-        # Several runs: a candidate is judged on the runs that have its columns.
-        folds = len(base_cv.fold_rms_um) if runs_with is None else int(runs_with.sum())
-        if self.per_run:
-            consistent = not paired or self.runs_consistent(cv, base_cv, runs_with)
-        else:
-            consistent = fold_wins >= math.ceil(s.min_fold_share * folds)
-        significant = all(abs(t) >= t_crit for t in t_values)
-        rest = consistent and significant and all(bounded(term) for term in terms)
-        if rest and self.per_run:  # ... and it must not leave the worst run worse
-            figures = self.run_figures(cv, base_cv, runs_with)
-            rest = figures.worst_after_um <= (1 + s.equivalence) * figures.worst_before_um
-        gain = self.heldout_gain(cv, base_cv, runs_with)
-        return gain >= s.min_improvement and rest, rest and gain >= s.likely_min_improvement
+        """(passes every guard, passes every guard but the held-out bar and still lowers the held-out
+        figure by ``likely_min_improvement``)."""
+        found = self.guards(cv, fold_wins, runs_with, t_values, terms, base_cv, t_crit, paired=paired)
+        rest = all(g.passes for g in found[:-1])
+        held_out = found[-1]
+        return held_out.passes and rest, rest and held_out.gain >= self.settings.likely_min_improvement
 
     def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float,
                 paired: bool = True) -> tuple[bool, bool]:
@@ -265,6 +324,11 @@ class Selector:
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         return self.judge(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
                           (evaluation.t_value,), (term,), base_cv, t_crit, paired=paired)
+
+    def guards_of(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> list[Guard]:
+        term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
+        return self.guards(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
+                           (evaluation.t_value,), (term,), base_cv, t_crit)
 
     def passes(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> bool:
         return self._guards(evaluation, base_cv, t_crit)[0]
@@ -302,13 +366,40 @@ class Selector:
         margin = self.margin(best)
         return best, margin, [e for e in pool if e.ranked_rms_um <= best.ranked_rms_um * (1 + margin)]
 
+    def time_constant_guard(self, evaluation: Evaluation, evaluations: list[Evaluation],
+                            passing: list[Evaluation]) -> Guard | None:
+        """Has an effect with a time constant earned it over the simpler effect of its sensor, when that
+        simpler one does not pass on its own? Within the held-out bar of it, the time constant adds
+        nothing the data show (a lag of 4 min of a sensor averaged over 5 is the sensor): neither is
+        named, and the round goes on as if nothing passed (a pair may). A simpler one that passes is
+        ``parsimonious``'s to pick. Judged on the figure the bar is on: with several runs the median
+        over runs of held-out RMS, on one record held-out RMS without the sensors' noise. None when the
+        effect extends nothing among the round's candidates."""
+        simpler = [e for e in evaluations if e not in passing and extends(evaluation.candidate.term, e.candidate.term)]
+        if not simpler:
+            return None
+
+        def figure(e: Evaluation) -> float:
+            return float(np.median(e.cv.fold_rms_um)) if self.per_run else e.ranked_rms_um
+
+        other = min(simpler, key=figure)
+        gain = 1.0 - figure(evaluation) / figure(other) if figure(other) > 0 else 0.0
+        what = "the median over runs of held-out RMS" if self.per_run else "held-out RMS without the sensors' noise"
+        return Guard("time constant", gain >= self.bar,
+                     f"its time constant against {other.candidate.label}: {what} {figure(other):.3f} -> "
+                     f"{figure(evaluation):.3f} um ({gain:.1%}; the bar is {self.bar:.0%})", round(gain, 4))
+
+    def earned(self, evaluation: Evaluation, evaluations: list[Evaluation], passing: list[Evaluation]) -> bool:
+        guard = self.time_constant_guard(evaluation, evaluations, passing)
+        return guard is None or guard.passes
+
     def parsimonious(self, chosen: Evaluation, passing: list[Evaluation]) -> Evaluation:
         """An effect that extends a simpler one of the same sensor by a time constant (a lag extends a
         plain temperature term, an asymmetric lag a lag) must earn that parameter as an effect earns
-        its place: by ``min_improvement`` of held-out RMS over the simpler one, or the simpler wins."""
+        its place: by the held-out bar (``bar``) over the simpler one, or the simpler wins."""
         while True:
             simpler = [e for e in passing if extends(chosen.candidate.term, e.candidate.term)
-                       and chosen.ranked_rms_um > (1 - self.settings.min_improvement) * e.ranked_rms_um]
+                       and chosen.ranked_rms_um > (1 - self.bar) * e.ranked_rms_um]
             if not simpler:
                 return chosen
             chosen = min(simpler, key=lambda e: e.ranked_rms_um)
@@ -331,27 +422,97 @@ class Selector:
         for _round in range(self.settings.max_effects):
             if len(path.added) >= self.settings.max_effects or not self.round(path):
                 break
+        if self.paired_runs:
+            self.withdraw_redundant(path)
         path.final = stats.fit(path.design, self.y) if path.design.shape[1] else None
+        self.twin_shares(path)
         return path
+
+    def withdraw_redundant(self, path: Path) -> None:
+        """With the runs' paired test and its lower bar, a term may pass in an early round and be
+        explained by the terms named after it (a gradient of the rear and the ambient, then the rear's
+        and the front's own temperatures). Each term named alone (not in a move, which was judged as a
+        whole) must still clear the bar over the others: without it, the median over runs of held-out
+        RMS must rise by the bar, or the worst run by the margin of equivalence. The one that matters
+        least is withdrawn, and the rest are judged again."""
+        s = self.settings
+        offset = 1 if path.gain_mode else 0
+        while True:
+            first = path.design.shape[1] - len(path.added)
+            weakest: tuple[float, int, stats.CrossValidation] | None = None
+            for index in range(len(path.added)):
+                record = path.discovered[index + offset].evidence
+                if not isinstance(record, Evidence) or record.move is not None:
+                    continue
+                keep = [c for c in range(path.design.shape[1]) if c != first + index]
+                without = self.baseline.cross_validate(path.design[:, keep], self.y, self.baseline.folds)
+                median_with, median_without = (float(np.median(cv.fold_rms_um)) for cv in (path.base_cv, without))
+                loss = 1.0 - median_with / median_without if median_without > 0 else 0.0
+                worst_with, worst_without = max(path.base_cv.fold_rms_um), max(without.fold_rms_um)
+                if loss < self.bar and worst_without <= (1 + s.equivalence) * worst_with \
+                        and (weakest is None or loss < weakest[0]):
+                    weakest = (loss, index, without)
+            if weakest is None:
+                return
+            loss, index, without = weakest
+            term = path.added.pop(index)
+            path.discovered.pop(index + offset)
+            keep = [c for c in range(path.design.shape[1]) if c != first + index]
+            path.design, path.noise = path.design[:, keep], path.noise[:, keep]
+            path.withdrawn.append(Withdrawn(
+                term.effect, explain.label_with_time_constants(term), dict(term.parameters),
+                f"the terms named after it explain what it did: without it the median over runs of held-out RMS "
+                f"is {float(np.median(without.fold_rms_um)):.3f} um against {float(np.median(path.base_cv.fold_rms_um)):.3f} um "
+                f"with it ({loss:.1%}; the bar is {self.bar:.0%}), the worst run {max(without.fold_rms_um):.3f} um "
+                f"against {max(path.base_cv.fold_rms_um):.3f} um"))
+            path.base_cv = without
+
+    def twin_shares(self, path: Path) -> None:
+        """A sensor named at two time constants in two rounds (the second found once another term was
+        in): each one's share, as for a move of two, of what the two improve together: how much the
+        held-out figure rises without it."""
+        first = path.design.shape[1] - len(path.added)
+        groups: dict[tuple[str, object], list[int]] = {}
+        for index, term in enumerate(path.added):
+            if time_constants(term) and term.parameters.get("sensor") is not None:
+                groups.setdefault((term.effect, term.parameters["sensor"]), []).append(index)
+        for indices in groups.values():
+            records = [path.discovered[i + (1 if path.gain_mode else 0)].evidence for i in indices]
+            if len(indices) != 2 or any(not isinstance(r, Evidence) or r.move is not None for r in records):
+                continue
+            lost = []
+            for index in indices:
+                keep = [c for c in range(path.design.shape[1]) if c != first + index]
+                without = self.baseline.cross_validate(path.design[:, keep], self.y, self.baseline.folds)
+                lost.append(max(self.heldout_gain(path.base_cv, without), 0.0))
+            total = sum(lost)
+            for record, part in zip(records, lost, strict=True):
+                assert isinstance(record, Evidence)
+                record.twin_share = round(part / total if total > 0 else 0.5, 4)
 
     def round(self, path: Path) -> bool:
         s, setup = self.settings, self.baseline
         folds = setup.folds
         design = path.design
-        candidates = self.library.candidates(design if design.shape[1] else setup.given[:, None], path.present)
+        candidates = self.library.candidates(design if design.shape[1] else setup.given[:, None], path.present,
+                                             tuple(path.added))
         if not candidates:
             return False
         # Bonferroni over every hypothesis of the round, each time constant tried included.
         tests = sum(c.grid_points for c in candidates)
         t_crit = t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1 - setup.extra_parameters)
-        evaluations = [self.evaluate(design, path.noise, c, path.base_cv) for c in candidates]
+        evaluations = [e for e in (self.evaluate(design, path.noise, c, path.base_cv) for c in candidates)
+                       if self.twin_of_one_sign(path, e)]
         self.count_paired_tests(evaluations, path.base_cv, t_crit)
+        single_paired_tests = self.paired_tests  # pair_round counts its moves' own
         passing = [e for e in evaluations if self.passes(e, path.base_cv, t_crit)]
+        passing = [e for e in passing if self.earned(e, evaluations, passing)]
         if not passing and s.pair_moves and len(path.added) + 2 <= s.max_effects \
                 and self.pair_round(path, evaluations, tests):
             return True
         if not passing:
             path.rejected, path.rejected_t_critical = evaluations, t_crit
+            path.rejected_paired_tests = single_paired_tests
             return False
         best, margin, equivalent = self.equivalent(passing)
         chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um))
@@ -375,6 +536,22 @@ class Selector:
         return True
 
     # ------------------------------------------------------------------ one sensor, two time constants
+    def twin_of_one_sign(self, path: Path, evaluation: Evaluation) -> bool:
+        """A sensor's second time constant, offered in a later round, moves the structure the same way
+        as its first in the joint fit (a skin and a core of one structure heated from one side; two
+        pulling apart are one band of time constants, not two paths of heat: ``split_move``)."""
+        term = evaluation.candidate.term
+        sensor = term.parameters.get("sensor")
+        twins = [index for index, added in enumerate(path.added)
+                 if added.effect == term.effect and added.parameters.get("sensor") == sensor
+                 and time_constants(added) and sensor is not None]
+        if not twins:
+            return True
+        full = np.column_stack([path.design, evaluation.candidate.feature])
+        coefficients = stats.least_squares(full, self.y)
+        first = path.design.shape[1] - len(path.added) + twins[0]
+        return bool(coefficients[first] * coefficients[-1] > 0)
+
     SPLIT_KINDS = {"thermal_lag": "lag", "transient_gradient": "transient"}
     # A partner search starts from the one time constant family the chosen term extends or is.
     PARTNER_FAMILIES = {"thermal_lag": "thermal_lag", "heating_cooling_hysteresis": "thermal_lag",
@@ -439,26 +616,29 @@ class Selector:
                         f"({move.shares[index]:.0%} of it this one)")
         else:
             equivalent = [named(w, m) for w, m, _t in others if m.ranked_rms_um <= move.ranked_rms_um * (1 + margin)]
-            why = (f"a measured sensor beside the time constant: {move.label} clears the held-out bar over "
+            plain = not time_constants(move.alone[0].candidate.term)
+            why = (f"{'two measured sensors in place of the time constant' if plain else 'a measured sensor beside the time constant'}: "
+                   f"{move.label} clears the held-out bar over "
                    f"{chosen.candidate.label} alone (held-out {chosen.cv.rms_um:.3f} um against "
-                   f"{move.cv.rms_um:.3f} um) and over either alone; the time constant alone had absorbed part "
-                   f"of what the measured sensor explains")
+                   f"{move.cv.rms_um:.3f} um) and over either alone; "
+                   + ("the time constant, searched again beside the second sensor, earned nothing over the sensor "
+                      "itself" if plain else
+                      "the time constant alone had absorbed part of what the measured sensor explains"))
             if equivalent:
                 why += (f". Equivalent on these data (held-out without the sensors' noise within {margin:.0%}): "
                         f"{', '.join(equivalent)}; the data cannot tell them apart. Named: the measured sensor, "
                         f"which needs no constructed signal and fewer parameters")
 
             def preferred(index: int) -> str:
-                return (f"{move.label}: a time constant and a measured sensor that share drivers, judged together "
-                        f"({move.shares[index]:.0%} of it this one)")
+                kind = "two measured sensors" if plain else "a time constant and a measured sensor"
+                return f"{move.label}: {kind} that share drivers, judged together ({move.shares[index]:.0%} of it this one)"
         self.admit_move(path, move, [], t_crit, why=why, alternatives=alternatives, preferred=preferred)
         return True
 
     def move_passes(self, path: Path, move: Move, chosen: Evaluation, t_crit: float) -> bool:
-        s = self.settings
         return self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
                           t_crit)[0] \
-            and all(self.heldout_gain(move.cv, other.cv, move.runs_with) >= s.min_improvement
+            and all(self.heldout_gain(move.cv, other.cv, move.runs_with) >= self.bar
                     for other in (chosen, *move.alone))
 
     def _alone(self, path: Path, design: np.ndarray, terms: list[Term], grid_points: int) -> list[Evaluation] | None:
@@ -500,7 +680,17 @@ class Selector:
         alone = self._alone(path, design, [Term(effect, base), partners[partner_name]], tried)
         if alone is None:
             return None
-        return self.evaluate_pair(path, alone[0], alone[1]), self._move_t_critical(design, tests + tried)
+        move = self.evaluate_pair(path, alone[0], alone[1])
+        plain = Term("temperature", {"sensor": sensor, "t_ref_C": library.t_ref(sensor), "coeff_um_per_K": 0.0})
+        if f"temperature:{sensor}" not in path.present and not library.modelled("temperature", sensor):
+            # A time constant that earns nothing over the sensor itself (re-searched to the grid's
+            # end beside the partner: a lag of 4 min of a sensor averaged over 5) is the sensor.
+            simple = self._alone(path, design, [plain, partners[partner_name]], 1)
+            if simple is not None:
+                simpler = self.evaluate_pair(path, simple[0], simple[1])
+                if move.ranked_rms_um > (1 - self.bar) * simpler.ranked_rms_um:
+                    move = simpler
+        return move, self._move_t_critical(design, tests + tried)
 
     def split_move(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int, kind: str,
                    sensor: str) -> tuple[Move, float] | None:
@@ -604,7 +794,7 @@ class Selector:
         def guarded(move: Move, paired: bool) -> bool:
             return self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
                               t_crit, paired=paired)[0] \
-                and all(self.heldout_gain(move.cv, alone.cv, move.runs_with) >= s.min_improvement
+                and all(self.heldout_gain(move.cv, alone.cv, move.runs_with) >= self.bar
                         for alone in move.alone)
         if self.per_run:
             self.paired_tests = max(1, sum(guarded(move, paired=False) for move in moves))
@@ -650,10 +840,34 @@ class Selector:
         held-out RMS by ``likely_min_improvement``), best first."""
         if not path.rejected:
             return []
-        near = [e for e in path.rejected if self._guards(e, path.base_cv, path.rejected_t_critical)[1]]
+        self.paired_tests = path.rejected_paired_tests  # the last round's correction, as it was judged
+        near = []
+        for e in path.rejected:
+            guards = self.guards_with_time_constant(e, path)
+            held_out = guards[-1]
+            if all(g.passes for g in guards[:-1]) and not held_out.passes \
+                    and held_out.gain >= self.settings.likely_min_improvement:
+                near.append(e)
         for e in near:
             e.own_rms = self.own_rms(path.design, e.candidate.feature)
         return sorted(near, key=lambda e: e.ranked_rms_um)
+
+    def guards_with_time_constant(self, evaluation: Evaluation, path: Path) -> list[Guard]:
+        """Every guard of a candidate of the last round (nothing of which passed), the time constant's
+        before the held-out bar."""
+        guards = self.guards_of(evaluation, path.base_cv, path.rejected_t_critical)
+        extra = self.time_constant_guard(evaluation, path.rejected, [])
+        return guards if extra is None else guards[:-1] + [extra, guards[-1]]
+
+    def closest(self, path: Path, count: int = 3) -> list[tuple[Evaluation, list[Guard]]]:
+        """The ``count`` candidates of the last round that lowered the held-out figure most, each with
+        every guard's figure (what held it back), best first."""
+        if not path.rejected:
+            return []
+        self.paired_tests = path.rejected_paired_tests
+        judged = [(e, self.guards_with_time_constant(e, path)) for e in path.rejected]
+        judged.sort(key=lambda item: -item[1][-1].gain if math.isfinite(item[1][-1].gain) else math.inf)
+        return judged[:count]
 
     def own_rms(self, design: np.ndarray, feature: np.ndarray) -> float:
         """RMS of the part of ``feature`` that ``design`` does not already hold."""

@@ -19,9 +19,13 @@ class Settings:
     # min_fold_share of the runs must improve, as before.
     runs_alpha: float = 0.05
     runs_test_min: int = 10
+    # ... and then the held-out bar (the median over runs of each run's held-out RMS) is this drop, not
+    # min_improvement: the paired test carries the evidence, the bar keeps out terms too small to matter.
+    runs_min_improvement: float = 0.05
+    runs_replace_t_test: bool = True
     alpha: float = 0.01                 # family-wise, Bonferroni over the candidates of a round
     equivalence: float = 0.03           # held-out RMS within 3 % of the best: equivalent
-    max_effects: int = 4
+    max_effects: int = 6
     outlier_sigmas: float = 8.0
     min_gain_departure: float = 0.03
     # A gain error claims that a gauge or a scale reads gain x the truth: only physical values.

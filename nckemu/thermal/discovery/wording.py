@@ -82,7 +82,9 @@ def time_constant_lines(discovery: Discovery) -> list[str]:
         parts = []
         for t in sorted(twins, key=lambda t: t.parameters["tau_s"]):
             move = getattr(t.evidence, "move", None)
-            share = f", {move.share:.0%} of the two" if move is not None else ""
+            twin = getattr(t.evidence, "twin_share", None)
+            share = f", {move.share:.0%} of the two" if move is not None else \
+                f", {twin:.0%} of the two" if twin is not None else ""
             parts.append(f"tau {t.parameters['tau_s'] / 3600:.2f} h {t.parameters.get('coeff_um_per_K', 0.0):.3g} "
                          f"um/K{share}")
         lines.append(f"two time constants of {key[1]} ({key[0]}): " + "; ".join(parts))
@@ -116,8 +118,13 @@ def finding_lines(discovery: Discovery) -> list[str]:
         e = item.evidence
         lines.append(f"likely, not proven: {item.label} {json.dumps(item.parameters)}: held-out "
                      f"{e.heldout_rms_before_um:.3f} -> {e.heldout_rms_after_um:.3f} um "
-                     f"({e.heldout_improvement:.1%}, the bar is {e.heldout_bar:.0%}), t = "
-                     f"{e.t_value_ar1_corrected} (critical {e.t_critical}), folds {e.folds_improved}")
+                     f"({e.heldout_improvement:.1%}, the bar is {e.heldout_bar:.0%}); {e.why}")
+    for withdrawn in discovery.withdrawn:
+        lines.append(f"withdrawn: {withdrawn.label}: {withdrawn.why}")
+    for item in discovery.closest:
+        held = ", ".join(item.held_back_by) or "nothing (another candidate was named)"
+        figures = "; ".join(f"{g.figure} ({'passes' if g.passes else 'fails'})" for g in item.guards)
+        lines.append(f"closest: {item.label}, held back by {held}: {figures}")
     if discovery.missing_physics and discovery.residual_is_structure:
         sizes = ", ".join(f"{family} {size:.2g}" for family, size in discovery.smallest_detectable_um.items())
         lines.append(f"left: the residual is still structure ({structure_words(discovery)})"

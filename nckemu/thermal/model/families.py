@@ -56,8 +56,10 @@ class CandidateSource(Protocol):
 
     def transient_column(self, sensor: str, tau_s: float) -> np.ndarray: ...
 
-    def best_time_constant(self, column: Callable[[float], np.ndarray], key: tuple[str, str]
-                           ) -> tuple[float, float, int] | None: ...
+    def best_time_constant(self, column: Callable[[float], np.ndarray], key: tuple[str, str],
+                           away_from: tuple[float, ...] = ()) -> tuple[float, float, int] | None: ...
+
+    def named_time_constants(self, effect: str, sensor: str) -> tuple[float, ...] | None: ...
 
     def best_searched(self, kind: str, count: int) -> list[str]: ...
 
@@ -222,12 +224,25 @@ def _gradient_candidates(source: CandidateSource, present: set[str]) -> Iterator
             yield "thermal_gradient", {"sensors": [a, b], "coeff_um_per_K": 0.0}, 1
 
 
+def _second_time_constant(source: CandidateSource, present: set[str], effect: str, sensor: str
+                          ) -> tuple[float, ...] | None:
+    """The time constants a sensor's ``effect`` already has (its next one is searched away from them),
+    or None when it may have no other: a sensor is named at most at two time constants (a fast skin
+    and a slow core, issue 42), and only when discovery allows a second one."""
+    if f"{effect}:{sensor}" not in present:
+        return ()
+    named = source.named_time_constants(effect, sensor)
+    return named if named is not None and len(named) == 1 else None
+
+
 def _lag_candidates(source: CandidateSource, present: set[str]) -> Iterator[tuple[str, dict[str, Any], int]]:
     """The best time constant per sensor (grid in-sample)."""
     for sensor in source.sensors():
-        if f"thermal_lag:{sensor}" in present:
+        away = _second_time_constant(source, present, "thermal_lag", sensor)
+        if away is None:
             continue
-        found = source.best_time_constant(lambda tau, sensor=sensor: source.lag_column(sensor, tau), ("lag", sensor))
+        found = source.best_time_constant(lambda tau, sensor=sensor: source.lag_column(sensor, tau), ("lag", sensor),
+                                          away)
         if found is not None:
             yield "thermal_lag", {"sensor": sensor, "t_ref_C": source.t_ref(sensor), "tau_s": found[1],
                                   "coeff_um_per_K": 0.0}, found[2]
@@ -236,10 +251,11 @@ def _lag_candidates(source: CandidateSource, present: set[str]) -> Iterator[tupl
 def _transient_candidates(source: CandidateSource, present: set[str]) -> Iterator[tuple[str, dict[str, Any], int]]:
     """Skin-core: the sensor less its own lag, the time constant picked the same way."""
     for sensor in source.sensors():
-        if f"transient_gradient:{sensor}" in present:
+        away = _second_time_constant(source, present, "transient_gradient", sensor)
+        if away is None:
             continue
         found = source.best_time_constant(lambda tau, sensor=sensor: source.transient_column(sensor, tau),
-                                          ("transient", sensor))
+                                          ("transient", sensor), away)
         if found is not None:
             yield "transient_gradient", {"sensor": sensor, "tau_s": found[1], "coeff_um_per_K": 0.0}, found[2]
 
