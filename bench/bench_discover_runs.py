@@ -1,6 +1,7 @@
 """Discovery over many runs: 30 runs x 24 h at 1 Hz with 6 sensors (issue 23: under 60 s here; issue 31:
 still under 60 s with pair moves on, the same discovery without pair moves printed as the anchor; issue
-42: and with a second time constant and measured partners, the same without them printed too).
+42: and with a second time constant and measured partners, the same without them printed too; issue 42's
+second part: and with the runs' paired test in place of the t-test, the admission before it printed too).
 
 The anchor, measured in the same run: single-run discovery on the same data, the runs laid end to end
 as one recording and averaged to the steps discover_runs works on (Settings.runs_resample_s, 30 s).
@@ -97,6 +98,12 @@ def main() -> int:
     named = [m.effect for m in result.missing_physics]
     print(f"  named: {', '.join(named) or '-'}; a second time constant and measured partners cost "
           f"{elapsed_runs - elapsed_narrow:+.2f} s")
+    before = Settings(runs_replace_t_test=False, runs_min_improvement=Settings().min_improvement, max_effects=4)
+    result, elapsed_before = timed("anchor: discover_runs, admission as before issue 42's second part",
+                                   lambda: discover_runs(runs, AXIS, family.model, before))
+    named = [m.effect for m in result.missing_physics]
+    print(f"  named: {', '.join(named) or '-'}; the paired test's admission, a second time constant in later "
+          f"rounds, withdrawal and the closest candidates cost {elapsed_runs - elapsed_before:+.2f} s")
     if not args.no_anchor:
         whole = end_to_end(runs)
         if not args.raw_anchor:

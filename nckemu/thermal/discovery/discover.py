@@ -73,6 +73,11 @@ class Discovery:
     closest: list[Closest] = field(default_factory=list)
     # Terms named in an early round, then withdrawn: the terms named after them explain what they did.
     withdrawn: list[Withdrawn] = field(default_factory=list)
+    # After the last named term, when what is left is structure and no run stands out: where it is
+    # largest (a run, or a window of the one recording) and what it follows there.
+    left: list[dict[str, Any]] = field(default_factory=list)
+    # The search stopped at Settings.max_effects, not because nothing more passed: said, with the figure.
+    stopped_at_limit: str = ""
     # Several runs: the figures of each (leave-one-run-out), which columns some runs lack.
     runs: list[dict[str, Any]] = field(default_factory=list)
     coverage: list[dict[str, Any]] = field(default_factory=list)
@@ -105,6 +110,8 @@ class Discovery:
             "likely_not_proven": [item.to_json() for item in self.likely],
             "closest_candidates": [item.to_json() for item in self.closest],
             "withdrawn": [item.to_json() for item in self.withdrawn],
+            "left": self.left,
+            "stopped_at_limit": self.stopped_at_limit,
             "residual_structure": self.residual_structure,
         }
         if self.baseline_constant_um is not None:
@@ -309,6 +316,9 @@ class Discoverer:
         if self.problem.per_run_offset:  # what each run's own offset leaves
             final_residual = self.problem.within(final_residual)
         result.residual_structure = explain.residual_structure(final_residual)
+        if result.missing_physics and result.residual_is_structure and not self.problem.per_run_offset:
+            result.left = explain.mismatch(self.problem.recording, self.problem.axis, self.problem.t_s,
+                                           final_residual)[:1]
         near = selector.near_misses(path)
         found = {(m.effect, str(m.parameters.get("sensor", m.parameters.get("sensors", ""))))
                  for m in result.missing_physics}
@@ -322,6 +332,10 @@ class Discoverer:
             result.likely.append(explain.likely_record(
                 evaluation, before_um, after_um, gain, figure, path.rejected_t_critical, len(setup.folds),
                 selector.bar, "runs" if self.problem.per_run_offset else "folds", passed=passed))
+        if not path.rejected and len(path.added) >= self.settings.max_effects:
+            count = len(path.added)
+            result.stopped_at_limit = (f"{count} term{'s' if count != 1 else ''} named, the most Settings.max_effects allows: the "
+                                       f"search stopped there, and what is left was not searched further")
         for evaluation, guards in selector.closest(path):
             term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
             result.closest.append(Closest(
@@ -372,19 +386,15 @@ class Discoverer:
             row["fails"] = row["name"] in figures["fails"]
             if not row["fails"]:
                 continue
-            mine = problem.groups == index
-            t_run, r_run = problem.t_s[mine], residual[mine]
-            windows = explain.structured_windows(t_run, r_run, limit=1)
-            start_s, end_s = windows[0] if windows else (float(t_run[0]), float(t_run[-1]))
-            inside = (t_run >= start_s) & (t_run <= end_s)
-            t0 = float(run.readings.recording.t_s[0])
-            row["fails_from_h"], row["fails_to_h"] = round((start_s - t0) / 3600, 2), round((end_s - t0) / 3600, 2)
-            why = explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)
-            near = explain.widened(inside)
-            follows = explain.follows(run.readings.recording, t_run[near], r_run[near])
-            row["follows"] = follows
-            result.mismatch.append({"run": run.name, "t_start_s": start_s, "t_end_s": end_s,
-                                    "why": f"{why}; {follows}" if follows else why})
+            window = self._run_window(index, residual)
+            row["fails_from_h"], row["fails_to_h"] = window["from_h"], window["to_h"]
+            row["follows"] = window["follows"]
+            result.mismatch.append({"run": run.name, "t_start_s": window["t_start_s"], "t_end_s": window["t_end_s"],
+                                    "why": window["why"]})
+        if found and result.residual_is_structure and not result.mismatch:
+            # No run stands out, yet what is left is structure: where the worst run's residual is.
+            worst = int(np.argmax([r["heldout_rms_after_um"] for r in rows]))
+            result.left = [{"run": problem.runs[worst].name, **self._run_window(worst, residual)}]
         library = self.selector.library
         result.coverage = [{"column": column, "missing_in": lacking, "handled": library.handling(column)}
                            for column, lacking in library.unavailable.items()]
@@ -404,6 +414,23 @@ class Discoverer:
         # Each run held out: the baseline and the improved model as they predict it from the other runs.
         result.series["heldout_baseline_um"] = self.y - base_residual
         result.series["heldout_improved_um"] = self.y - residual
+
+    def _run_window(self, index: int, residual: np.ndarray) -> dict[str, Any]:
+        """Where in run ``index`` its held-out residual is largest: the window (s from the shared clock,
+        hours after the run's start), what was going on there and what the residual there follows."""
+        problem = self.problem
+        run = problem.runs[index]
+        mine = problem.groups == index
+        t_run, r_run = problem.t_s[mine], residual[mine]
+        windows = explain.structured_windows(t_run, r_run, limit=1)
+        start_s, end_s = windows[0] if windows else (float(t_run[0]), float(t_run[-1]))
+        inside = (t_run >= start_s) & (t_run <= end_s)
+        t0 = float(run.readings.recording.t_s[0])
+        why = explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)
+        follows = explain.follows(run.readings.recording, t_run[explain.widened(inside)], r_run[explain.widened(inside)])
+        return {"t_start_s": start_s, "t_end_s": end_s, "from_h": round((start_s - t0) / 3600, 2),
+                "to_h": round((end_s - t0) / 3600, 2), "follows": follows,
+                "why": f"{why}; {follows}" if follows else why}
 
     def _finish(self, setup: Baseline, path: Path, preferred: str) -> Discovery:
         problem, given, final = self.problem, setup.given, path.final

@@ -174,6 +174,20 @@ def _honest_section(discovery: Discovery) -> str:
                      f"<code>{html.escape(json.dumps(item.parameters))}</code>: held-out "
                      f"{_um(e.heldout_rms_before_um)} &rarr; {_um(e.heldout_rms_after_um)}; "
                      f"{html.escape(e.why)}.</p>")
+    for withdrawn in discovery.withdrawn:
+        parts.append(f"<p><b>Withdrawn:</b> {html.escape(withdrawn.label)}: {html.escape(withdrawn.why)}.</p>")
+    for item in discovery.left[:1]:
+        where = f"in {item['run']} from {item['from_h']:.2f} h to {item['to_h']:.2f} h after its start" \
+            if "run" in item else f"from {item['t_start_s'] / 3600:.2f} h to {item['t_end_s'] / 3600:.2f} h"
+        parts.append(f"<p><b>What is left</b> is largest {html.escape(where)}: {html.escape(item['why'])}.</p>")
+    if discovery.closest:
+        rows = "".join(
+            f"<tr><td>{html.escape(item.label)}</td><td>{html.escape(', '.join(item.held_back_by))}</td><td>"
+            + "<br>".join(f"{'&#10003;' if g.passes else '&#10007;'} {html.escape(g.guard)}: {html.escape(g.figure)}"
+                          for g in item.guards) + "</td></tr>"
+            for item in discovery.closest)
+        parts.append("<p><b>The candidates that came closest</b> in the last round, with every guard's figure:</p>"
+                     f"<table><tr><th>candidate</th><th>held back by</th><th>guards</th></tr>{rows}</table>")
     return "".join(parts)
 
 

@@ -578,9 +578,10 @@ class Selector:
         tried_moves: list[tuple[str, Move, float]] = []
         partner_family = self.PARTNER_FAMILIES.get(term.effect)
         if partner_family is not None and s.measured_partners:
-            found = self.partner_move(path, chosen, design, tests, partner_family, str(sensor))
-            if found is not None:
-                tried_moves.append(("partner", *found))
+            partnered = self.partner_move(path, chosen, design, tests, partner_family, str(sensor))
+            if partnered is not None:
+                move, t_crit, other_partners = partnered
+                tried_moves += [("partner", m, t_crit) for m in (move, *other_partners)]
         kind = self.SPLIT_KINDS.get(term.effect)
         if kind is not None and s.second_time_constant_ratio:
             found = self.split_move(path, chosen, design, tests, kind, str(sensor))
@@ -625,9 +626,15 @@ class Selector:
                       "itself" if plain else
                       "the time constant alone had absorbed part of what the measured sensor explains"))
             if equivalent:
+                constructed = any(w == "split" for w, m, _t in others
+                                  if m.ranked_rms_um <= move.ranked_rms_um * (1 + margin))
+                measured_too = any(w == "partner" for w, m, _t in others
+                                   if m.ranked_rms_um <= move.ranked_rms_um * (1 + margin))
+                reasons = ([f"the measured partner that fits the record best (in-sample), {move.alone[1].candidate.label}"]
+                           if measured_too else []) + \
+                    (["the measured sensor, which needs no constructed signal and fewer parameters"] if constructed else [])
                 why += (f". Equivalent on these data (held-out without the sensors' noise within {margin:.0%}): "
-                        f"{', '.join(equivalent)}; the data cannot tell them apart. Named: the measured sensor, "
-                        f"which needs no constructed signal and fewer parameters")
+                        f"{', '.join(equivalent)}; the data cannot tell them apart. Named: {'; and '.join(reasons)}")
 
             def preferred(index: int) -> str:
                 kind = "two measured sensors" if plain else "a time constant and a measured sensor"
@@ -655,9 +662,10 @@ class Selector:
                           len(self.y) - design.shape[1] - 2 - self.baseline.extra_parameters)
 
     def partner_move(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int, effect: str,
-                     sensor: str) -> tuple[Move, float] | None:
+                     sensor: str) -> tuple[Move, float, list[Move]] | None:
         """The sensor's ``effect`` beside the best other sensor's plain temperature, its time constant
-        searched again with the partner in."""
+        searched again with the partner in; and the same beside each other partner (sensors that share
+        drivers may each stand in for the other: the words list those the data cannot tell apart)."""
         library = self.library
         partners: dict[str, Term] = {}
         for other in library.sensors():
@@ -690,7 +698,14 @@ class Selector:
                 simpler = self.evaluate_pair(path, simple[0], simple[1])
                 if move.ranked_rms_um > (1 - self.bar) * simpler.ranked_rms_um:
                     move = simpler
-        return move, self._move_t_critical(design, tests + tried)
+        others = []
+        for name, partner in partners.items():
+            if name == partner_name or name not in columns:
+                continue
+            other = self._alone(path, design, [move.alone[0].candidate.term, partner], tried)
+            if other is not None:
+                others.append(self.evaluate_pair(path, other[0], other[1]))
+        return move, self._move_t_critical(design, tests + tried), others
 
     def split_move(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int, kind: str,
                    sensor: str) -> tuple[Move, float] | None:

@@ -119,6 +119,8 @@ def finding_lines(discovery: Discovery) -> list[str]:
         lines.append(f"likely, not proven: {item.label} {json.dumps(item.parameters)}: held-out "
                      f"{e.heldout_rms_before_um:.3f} -> {e.heldout_rms_after_um:.3f} um "
                      f"({e.heldout_improvement:.1%}, the bar is {e.heldout_bar:.0%}); {e.why}")
+    if discovery.stopped_at_limit:
+        lines.append(f"stopped: {discovery.stopped_at_limit}")
     for withdrawn in discovery.withdrawn:
         lines.append(f"withdrawn: {withdrawn.label}: {withdrawn.why}")
     for item in discovery.closest:
@@ -127,7 +129,12 @@ def finding_lines(discovery: Discovery) -> list[str]:
         lines.append(f"closest: {item.label}, held back by {held}: {figures}")
     if discovery.missing_physics and discovery.residual_is_structure:
         sizes = ", ".join(f"{family} {size:.2g}" for family, size in discovery.smallest_detectable_um.items())
-        lines.append(f"left: the residual is still structure ({structure_words(discovery)})"
+        where = ""
+        for item in discovery.left[:1]:
+            hours = (f"{item['from_h']:.2f} h to {item['to_h']:.2f} h after its start" if "run" in item else
+                     f"{item['t_start_s'] / 3600:.2f} h to {item['t_end_s'] / 3600:.2f} h")
+            where = f"; largest {'in ' + item['run'] + ' ' if 'run' in item else ''}from {hours} ({item['why']})"
+        lines.append(f"left: the residual is still structure ({structure_words(discovery)}){where}"
                      + (f"; the smallest effect each family could have shown next (RMS, um): {sizes}" if sizes else ""))
     if not discovery.missing_physics:
         # A residual that is structure (r(1) near 1, a huge Ljung-Box Q) is never "nothing missing".

@@ -7,6 +7,7 @@ many runs)."""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -118,7 +119,9 @@ def test_a_named_sensor_is_searched_again_away_from_its_time_constant() -> None:
                 if t.effect == "transient_gradient" and t.parameters["sensor"] == "front"]
 
 
-def test_a_term_the_later_ones_explain_is_withdrawn() -> None:
+def test_a_term_the_later_ones_explain_is_withdrawn(tmp_path: Path) -> None:
+    from nckemu.thermal.discovery.report import write_report
+
     # pair_days seed 13: a gradient of the rear and the ambient passes first under the lower bar; the
     # rear's and the front's own temperatures, named after it, explain what it did.
     family = make_transient_family("pair_days", 13)
@@ -129,6 +132,10 @@ def test_a_term_the_later_ones_explain_is_withdrawn() -> None:
     line = next(line for line in finding_lines(result) if line.startswith("withdrawn: "))
     assert "the terms named after it explain what it did" in line and "the bar is 5%" in line
     assert result.to_json()["withdrawn"][0]["label"] == "thermal_gradient(rear - ambient)"
+    write_report(tmp_path / "report.html", result, "pair_days seed 13")
+    page = (tmp_path / "report.html").read_text()
+    assert "<b>Withdrawn:</b> thermal_gradient(rear - ambient)" in page
+    assert "The candidates that came closest" in page and "held back by" in page
 
 
 def test_the_bar_and_the_test_follow_the_number_of_runs() -> None:
@@ -163,3 +170,43 @@ def test_selector_bar_property() -> None:
     assert selector.paired_runs and selector.bar == 0.05
     selector.library = _library(6)
     assert not selector.paired_runs and selector.bar == 0.10
+
+
+def test_what_is_left_is_placed_in_a_run_or_a_window_with_what_it_follows() -> None:
+    from nckemu.thermal.recordings.recording import load_runs
+
+    runs = load_runs([str(Path(__file__).resolve().parents[3] / "fixtures/thermal/runs")])
+    result = discover_runs(runs, "Z")
+    assert result.residual_is_structure and not result.run_figures["fails"]
+    assert result.left and result.left[0]["run"] == "day1" and "follows" in result.left[0]["why"]
+    left = next(line for line in finding_lines(result) if line.startswith("left:"))
+    assert "largest in day1 from 9.25 h to 9.70 h after its start" in left and "the residual there follows" in left
+    assert result.to_json()["left"][0]["run"] == "day1"
+
+    scenario = make_scenario("thermal_lag", seed=1)
+    one = discover(scenario.recording, AXIS, scenario.baseline)
+    assert one.missing_physics and one.residual_is_structure and one.left
+    left = next(line for line in finding_lines(one) if line.startswith("left:"))
+    assert re.search(r"largest from \d+\.\d\d h to \d+\.\d\d h \(mean residual", left)
+
+
+def test_measured_partners_the_data_cannot_tell_apart_are_named_as_equivalent() -> None:
+    # correlated_lag_bed with a coolant sensor, seed 12: the coolant follows the ambient and part of the
+    # spindle's heat as the bed does; it is named beside the lag, and the bed is listed as equivalent.
+    family = make_correlated_family("correlated_lag_bed", 12, coolant=True)
+    result = discover_runs(family.runs, AXIS, family.model)
+    partner = next(m for m in result.missing_physics if m.effect == "temperature")
+    move = partner.evidence.move
+    assert move is not None
+    assert "Equivalent on these data" in move.why and "thermal_lag(spindle) + temperature(bed)" in move.why
+    assert f"the measured partner that fits the record best (in-sample), temperature({partner.parameters['sensor']})" \
+        in move.why
+    assert any(alt.effects == "thermal_lag(spindle) + temperature(bed)" for alt in move.equivalent)
+
+
+def test_a_search_stopped_by_the_limit_says_so() -> None:
+    family = make_month_family("duty_month", 1)
+    result = discover_runs(family.runs, AXIS, family.model, Settings(max_effects=1))
+    assert len(result.missing_physics) == 1 and not result.closest
+    assert "the most Settings.max_effects allows" in result.stopped_at_limit
+    assert any(line.startswith("stopped: 1 term named") for line in finding_lines(result))
