@@ -120,10 +120,6 @@ def _variance_factor(r1: float, phi: float) -> float:
     return 1.0 + 2.0 * r1 / (1.0 - phi) if r1 > 0.0 else 1.0
 
 
-def ar1_coefficient(residual: np.ndarray) -> float:
-    return _ar1_plus_white(residual)[1]
-
-
 def long_run_variance_factor(residual: np.ndarray) -> float:
     """Var(mean of n samples) · n / Var(sample) for AR(1) plus white noise: 1 + 2·r(1)/(1 − φ).
     A lag-1 AR(1) fit alone, (1 + r1)/(1 − r1), underestimates it badly when white noise dilutes r(1)."""
@@ -166,12 +162,4 @@ def ljung_box(residual: np.ndarray, lags: int = 20) -> float:
     n = len(residual)
     if n <= lags + 1:
         return math.nan
-    centred = residual - residual.mean()
-    denominator = float(np.dot(centred, centred))
-    if denominator == 0:
-        return 0.0
-    q = 0.0
-    for k in range(1, lags + 1):
-        r_k = float(np.dot(centred[k:], centred[:-k])) / denominator
-        q += r_k * r_k / (n - k)
-    return n * (n + 2) * q
+    return n * (n + 2) * sum(autocorrelation(residual, k) ** 2 / (n - k) for k in range(1, lags + 1))
