@@ -166,3 +166,38 @@ def test_disconnect_request_is_confirmed_and_closes(session: ServerSession) -> N
     session.receive(CR_NCK)
     (dc,) = session.receive(bytes.fromhex("0300000B068000010001" + "00")[:11])
     assert dc[5] == 0xC0 and session.closed
+
+
+def _nc_userdata(pdu_ref: int, parameter: object, payload: bytes) -> bytes:
+    from nckemu.protocol import ncprog, s7
+
+    assert isinstance(parameter, ncprog.NcParameter)
+    return s7.build_pdu(s7.S7Pdu(s7.Rosctr.USERDATA, pdu_ref, ncprog.build_nc_parameter(parameter),
+                                 ncprog.build_nc_data(ncprog.NcData(payload))))
+
+
+def test_a_download_block_split_over_dts_behind_a_full_amq_is_no_job() -> None:
+    """An NC push is a telegram of a transfer, not a job: reassembled from several DTs behind more jobs
+    than the AMQ, it gets no 'no resources' answer (as it gets none in one DT) and its block counts."""
+    from nckemu.protocol import ncprog
+    from nckemu.protocol.ncprog import NcParameter, NcSubfunction
+
+    emulator = Emulator()
+    session = ServerSession(Dispatcher.for_machine(emulator), limits=SessionLimits(max_amq=2))
+    session.receive(CR_NCK)
+    session.receive(dt(SETUP_960))
+    (started,) = session.receive(dt(_nc_userdata(
+        5, NcParameter(ncprog.NC_REQUEST, NcSubfunction.REQUEST_DOWNLOAD), ncprog.build_name("_N_AMQ_MPF"))))
+    sequence = ncprog.parse_nc_parameter(s7_of(started)[10:10 + int.from_bytes(s7_of(started)[6:8], "big")]).sequence
+    text = b"G1 X10 F100\nM30\n"
+    content = ncprog.build_transfer_content(ncprog.TransferContent("/_N_MPF_DIR", text))
+    block = _nc_userdata(6, NcParameter(ncprog.NC_PUSH, NcSubfunction.DOWNLOAD_BLOCK, sequence, True, 1,
+                                        ncprog.LAST_DATA_UNIT), ncprog.build_chunk(content))
+    jobs = b"".join(dt(job(10 + i, b"\x04\x01" + SD43900_AX4)) for i in range(3))
+    answers = session.receive(jobs + dt(block[:20], eot=False) + dt(block[20:]))
+    assert [header_error(s7_of(a)) for a in answers] == [(0, 0), (0, 0), (0x83, 0x02)]
+    (ended,) = session.receive(dt(_nc_userdata(
+        7, NcParameter(ncprog.NC_REQUEST, NcSubfunction.DOWNLOAD_ENDED, sequence), b"\x00\x00")))
+    ended_parameter = s7_of(ended)[10:10 + int.from_bytes(s7_of(ended)[6:8], "big")]
+    assert ncprog.parse_nc_parameter(ended_parameter).error_code == 0
+    assert emulator.nck.programs.read("/_N_MPF_DIR/_N_AMQ_MPF") == text

@@ -255,9 +255,11 @@ class ServerSession:
                 pdu_bytes = self._reassemble(tpdu)
                 if pdu_bytes is None:
                     continue
-                if not _is_nc_push(pdu_bytes, 0):
+                push = _is_nc_push(pdu_bytes, 0)  # a telegram of a transfer, not a job (as in one DT above)
+                if not push:
                     jobs_in_flight += 1
-                out.extend(self._answer_frames(self._handle_pdu(pdu_bytes, over_amq=jobs_in_flight > self.info.amq)))
+                out.extend(self._answer_frames(self._handle_pdu(
+                    pdu_bytes, over_amq=not push and jobs_in_flight > self.info.amq)))
             elif isinstance(tpdu, cotp.ConnectRequest):
                 out.extend(self._handle_connect(tpdu))
             elif isinstance(tpdu, cotp.DisconnectRequest):
