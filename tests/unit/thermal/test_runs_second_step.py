@@ -210,3 +210,24 @@ def test_a_search_stopped_by_the_limit_says_so() -> None:
     assert len(result.missing_physics) == 1 and not result.closest
     assert "the most Settings.max_effects allows" in result.stopped_at_limit
     assert any(line.startswith("stopped: 1 term named") for line in finding_lines(result))
+
+
+def test_a_candidate_few_runs_can_judge_keeps_the_t_test_and_the_bar_of_a_few() -> None:
+    from nckemu.thermal import stats
+    from nckemu.thermal.discovery.discover import Discoverer
+
+    family = make_month_family("duty_month", 1, runs=12)
+    discoverer = Discoverer.for_runs(family.runs, AXIS, family.model)
+    setup = discoverer.baseline()
+    selector = Selector(discoverer.y, discoverer.problem.t_s, Library(discoverer.problem, Settings()), Settings(),
+                        setup)
+    before = stats.CrossValidation(3.0, tuple([3.0] * 12))
+    after = stats.CrossValidation(2.8, tuple([2.8] * 12))
+    term = (Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": 1.0}),)
+    everywhere = selector.guards(after, 12, None, (2.0,), term, before, 4.0)
+    assert [g.name for g in everywhere] == ["paired test", "physical", "worst run", "held-out"]
+    assert everywhere[-1].passes and "the bar is 5%" in everywhere[-1].figure  # 6.7 % over 12 runs
+    some = np.array([True] * 7 + [False] * 5)  # the candidate's columns in 7 runs of 12
+    few = selector.guards(after, 12, some, (2.0,), term, before, 4.0)
+    assert [g.name for g in few] == ["runs improved", "t-test", "physical", "worst run", "held-out"]
+    assert not few[1].passes and not few[-1].passes and "the bar is 10%" in few[-1].figure
