@@ -332,10 +332,10 @@ class Discoverer:
             result.likely.append(explain.likely_record(
                 evaluation, before_um, after_um, gain, figure, path.rejected_t_critical, len(setup.folds),
                 selector.bar, "runs" if self.problem.per_run_offset else "folds", passed=passed))
-        if not path.rejected and len(path.added) >= self.settings.max_effects:
-            count = len(path.added)
+        if path.at_limit:
+            count = self.settings.max_effects
             result.stopped_at_limit = (f"{count} term{'s' if count != 1 else ''} named, the most Settings.max_effects allows: the "
-                                       f"search stopped there, and what is left was not searched further")
+                                       f"search stopped there; the next round's candidates were surveyed, not judged")
         for evaluation, guards in selector.closest(path):
             term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
             result.closest.append(Closest(

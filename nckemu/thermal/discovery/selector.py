@@ -132,6 +132,8 @@ class Path:
     rejected_paired_tests: int = 1     # ... and how many candidates the runs' paired test was corrected over
     # Terms named in a round and withdrawn at the end: the terms named after them explain what they did.
     withdrawn: list[Withdrawn] = field(default_factory=list)
+    # The search stopped at Settings.max_effects: the last round's candidates were surveyed, not judged.
+    at_limit: bool = False
 
 
 def runs_improve(before_ms: np.ndarray, after_ms: np.ndarray, level: float, min_share: float,
@@ -427,8 +429,11 @@ class Selector:
         for _round in range(self.settings.max_effects):
             if len(path.added) >= self.settings.max_effects or not self.round(path):
                 break
+        path.at_limit = len(path.added) >= self.settings.max_effects
         if self.paired_runs:
             self.withdraw_redundant(path)
+        if path.at_limit:
+            self.survey(path)
         path.final = stats.fit(path.design, self.y) if path.design.shape[1] else None
         self.twin_shares(path)
         return path
@@ -495,20 +500,39 @@ class Selector:
                 assert isinstance(record, Evidence)
                 record.twin_share = round(part / total if total > 0 else 0.5, 4)
 
-    def round(self, path: Path) -> bool:
+    def evaluate_round(self, path: Path) -> tuple[list[Evaluation], float, int] | None:
+        """The round's candidates evaluated beside the path's design: (evaluations, critical t, the
+        hypotheses it is corrected over); the runs' paired test counted over them. None: no candidate."""
         s, setup = self.settings, self.baseline
-        folds = setup.folds
         design = path.design
         candidates = self.library.candidates(design if design.shape[1] else setup.given[:, None], path.present,
                                              tuple(path.added))
         if not candidates:
-            return False
+            return None
         # Bonferroni over every hypothesis of the round, each time constant tried included.
         tests = sum(c.grid_points for c in candidates)
         t_crit = t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1 - setup.extra_parameters)
         evaluations = [e for e in (self.evaluate(design, path.noise, c, path.base_cv) for c in candidates)
                        if self.twin_of_one_sign(path, e)]
         self.count_paired_tests(evaluations, path.base_cv, t_crit)
+        return evaluations, t_crit, tests
+
+    def survey(self, path: Path) -> None:
+        """The search stopped at the limit: the next round's candidates, evaluated and not admitted, so
+        the words can say what came closest and the detectable sizes can be given."""
+        surveyed = self.evaluate_round(path)
+        if surveyed is not None:
+            path.rejected, path.rejected_t_critical, _tests = surveyed
+            path.rejected_paired_tests = self.paired_tests
+
+    def round(self, path: Path) -> bool:
+        s, setup = self.settings, self.baseline
+        folds = setup.folds
+        design = path.design
+        evaluated = self.evaluate_round(path)
+        if evaluated is None:
+            return False
+        evaluations, t_crit, tests = evaluated
         single_paired_tests = self.paired_tests  # pair_round counts its moves' own
         passing = [e for e in evaluations if self.passes(e, path.base_cv, t_crit)]
         passing = [e for e in passing if self.earned(e, evaluations, passing)]
@@ -876,8 +900,11 @@ class Selector:
         """Every guard of a candidate of the last round (nothing of which passed), the time constant's
         before the held-out bar."""
         guards = self.guards_of(evaluation, path.base_cv, path.rejected_t_critical)
-        extra = self.time_constant_guard(evaluation, path.rejected, [])
-        return guards if extra is None else guards[:-1] + [extra, guards[-1]]
+        extra = [] if (found := self.time_constant_guard(evaluation, path.rejected, [])) is None else [found]
+        if path.at_limit:
+            extra.append(Guard("limit", False, f"the search stopped at {self.settings.max_effects} terms "
+                                               f"(Settings.max_effects)"))
+        return guards[:-1] + extra + [guards[-1]]
 
     def closest(self, path: Path, count: int = 3) -> list[tuple[Evaluation, list[Guard]]]:
         """The ``count`` candidates of the last round that lowered the held-out figure most, each with

@@ -207,9 +207,12 @@ def test_measured_partners_the_data_cannot_tell_apart_are_named_as_equivalent() 
 def test_a_search_stopped_by_the_limit_says_so() -> None:
     family = make_month_family("duty_month", 1)
     result = discover_runs(family.runs, AXIS, family.model, Settings(max_effects=1))
-    assert len(result.missing_physics) == 1 and not result.closest
+    assert len(result.missing_physics) == 1
     assert "the most Settings.max_effects allows" in result.stopped_at_limit
     assert any(line.startswith("stopped: 1 term named") for line in finding_lines(result))
+    # the next round was surveyed: what came closest, held back by the limit, and the detectable sizes
+    assert result.closest and all("limit" in item.held_back_by for item in result.closest)
+    assert result.smallest_detectable_um and not result.likely
 
 
 def test_a_candidate_few_runs_can_judge_keeps_the_t_test_and_the_bar_of_a_few() -> None:
