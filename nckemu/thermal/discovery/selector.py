@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from nckemu.thermal import stats
+from nckemu.thermal.model import families
+from nckemu.thermal.model.families import Family
 from nckemu.thermal.model.terms import Term
 
 from . import explain
@@ -581,11 +583,6 @@ class Selector:
         first = path.design.shape[1] - len(path.added) + twins[0]
         return bool(coefficients[first] * coefficients[-1] > 0)
 
-    SPLIT_KINDS = {"thermal_lag": "lag", "transient_gradient": "transient"}
-    # A partner search starts from the one time constant family the chosen term extends or is.
-    PARTNER_FAMILIES = {"thermal_lag": "thermal_lag", "heating_cooling_hysteresis": "thermal_lag",
-                        "transient_gradient": "transient_gradient"}
-
     def time_constant_moves(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int) -> bool:
         """The round names an effect with a time constant of one sensor. Two questions before it is
         admitted as one effect (issue 42), each a move of two judged under every guard, which must
@@ -605,13 +602,15 @@ class Selector:
         if sensor is None or not time_constants(term) or len(path.added) + 2 > s.max_effects:
             return False
         tried_moves: list[tuple[str, Move, float]] = []
-        partner_family = self.PARTNER_FAMILIES.get(term.effect)
+        # A partner search starts from the one time constant family the chosen term is or extends (the
+        # registry's searched_column); two time constants only of such a family itself.
+        partner_family = families.one_time_constant_family(term.effect)
         if partner_family is not None and s.measured_partners:
             partnered = self.partner_move(path, chosen, design, tests, partner_family, str(sensor))
             if partnered is not None:
                 move, t_crit, other_partners = partnered
                 tried_moves += [("partner", m, t_crit) for m in (move, *other_partners)]
-        kind = self.SPLIT_KINDS.get(term.effect)
+        kind = term.spec.searched_column
         if kind is not None and s.second_time_constant_ratio:
             found = self.split_move(path, chosen, design, tests, kind, str(sensor))
             if found is not None:
@@ -690,7 +689,7 @@ class Selector:
         return t_critical(self.settings.alpha, tests,
                           len(self.y) - design.shape[1] - 2 - self.baseline.extra_parameters)
 
-    def partner_move(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int, effect: str,
+    def partner_move(self, path: Path, chosen: Evaluation, design: np.ndarray, tests: int, searched: Family,
                      sensor: str) -> tuple[Move, float, list[Move]] | None:
         """The sensor's ``effect`` beside the best other sensor's plain temperature, its time constant
         searched again with the partner in; and the same beside each other partner (sensors that share
@@ -707,14 +706,15 @@ class Selector:
             candidate = library.candidate(partner)
             if candidate is not None:
                 columns[name] = candidate.feature
-        found = library.best_with_partner("lag" if effect == "thermal_lag" else "transient", sensor, design, columns)
+        assert searched.searched_column is not None
+        found = library.best_with_partner(searched.searched_column, sensor, design, columns)
         if found is None:
             return None
         tau_s, partner_name, tried = found
         base = {"sensor": sensor, "tau_s": tau_s, "coeff_um_per_K": 0.0}
-        if effect == "thermal_lag":
+        if "t_ref_C" in searched.optional:
             base = {"sensor": sensor, "t_ref_C": library.t_ref(sensor), **base}
-        alone = self._alone(path, design, [Term(effect, base), partners[partner_name]], tried)
+        alone = self._alone(path, design, [Term(searched.effect, base), partners[partner_name]], tried)
         if alone is None:
             return None
         move = self.evaluate_pair(path, alone[0], alone[1])

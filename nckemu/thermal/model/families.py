@@ -2,7 +2,9 @@
 from it in one place.
 
 An entry owns the family's parameters (the model file's vocabulary), its feature on a recording, the
-bounds a machine can have, the simpler families it extends, how discovery proposes its candidates,
+bounds a machine can have, the simpler families it extends, the column whose one time constant
+discovery searches (where a second time constant and a measured partner are searched), how discovery
+proposes its candidates,
 its place among the detectable sizes (the registry's order) and its form in a PLC program (the name
 of one of ``PLC_FORMS``, which ``plcsim/stlgen.py`` writes as STL, or None with the reason). A new
 family is one ``register(Family(...))``; ``tests/unit/thermal/test_families.py`` shows a toy one
@@ -85,6 +87,9 @@ class Family:
     plc_refusal: str = ""               # why a family without a PLC form has none
     extends: tuple[str, ...] = ()       # simpler families of the same sensor it contains
     time_constants: tuple[str, ...] = ()  # parameters that are time constants (s)
+    # The library column ("lag", "transient") whose one time constant discovery searches: the family a
+    # second time constant or a measured partner is searched for (issue 42). None: not such a family.
+    searched_column: str | None = None
     coefficient_range: tuple[float, float] | None = None
     uses_spindle: bool = False
     uses_position: bool = False
@@ -156,6 +161,15 @@ def family(effect: str) -> Family:
 
 def known(effect: object) -> bool:
     return isinstance(effect, str) and effect in _REGISTRY
+
+
+def one_time_constant_family(effect: str) -> Family | None:
+    """The family with one searched time constant that ``effect`` is or extends (a hysteresis: the
+    lag), or None."""
+    for candidate in (effect, *family(effect).extends):
+        if known(candidate) and family(candidate).searched_column is not None:
+            return family(candidate)
+    return None
 
 
 # ---------------------------------------------------------------------- features
@@ -304,7 +318,8 @@ for _family in (
            "the structure follows a sensor through a first-order lag",
            lambda r, _a, p: first_order_lag(r.t_s, r.sensor(p["sensor"]), float(p["tau_s"]))
            - float(p.get("t_ref_C", 20.0)),
-           _lag_candidates, plc_form="lag", extends=("temperature",), time_constants=("tau_s",), stage=3),
+           _lag_candidates, plc_form="lag", extends=("temperature",), time_constants=("tau_s",), stage=3,
+           searched_column="lag"),
     Family("heating_cooling_hysteresis", "coeff_um_per_K", ("sensor", "tau_heat_s", "tau_cool_s"), {"t_ref_C": 20.0}, 4,
            "different lags while heating and while cooling",
            lambda r, _a, p: asymmetric_lag(r.t_s, r.sensor(p["sensor"]), float(p["tau_heat_s"]),
@@ -318,6 +333,6 @@ for _family in (
            "bending while heat crosses a structure (skin-core): a sensor minus its own lagged value, "
            "rising with the sensor, then straightening as the structure evens out",
            _transient, _transient_candidates, plc_form="skin_core", extends=("temperature",),
-           time_constants=("tau_s",), stage=4),
+           time_constants=("tau_s",), stage=4, searched_column="transient"),
 ):
     register(_family)
