@@ -328,7 +328,8 @@ class Discoverer:
                 continue
             before_um, after_um, gain, figure = selector.heldout_figures(evaluation.cv, path.base_cv,
                                                                          evaluation.candidate.runs_with)
-            passed = [g.figure for g in selector.guards_with_time_constant(evaluation, path)[:-1]]
+            guards = next(g for e, g in selector.judged(path) if e is evaluation)
+            passed = [g.figure for g in guards[:-1]]
             result.likely.append(explain.likely_record(
                 evaluation, before_um, after_um, gain, figure, path.rejected_t_critical, len(setup.folds),
                 selector.bar, "runs" if self.problem.per_run_offset else "folds", passed=passed))

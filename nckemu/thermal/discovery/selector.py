@@ -136,6 +136,8 @@ class Path:
     withdrawn: list[Withdrawn] = field(default_factory=list)
     # The search stopped at Settings.max_effects: the last round's candidates were surveyed, not judged.
     at_limit: bool = False
+    # The last round's candidates with every guard's figure, judged once (``Selector.judged``).
+    judged: list[tuple[Evaluation, list[Guard]]] | None = None
 
 
 def runs_improve(before_ms: np.ndarray, after_ms: np.ndarray, level: float, min_share: float,
@@ -145,9 +147,14 @@ def runs_improve(before_ms: np.ndarray, after_ms: np.ndarray, level: float, min_
     (a few days of data: the test could hardly reach the level with one run not improving), or too
     few to reach it at all, ``min_share`` of the runs must improve."""
     before_ms, after_ms = np.asarray(before_ms), np.asarray(after_ms)
-    if len(before_ms) < min_runs or 0.5 ** len(before_ms) > level:
+    if not paired_test_applies(len(before_ms), level, min_runs):
         return int(np.sum(after_ms < before_ms)) >= math.ceil(min_share * len(before_ms))
     return stats.paired_improvement_p(before_ms, after_ms) <= level
+
+
+def paired_test_applies(runs: int, level: float, min_runs: int) -> bool:
+    """Enough runs for the paired test: at least ``min_runs``, and enough to reach ``level`` at all."""
+    return runs >= min_runs and 0.5 ** runs <= level
 
 
 def t_critical(alpha: float, tests: int, dof: int) -> float:
@@ -260,7 +267,7 @@ class Selector:
             before, after = before[runs_with], after[runs_with]
         level = s.runs_alpha / max(self.paired_tests, 1)
         passes = runs_improve(before, after, level, s.min_fold_share, s.runs_test_min)
-        if len(before) < s.runs_test_min or 0.5 ** len(before) > level:
+        if not paired_test_applies(len(before), level, s.runs_test_min):
             improved, need = int(np.sum(after < before)), math.ceil(s.min_fold_share * len(before))
             return Guard("runs improved", passes, f"{improved} of {len(before)} runs improve (at least {need} must)")
         p = stats.paired_improvement_p(before, after)
@@ -450,26 +457,23 @@ class Selector:
         s = self.settings
         offset = 1 if path.gain_mode else 0
         while True:
-            first = path.design.shape[1] - len(path.added)
-            weakest: tuple[float, int, stats.CrossValidation] | None = None
+            weakest: tuple[float, int, stats.CrossValidation, list[int]] | None = None
             for index in range(len(path.added)):
                 record = path.discovered[index + offset].evidence
                 if not isinstance(record, Evidence) or record.move is not None:
                     continue
-                keep = [c for c in range(path.design.shape[1]) if c != first + index]
-                without = self.baseline.cross_validate(path.design[:, keep], self.y, self.baseline.folds)
+                without, keep = self.without_added(path, index)
                 median_with, median_without = (float(np.median(cv.fold_rms_um)) for cv in (path.base_cv, without))
                 loss = 1.0 - median_with / median_without if median_without > 0 else 0.0
                 worst_with, worst_without = max(path.base_cv.fold_rms_um), max(without.fold_rms_um)
                 if loss < self.bar and worst_without <= (1 + s.equivalence) * worst_with \
                         and (weakest is None or loss < weakest[0]):
-                    weakest = (loss, index, without)
+                    weakest = (loss, index, without, keep)
             if weakest is None:
                 return
-            loss, index, without = weakest
+            loss, index, without, keep = weakest
             term = path.added.pop(index)
             path.discovered.pop(index + offset)
-            keep = [c for c in range(path.design.shape[1]) if c != first + index]
             path.design, path.noise = path.design[:, keep], path.noise[:, keep]
             path.withdrawn.append(Withdrawn(
                 term.effect, explain.label_with_time_constants(term), dict(term.parameters),
@@ -479,11 +483,17 @@ class Selector:
                 f"against {max(path.base_cv.fold_rms_um):.3f} um"))
             path.base_cv = without
 
+    def without_added(self, path: Path, index: int) -> tuple[stats.CrossValidation, list[int]]:
+        """The path's design without the column of ``path.added[index]``, cross-validated, and the
+        columns kept."""
+        column = path.design.shape[1] - len(path.added) + index
+        keep = [c for c in range(path.design.shape[1]) if c != column]
+        return self.baseline.cross_validate(path.design[:, keep], self.y, self.baseline.folds), keep
+
     def twin_shares(self, path: Path) -> None:
         """A sensor named at two time constants in two rounds (the second found once another term was
         in): each one's share, as for a move of two, of what the two improve together: how much the
         held-out figure rises without it."""
-        first = path.design.shape[1] - len(path.added)
         groups: dict[tuple[str, object], list[int]] = {}
         for index, term in enumerate(path.added):
             if time_constants(term) and term.parameters.get("sensor") is not None:
@@ -492,11 +502,8 @@ class Selector:
             records = [path.discovered[i + (1 if path.gain_mode else 0)].evidence for i in indices]
             if len(indices) != 2 or any(not isinstance(r, Evidence) or r.move is not None for r in records):
                 continue
-            lost = []
-            for index in indices:
-                keep = [c for c in range(path.design.shape[1]) if c != first + index]
-                without = self.baseline.cross_validate(path.design[:, keep], self.y, self.baseline.folds)
-                lost.append(max(self.heldout_gain(path.base_cv, without), 0.0))
+            lost = [max(self.heldout_gain(path.base_cv, self.without_added(path, index)[0]), 0.0)
+                    for index in indices]
             total = sum(lost)
             for record, part in zip(records, lost, strict=True):
                 assert isinstance(record, Evidence)
@@ -882,19 +889,18 @@ class Selector:
     def near_misses(self, path: Path) -> list[Evaluation]:
         """Candidates of the last round that pass every guard but the held-out bar (and still lower
         held-out RMS by ``likely_min_improvement``), best first."""
-        if not path.rejected:
-            return []
-        self.paired_tests = path.rejected_paired_tests  # the last round's correction, as it was judged
-        near = []
-        for e in path.rejected:
-            guards = self.guards_with_time_constant(e, path)
-            held_out = guards[-1]
-            if all(g.passes for g in guards[:-1]) and not held_out.passes \
-                    and held_out.gain >= self.settings.likely_min_improvement:
-                near.append(e)
-        for e in near:
-            e.own_rms = self.own_rms(path.design, e.candidate.feature)
+        near = [e for e, guards in self.judged(path)
+                if all(g.passes for g in guards[:-1]) and not guards[-1].passes
+                and guards[-1].gain >= self.settings.likely_min_improvement]
         return sorted(near, key=lambda e: e.ranked_rms_um)
+
+    def judged(self, path: Path) -> list[tuple[Evaluation, list[Guard]]]:
+        """Every candidate of the last round with every guard's figure, at the last round's correction
+        of the runs' paired test, computed once for the likely term, the closest and their words."""
+        if path.judged is None:
+            self.paired_tests = path.rejected_paired_tests
+            path.judged = [(e, self.guards_with_time_constant(e, path)) for e in path.rejected]
+        return path.judged
 
     def guards_with_time_constant(self, evaluation: Evaluation, path: Path) -> list[Guard]:
         """Every guard of a candidate of the last round (nothing of which passed), the time constant's
@@ -909,12 +915,8 @@ class Selector:
     def closest(self, path: Path, count: int = 3) -> list[tuple[Evaluation, list[Guard]]]:
         """The ``count`` candidates of the last round that lowered the held-out figure most, each with
         every guard's figure (what held it back), best first."""
-        if not path.rejected:
-            return []
-        self.paired_tests = path.rejected_paired_tests
-        judged = [(e, self.guards_with_time_constant(e, path)) for e in path.rejected]
-        judged.sort(key=lambda item: -item[1][-1].gain if math.isfinite(item[1][-1].gain) else math.inf)
-        return judged[:count]
+        return sorted(self.judged(path),
+                      key=lambda item: -item[1][-1].gain if math.isfinite(item[1][-1].gain) else math.inf)[:count]
 
     def own_rms(self, design: np.ndarray, feature: np.ndarray) -> float:
         """RMS of the part of ``feature`` that ``design`` does not already hold."""
