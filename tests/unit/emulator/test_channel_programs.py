@@ -437,3 +437,16 @@ def test_a_subprogram_is_found_in_the_subprogram_directory() -> None:
     run(emu, clock, 10.0)
     assert channel.state.status == CHAN_RESET and emu.nck.axes.positions_mm[1] == 60.0
     assert {b.program for b in blocks} == {"/_N_MPF_DIR/_N_CALLER_MPF", "/_N_SPF_DIR/_N_MOVE_TWICE_SPF"}
+
+
+def test_a_feed_override_of_0_holds_the_move_as_long_as_it_lasts() -> None:
+    """Held by an override of 0 for 1 000 cycles and more (it once wrapped the event stream once per
+    cycle and ended in an internal error), the move runs on when the override opens again."""
+    emu, clock = emulator()
+    channel, changes = started(emu, "HOLD.MPF", "G1 X10 F600\nM30\n")
+    channel.state.feed_override_pct = 0.0
+    run(emu, clock, 150.0)                                    # 1 500 cycles of 0.1 s
+    assert channel.alarms == [] and emu.nck.axes.positions_mm[1] == 0.0
+    channel.state.feed_override_pct = 100.0
+    run(emu, clock, 152.0)
+    assert emu.nck.axes.positions_mm[1] == pytest.approx(10.0) and changes[-1] == "ended"

@@ -257,6 +257,7 @@ class ProgramRun:
         self._numbers = sorted(set(self.axes.values()))
         self.env = NckEnvironment(channel, parts, self)
         self._events: Iterator[Event] = Interpreter(self.env, path, text).events()
+        self._pending: Event | None = None   # a move held by an override of 0, dispatched again next cycle
         self._motion: _Motion | None = None
         self._paused_at: float | None = None
         self._spindle_ready_s = self.t_s
@@ -319,10 +320,12 @@ class ProgramRun:
                 # cycle at the same simulated time (so the time does not depend on the cycle), and the
                 # cycle returns, so the faces are served meanwhile.
                 return "running"
-            try:
-                event = next(self._events)
-            except StopIteration:
-                return self._end()
+            event, self._pending = self._pending, None
+            if event is None:
+                try:
+                    event = next(self._events)
+                except StopIteration:
+                    return self._end()
             kind = event.__class__  # the events are final (slotted) classes: a type, not isinstance
             if kind is Block:
                 blocks += 1
@@ -389,7 +392,6 @@ class ProgramRun:
         if (state.feed_override_pct <= 0.0 if feed_move else state.rapid_override_pct <= 0.0):
             # override 0: the block waits (time passes) until the override opens again
             self._pending = event
-            self._events = _prepend(event, self._events)
             self.t_s = max(self.t_s, until_s)
             return False
         start_s = self.t_s
@@ -512,11 +514,6 @@ class ProgramRun:
                                                            else "")
         if event.edge is not None:
             state.d_number = event.edge
-
-
-def _prepend(event: Event, events: Iterator[Event]) -> Iterator[Event]:
-    yield event
-    yield from events
 
 
 def _with(event: Move | Arc, targets: dict[str, float], centre: dict[str, float] | None = None) -> Move | Arc:
