@@ -123,9 +123,6 @@ async def _on_wire(nck: AsyncNckClient, what: str, operation: Callable[[_Wire], 
                                      "the next call reconnects") from None
 
 
-def _stamp(now: datetime) -> str:
-    return ncprog.stamp_of(now.year, now.month, now.day, now.hour, now.minute, now.second)
-
 
 async def put_program(nck: AsyncNckClient, name: str, text: bytes, *, now: datetime | None = None) -> str:
     """Send ``text`` as the program ``name`` (``DAILY.MPF``, ``/_N_MPF_DIR/_N_DAILY_MPF``); returns its
@@ -133,7 +130,7 @@ async def put_program(nck: AsyncNckClient, name: str, text: bytes, *, now: datet
     path = program_path(name)
     directory, leaf = path.rsplit("/", 1)
     content = ncprog.build_transfer_content(ncprog.TransferContent(directory, bytes(text),
-                                                                   _stamp(now or datetime.now())))
+                                                                   ncprog.stamp_at(now or datetime.now())))
 
     async def transfer(wire: _Wire) -> str:
         what = f"download of {user_name(path)}"

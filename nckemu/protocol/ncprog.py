@@ -29,11 +29,14 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from datetime import datetime
 from enum import IntEnum
 
 from construct import Bytes, Const, ConstructError, GreedyBytes, If, Int8ub, Int16ub, Struct, this
 
 from .errors import NckProtocolError, NckTruncatedError
+from .userdata import GROUP_NC_PROGRAMMING
+from .userdata import SUBFUNCTION_NAMES as USERDATA_SUBFUNCTION_NAMES
 
 PARAMETER_HEAD = b"\x00\x01\x12"
 METHOD_SHORT = 0x11
@@ -95,12 +98,8 @@ class NcSubfunction(IntEnum):
     CONTINUE_UPLOAD = 8
 
 
-SUBFUNCTION_NAMES = {
-    NcSubfunction.REQUEST_DOWNLOAD: "Request download", NcSubfunction.DOWNLOAD_BLOCK: "Download block",
-    NcSubfunction.CONTINUE_DOWNLOAD: "Continue download", NcSubfunction.DOWNLOAD_ENDED: "Download ended",
-    NcSubfunction.START_UPLOAD: "Start upload", NcSubfunction.UPLOAD: "Upload",
-    NcSubfunction.CONTINUE_UPLOAD: "Continue upload",
-}
+# tshark's names, as the userdata table has them for the group.
+SUBFUNCTION_NAMES = USERDATA_SUBFUNCTION_NAMES[GROUP_NC_PROGRAMMING]
 
 # ---------------------------------------------------------------- declarations (construct)
 NC_PARAMETER = Struct(
@@ -299,10 +298,6 @@ class TransferContent:
     stamp: str = " " * STAMP_BYTES
     length: int | None = -1  # -1: the number of bytes after the header, computed on build
 
-    @property
-    def body_length(self) -> int:
-        return len(PATH_PREFIX) + len(self.path.encode("ascii")) + 1 + len(self.text)
-
 
 _DIGITS = re.compile(rb"[0-9]{8}")
 
@@ -359,6 +354,16 @@ def stamp_of(year: int, month: int, day: int, hour: int, minute: int, second: in
     return f"{year % 100:02d}{month:02d}{day:02d}{hour:02d}{minute:02d}{second:02d}    "
 
 
+def stamp_at(moment: datetime) -> str:
+    """``stamp_of`` of a moment."""
+    return stamp_of(moment.year, moment.month, moment.day, moment.hour, moment.minute, moment.second)
+
+
+def is_nc_file_name(name: str) -> bool:
+    """An NC file (``_N_..``, or a path) rather than a PLC block, as an upload names it."""
+    return name.upper().startswith("_N_") or name.startswith("/")
+
+
 def split_content(content: bytes, room: int) -> list[bytes]:
     """``content`` in pieces of at most ``room`` bytes (one empty piece for empty content)."""
     if room <= 0:
@@ -393,6 +398,6 @@ def describe(parameter: NcParameter) -> str:
     kind = TYPE_NAMES.get(parameter.type, f"type 0x{parameter.type:02X}")
     try:
         name = SUBFUNCTION_NAMES[NcSubfunction(parameter.subfunction)]
-    except ValueError:
+    except (ValueError, KeyError):
         name = f"subfunction {parameter.subfunction}"
     return f"{kind} -> {name}"

@@ -468,7 +468,7 @@ class _NcTransfers:
         if parameter.type == ncprog.NC_RESPONSE:
             return None
         exchange = Exchange(pdu.connection, pdu, None, PUSH if parameter.type == ncprog.NC_PUSH else "userdata",
-                            parsed.pdu_ref, service=f"NC programming -> {_nc_subfunction(parameter.subfunction)}")
+                            parsed.pdu_ref, service=f"NC programming -> {userdata.subfunction_name(userdata.GROUP_NC_PROGRAMMING, parameter.subfunction)}")
         exchange.nc = self._fields(parameter)
         exchange.detail = self._payload(exchange, exchange.nc, parameter, parsed.data, pdu, capture)
         return exchange
@@ -486,11 +486,7 @@ class _NcTransfers:
             meaning = ncprog.ERROR_TEXTS.get(code, "")
             exchange.header_error = describe_header_error(code >> 8, code & 0xFF) + (f" ({meaning})" if meaning else "")
             return
-        if parameter.subfunction == ncprog.NcSubfunction.REQUEST_DOWNLOAD:
-            name = self._pending_names.pop((exchange.connection, exchange.pdu_ref), "")
-            self._names[(exchange.connection, parameter.sequence)] = name
-            self._pieces[(exchange.connection, parameter.sequence)] = []
-        elif parameter.subfunction == ncprog.NcSubfunction.START_UPLOAD:
+        if parameter.subfunction in (ncprog.NcSubfunction.REQUEST_DOWNLOAD, ncprog.NcSubfunction.START_UPLOAD):
             name = self._pending_names.pop((exchange.connection, exchange.pdu_ref), "")
             self._names[(exchange.connection, parameter.sequence)] = name
             self._pieces[(exchange.connection, parameter.sequence)] = []
@@ -560,11 +556,6 @@ class _NcTransfers:
                 f"{len(content.text)} bytes, {lines} lines, first: {first!r}")
 
 
-def _nc_subfunction(subfunction: int) -> str:
-    try:
-        return ncprog.SUBFUNCTION_NAMES[ncprog.NcSubfunction(subfunction)]
-    except ValueError:
-        return f"Unknown subfunc: 0x{subfunction:02x}"
 
 
 def _describe_userdata(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture, state: UserdataState
@@ -645,7 +636,7 @@ def _describe_job(pdu: TracePdu, parsed: s7.S7Pdu, capture: Capture) -> Exchange
             control = blocks.parse_block_control(parsed.parameter)
             exchange.detail = blocks.describe_block_control(control)
             name = control.file_name or ""
-            if function == blocks.START_UPLOAD and (name.upper().startswith("_N_") or name.startswith("/")):
+            if function == blocks.START_UPLOAD and ncprog.is_nc_file_name(name):
                 # an NC file uploaded through the PLC-block jobs (libnodave's daveGetNCProgram)
                 exchange.detail = f"NC file {name}"
                 exchange.nc = {"s7comm.param.blockcontrol.filename": name}

@@ -313,22 +313,18 @@ class Dispatcher:
 
     def write_var(self, request: s7.WriteVarRequest, ctx: AccessContext) -> s7.WriteVarResponse:
         codes: list[int] = []
-        retained_changed = False
+        any_changed = False
         for address, value in zip(request.items, request.values, strict=True):
             code, changed = self._write_item(address, value, ctx)
             codes.append(code)
-            retained_changed = retained_changed or changed
-        if retained_changed:
-            # Durability before acknowledgement: the answer leaves only after the state is on disk.
-            if self.persist_later is not None:
-                self.persist_later()
-            elif self._persist is not None:
-                self._persist()
+            any_changed = any_changed or changed
+        if any_changed:
+            self.retained_changed()
         return s7.WriteVarResponse(tuple(codes))
 
     def retained_changed(self) -> None:
-        """Retained data changed outside a write job (a program transfer ended): save it before the
-        answer leaves, as a write does."""
+        """Retained data changed (a write job, or a program transfer that ended): durability before
+        acknowledgement, the answer leaves only after the state is on disk."""
         if self.persist_later is not None:
             self.persist_later()
         elif self._persist is not None:

@@ -40,8 +40,6 @@ log = logging.getLogger("nckemu.emulator.nc_transfer")
 DOWNLOAD_WINDOW = 8
 # Store capacity when the machine file sets none (bytes of program text; assumed, see machine_file).
 DEFAULT_STORE_BYTES = 3 * 1024 * 1024
-# Room in an answer PDU: userdata header 10, long parameter 12, data header 4, two leading bytes.
-_USERDATA_ROOM = 10 + 12 + 4 + 2
 # Room in a 0x1E Ack_Data: header 12, parameter 2, length 2 and two leading bytes.
 _BLOCK_ROOM = 12 + 2 + 4
 # The directory listing's line for each entry (UNCONFIRMED format: docs/programs-transfer.md).
@@ -67,6 +65,7 @@ class _Download:
     pieces: list[bytes] = field(default_factory=list)
     received_bytes: int = 0
     blocks: int = 0
+    room: int = 0   # the store's room when the transfer began (the store is checked exactly at its end)
     error: int = 0  # set once the transfer cannot succeed (store full): blocks are then dropped
 
 
@@ -145,7 +144,7 @@ class NcTransfers:
             log.info("NC download from %s refused: %s", self.peer, exc)
             return self._answer(pdu_ref, sub, 0, error=ncprog.ERROR_NOT_A_FILE_NAME)
         sequence = self._next_sequence()
-        self._download = _Download(sequence, name)
+        self._download = _Download(sequence, name, room=self.store_bytes - self.programs.stored_bytes())
         log.info("NC download of %s from %s begins (sequence %d)", name, self.peer, sequence)
         return self._answer(pdu_ref, sub, sequence, ncprog.build_window(ncprog.Window(self.download_window)))
 
@@ -159,7 +158,7 @@ class NcTransfers:
         download.blocks += 1
         download.received_bytes += len(chunk)
         # The content's header and $PATH line come on top of the text: allow them beyond the store's room.
-        if not download.error and download.received_bytes > self._room() + 1024:
+        if not download.error and download.received_bytes > download.room + 1024:
             download.error = ncprog.ERROR_STORE_FULL
             download.pieces.clear()
         if not download.error:
@@ -168,9 +167,6 @@ class NcTransfers:
             return []
         return [self._answer(pdu_ref, NcSubfunction.CONTINUE_DOWNLOAD, download.sequence,
                              ncprog.build_window(ncprog.Window(self.download_window)), kind=ncprog.NC_PUSH)]
-
-    def _room(self) -> int:
-        return self.store_bytes - self.programs.stored_bytes()
 
     def _download_ended(self, pdu_ref: int, parameter: NcParameter) -> s7.S7Pdu:
         sub = NcSubfunction.DOWNLOAD_ENDED
@@ -223,8 +219,7 @@ class NcTransfers:
         return ncprog.build_transfer_content(ncprog.TransferContent(directory, text, stamp))
 
     def _stamp(self) -> str:
-        now = self._now()
-        return ncprog.stamp_of(now.year, now.month, now.day, now.hour, now.minute, now.second)
+        return ncprog.stamp_at(self._now())
 
     def _start_upload(self, pdu_ref: int, payload: bytes, pdu_size: int) -> list[s7.S7Pdu]:
         sub = NcSubfunction.START_UPLOAD
@@ -234,7 +229,7 @@ class NcTransfers:
         except NckError as exc:
             log.info("NC upload from %s refused: %s", self.peer, exc)
             return [self._answer(pdu_ref, sub, 0, error=_error_for(exc))]
-        pieces = ncprog.split_content(content, pdu_size - _USERDATA_ROOM)
+        pieces = ncprog.split_content(content, pdu_size - ncprog.BLOCK_OVERHEAD)
         sequence = self._next_sequence()
         upload = _Upload(sequence, pieces, max(1, request.window))
         first = pieces[0]
@@ -276,7 +271,7 @@ class NcTransfers:
             return None  # not one of ours: answered as any block job the emulator does not serve
         if control.function == blocks.START_UPLOAD:
             name = control.file_name or ""
-            if not (name.upper().startswith("_N_") or name.startswith("/")):
+            if not ncprog.is_nc_file_name(name):
                 return None
             content = self.content(name)  # raises the NckError the session answers
             self._upload_id = self._upload_id % 0xFFFFFFFF + 1
