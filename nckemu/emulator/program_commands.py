@@ -18,7 +18,7 @@ from nckemu.cliutil import check_output, command_group
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.program.offline import recording_columns, run_offline
-from nckemu.emulator.machine.program.run import BlockRecord, channel_axes
+from nckemu.emulator.machine.program.run import BlockRecord, path_axis_names
 from nckemu.errors import NckConfigError, NckError
 
 RUN_EXAMPLE = """\
@@ -116,7 +116,7 @@ def run_program_command(args: argparse.Namespace) -> int:
         raise NckConfigError("no such program file", path=str(main))
     emulator = Emulator(args.machine, clock=SimulatedClock())
     target = _store(emulator, main, args.extra)
-    axes = _axis_names(emulator)
+    axes = path_axis_names(emulator.nck)
     block_file: TextIO | None = open(args.blocks, "w", newline="", encoding="utf-8") if args.blocks else None  # noqa: SIM115
     out_file: TextIO | None = open(args.out, "w", newline="", encoding="utf-8") if args.out else None  # noqa: SIM115
     header = ["t_s", "end_s", "program", "line", "N", "block", *(f"{axis}_mm" for axis in axes), "feed",
@@ -167,8 +167,3 @@ def run_program_command(args: argparse.Namespace) -> int:
     return 0 if result.outcome == "ended" else 1
 
 
-def _axis_names(emulator: Emulator) -> list[str]:
-    names = channel_axes(emulator.nck)
-    machine_names = {axis.name.upper() for axis in emulator.machine.axes}
-    short = [name for name in names if name not in machine_names]
-    return short or list(names)

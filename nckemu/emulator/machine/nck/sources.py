@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.nck.alarms import alarm_number
 from nckemu.emulator.machine.nck.drives import DRIVE_READERS
-from nckemu.emulator.machine.nck.geometric_axes import GEOMETRIC_AXIS_READERS
+from nckemu.emulator.machine.nck.geometric_axes import GEOMETRIC_AXIS_READERS, channel_axis_name
 from nckemu.errors import NckAccessDenied, NckAddressOutOfRange, NckPiStateError
 
 if TYPE_CHECKING:
@@ -113,8 +113,7 @@ def _channel_axis_name(model: NckParts, unit: int, line: int) -> object:
     axes = sorted(model.machine.axes, key=lambda axis: axis.number) if unit == 1 else []
     if line > len(axes):
         return ""
-    name = axes[line - 1].name
-    return name.rstrip("0123456789") or name
+    return channel_axis_name(axes[line - 1].name)
 
 
 def _channel(model: NckParts, unit: int) -> Channel:

@@ -60,15 +60,20 @@ def recording_columns(emulator: Emulator) -> list[str]:
     return columns
 
 
-def sample(emulator: Emulator, t_s: float) -> list[float]:
+def sampler(emulator: Emulator) -> Callable[[float], list[float]]:
+    """The row of ``recording_columns`` at a time: what is recorded is worked out once per run, not per row."""
     nck, machine = emulator.nck, emulator.machine
     axes = _recorded_axes(machine)
-    row = [t_s, *(nck.sensor_temperature_C(sensor.name) for sensor in machine.sensors)]
-    if _has_spindle(machine):
-        row.append(nck.channels[1].spindle_speed_rpm(1) if nck.channels[1].state.spindles else 0.0)
-    row += [nck.actual_position_mm(axis.number) for axis in axes]
-    row += [emulator.heat.measured_error_um(axis.number) for axis in axes]
-    return row
+    spindle = _has_spindle(machine)
+
+    def sample(t_s: float) -> list[float]:
+        row = [t_s, *(nck.sensor_temperature_C(sensor.name) for sensor in machine.sensors)]
+        if spindle:
+            row.append(nck.channels[1].spindle_speed_rpm(1) if nck.channels[1].state.spindles else 0.0)
+        row += [nck.actual_position_mm(axis.number) for axis in axes]
+        row += [emulator.heat.measured_error_um(axis.number) for axis in axes]
+        return row
+    return sample
 
 
 def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, sample_s: float = 1.0,
@@ -92,10 +97,11 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
     if listening:  # a block record is built only when someone reads it (--blocks, progress)
         channel.block_listeners.append(seen)
     start_s = clock.now_s()
+    sample = sampler(emulator)
     channel.select(path)
     channel.start()
     if on_sample is not None:
-        on_sample(sample(emulator, start_s))
+        on_sample(sample(start_s))
     next_sample_s = start_s + sample_s
     k = 0
     outcome = "timeout"
@@ -106,7 +112,7 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
             clock.set(t_s)
             emulator.step_machine(t_s)
             while on_sample is not None and next_sample_s <= t_s + 1e-9:
-                on_sample(sample(emulator, t_s))
+                on_sample(sample(t_s))
                 next_sample_s += sample_s
             if on_progress is not None and k % 600 == 0:
                 on_progress(t_s - start_s, last[0])
@@ -125,7 +131,7 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
         if listening:
             channel.block_listeners.remove(seen)
     if on_sample is not None and next_sample_s - sample_s < clock.now_s() - 1e-9:
-        on_sample(sample(emulator, clock.now_s()))
+        on_sample(sample(clock.now_s()))
     alarms = [alarm.text for alarm in emulator.nck.alarm_list.pending]
     net_s = channel.state.old_net_time_s if outcome == "ended" else channel.net_time_s
     blocks = channel.run.blocks if channel.run is not None else channel.last_run_blocks

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
+from nckemu.emulator.machine.nck.geometric_axes import channel_axis_name
 from nckemu.emulator.machine.nck.programs import program_text
 from nckemu.emulator.machine.program.environment import ProgramEnvironment, UndefinedName
 from nckemu.emulator.machine.program.motions import (
@@ -63,10 +64,18 @@ def channel_axes(parts: NckParts) -> dict[str, int]:
     for axis in sorted(parts.machine.axes, key=lambda axis: axis.number):
         if axis.spindle:
             continue
-        short = axis.name.rstrip("0123456789") or axis.name
-        names.setdefault(short.upper(), axis.number)
+        names.setdefault(channel_axis_name(axis.name).upper(), axis.number)
         names.setdefault(axis.name.upper(), axis.number)
     return names
+
+
+def path_axis_names(parts: NckParts, axes: dict[str, int] | None = None) -> list[str]:
+    """The names a program moves the channel's axes by (and the block table's columns): the channel
+    axis names (X), or the machine axis names when no axis has a shorter one."""
+    axes = channel_axes(parts) if axes is None else axes
+    short = [name for name, number in axes.items()
+             if parts.machine.axis(number) is not None and name != parts.machine.axis(number).name.upper()]
+    return short or list(axes)
 
 
 def motion_limits(parts: NckParts) -> MotionLimits:
@@ -119,9 +128,7 @@ class NckEnvironment(ProgramEnvironment):
         self._parts = parts
         self._run = run
         self._axes = channel_axes(parts)
-        short = [name for name, number in self._axes.items()
-                 if parts.machine.axis(number) is not None and name != parts.machine.axis(number).name.upper()]
-        super().__init__(axes=short or list(self._axes), r_parameters=self._r_spec_lines())
+        super().__init__(axes=path_axis_names(parts, self._axes), r_parameters=self._r_spec_lines())
 
     def _r_spec_lines(self) -> int:
         spec = self._parts.store.spec("R")
@@ -416,7 +423,7 @@ class ProgramRun:
             centre = event.centre_mm
             if targets is not event.target_mm or not all(axis in axes for axis in centre):
                 centre = {self._axis_name(axis): value for axis, value in centre.items()}
-                event = _with(event, targets, centre)
+                event = replace(event, target_mm=targets, centre_mm=centre)
             timed = self.planner.arc(start_mm, event, self._overrides(), spindle_rpm)
             duration_s, feed_mm_min = timed.duration_s, timed.feed_mm_min
         if duration_s == math.inf:
@@ -516,9 +523,3 @@ class ProgramRun:
             state.d_number = event.edge
 
 
-def _with(event: Move | Arc, targets: dict[str, float], centre: dict[str, float] | None = None) -> Move | Arc:
-    from dataclasses import replace
-
-    if isinstance(event, Arc):
-        return replace(event, target_mm=targets, centre_mm=centre or {})
-    return replace(event, target_mm=targets)

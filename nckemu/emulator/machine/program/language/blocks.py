@@ -60,14 +60,13 @@ _ADDRESS_WORD = re.compile(r"([A-Z]+?)(\d+)")
 
 
 class Compiled:
-    __slots__ = ("number", "kind", "items", "text", "extra")
+    __slots__ = ("number", "kind", "items", "text")
 
-    def __init__(self, number: str, kind: int, items: Any, text: str, extra: Any = None) -> None:
+    def __init__(self, number: str, kind: int, items: Any, text: str) -> None:
         self.number = number
         self.kind = kind
         self.items = items
         self.text = text
-        self.extra = extra
 
 
 # A block of address words with constant values only (most CAM blocks): N10 G1 X12.5 Y-3 F1200

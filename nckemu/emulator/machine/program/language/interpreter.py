@@ -12,6 +12,7 @@ import logging
 import math
 import re
 from collections.abc import Iterator
+from types import FunctionType
 from typing import Any
 
 from ..environment import ProgramEnvironment, UndefinedName
@@ -105,7 +106,7 @@ class Interpreter:
         self._stack: list[_Frame] = []
         self._frame: _Frame | None = None
         self._modal_call: tuple[Any, Any] | None = None
-        self._r_count = int(getattr(env, "r_count", 100))
+        self._r_count = int(env.r_count)
         self._reset_modal()
 
     # --- modal state ------------------------------------------------------------------------------
@@ -719,7 +720,7 @@ class Interpreter:
             code = item[0]
             if code == b.I_AXIS:
                 value = item[2]
-                axis_words.append((item[1], value(self) if value.__class__ is _FUNCTION else value, item[3]))
+                axis_words.append((item[1], value(self) if value.__class__ is FunctionType else value, item[3]))
             elif code == b.I_G:
                 self._g(item[1], flags)
                 if item[2] is not None:
@@ -727,7 +728,7 @@ class Interpreter:
             elif code == b.I_ADDR:
                 letter = item[1]
                 value = item[2]
-                if value.__class__ is _FUNCTION:
+                if value.__class__ is FunctionType:
                     value = value(self)
                 if letter == "M":
                     m_codes.append((item[3], _m_code(value)))
@@ -743,7 +744,7 @@ class Interpreter:
                     address[letter] = value
             elif code == b.I_ASSIGN:
                 value = item[2]
-                self._assign(item[1], value(self) if value.__class__ is _FUNCTION else value)
+                self._assign(item[1], value(self) if value.__class__ is FunctionType else value)
             elif code == b.I_SUPA:
                 flags["supa"] = True
             elif code == b.I_MSG:
@@ -999,5 +1000,4 @@ def _m_code(value: Any) -> int:
     return code
 
 
-_FUNCTION = type(lambda: None)
 __all__ = ["Interpreter"]
