@@ -48,12 +48,12 @@ class Emulator:
         self.machine = machine if isinstance(machine, Machine) else load_machine(machine)
         self.clock = clock or MonotonicClock()
         self.nck = NckModel(self.machine, self.clock)
-        self.plc = PlcModel(self.machine, self.nck, clock=self.clock)
+        self.plc = PlcModel(self.machine, self.nck, clock=self.clock,
+                            identity=lambda: (self.name, self.serial_number))  # SZL 0x001C, as umati's
         self.store = RetainedStore(Path(state_path)) if state_path is not None else None
         # The machine's own name among others (a fleet's machine: ``identify``); faces name it by this
         # (the OPC UA ApplicationUri, the umati instance), the machine file's name otherwise.
         self.name = self.machine.name
-        self.plc.identity = lambda: (self.name, self.serial_number)  # SZL 0x001C, as umati Identification
         # Parts of the machine's state that layers above the emulator report (a living machine's
         # recording and PLC program): name -> a function giving a JSON-able dict (the live page).
         self.status_sections: dict[str, Callable[[], dict[str, Any]]] = {}

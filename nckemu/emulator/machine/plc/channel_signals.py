@@ -20,6 +20,9 @@ from nckemu.emulator.machine.nck.channel_states import (
     CHAN_ACTIVE,
     CHAN_INTERRUPTED,
     CHAN_RESET,
+    MODE_AUTOMATIC,
+    MODE_JOG,
+    MODE_MDA,
     PROG_ABORTED,
     PROG_INTERRUPTED,
     PROG_RUNNING,
@@ -42,17 +45,18 @@ BIT_START, BIT_STOP, BIT_RESET = 1, 3, 7
 BYTE_STATE = 35
 BYTE_MODE_REQUEST = 0
 BYTE_MODE_ACTIVE = 6
-# DB11.DBX0.n requests mode: bit -> opMode (0 JOG, 1 MDA, 2 AUTOMATIC)
-MODE_REQUEST_BITS = {0: 2, 1: 1, 2: 0}
-MODE_ACTIVE_BITS = {2: 0x01, 1: 0x02, 0: 0x04}
+# DB11.DBX0.n requests mode: bit -> opMode; DBB6 shows the active mode in the same bit order.
+MODE_REQUEST_BITS = {0: MODE_AUTOMATIC, 1: MODE_MDA, 2: MODE_JOG}
+MODE_ACTIVE_BITS = {mode: 1 << bit for bit, mode in MODE_REQUEST_BITS.items()}
+# DB21.DBB35: the program's status in bits 0-4, the channel's in bits 5-7.
+_PROGRAM_STATE_BITS = {PROG_RUNNING: 0x01, PROG_WAITING: 0x02, PROG_STOPPED: 0x04, PROG_INTERRUPTED: 0x08,
+                       PROG_ABORTED: 0x10}
+_CHANNEL_STATE_BITS = {CHAN_ACTIVE: 0x20, CHAN_INTERRUPTED: 0x40, CHAN_RESET: 0x80}
 
 
 def state_byte(channel: Channel) -> int:
-    status, program = channel.state.status, channel.state.program_status
-    bits = {PROG_RUNNING: 0x01, PROG_WAITING: 0x02, PROG_STOPPED: 0x04, PROG_INTERRUPTED: 0x08,
-            PROG_ABORTED: 0x10}.get(program, 0)
-    bits |= {CHAN_ACTIVE: 0x20, CHAN_INTERRUPTED: 0x40, CHAN_RESET: 0x80}.get(status, 0)
-    return bits
+    state = channel.state
+    return _PROGRAM_STATE_BITS.get(state.program_status, 0) | _CHANNEL_STATE_BITS.get(state.status, 0)
 
 
 class ChannelSignals:

@@ -7,7 +7,6 @@ channel at once.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import struct
 from collections.abc import Callable
@@ -60,7 +59,8 @@ class PlcModel:
 
     def __init__(self, machine: Any = None, nck: Any = None, *,
                  data_blocks: dict[int, int] | None = None, layout: c840.C840Layout | None = None,
-                 clock: Clock | None = None) -> None:
+                 clock: Clock | None = None,
+                 identity: Callable[[], tuple[str, str]] = lambda: ("nckemu", "")) -> None:
         self.machine = machine
         self.nck = nck
         self.layout = layout or c840.C840Layout()
@@ -83,8 +83,8 @@ class PlcModel:
                                             S7Area.M: bytearray(AREA_BYTES)}
         self.running = True
         # The machine's name and serial number as every face shows them (SZL 0x001C): the emulator
-        # sets it to its own name (a fleet's machine's name) and MD18030.
-        self.identity: Callable[[], tuple[str, str]] = self._identity_from_machine
+        # gives its own name (a fleet's machine's name) and MD18030.
+        self.identity = identity
         # Told of every write (area, DB number, first byte, byte count) after it landed: the OPC UA face
         # pushes each change to its subscriptions instead of hoping a periodic sample catches it.
         self.write_listeners: list[Callable[[int, int, int, int], None]] = []
@@ -251,15 +251,6 @@ class PlcModel:
         raise NckServiceError(f"SZL 0x{szl_id:04X} index 0x{szl_index:04X} is not available",
                               error_class=self.szl_unknown_id_error >> 8,
                               error_code=self.szl_unknown_id_error & 0xFF)
-
-    def _identity_from_machine(self) -> tuple[str, str]:
-        """Without an emulator: the machine file's name and MD18030 as the NCK holds it."""
-        name = str(getattr(self.machine, "name", "nckemu")) if self.machine is not None else "nckemu"
-        serial_number = ""
-        if self.nck is not None:
-            with contextlib.suppress(NckError):
-                serial_number = str(self.nck.store.active_value("HW_SERIAL_NUMBER", 1)).rstrip()
-        return name, serial_number
 
     # ------------------------------------------------------------------ userdata: blocks and clock
     def now(self) -> datetime:
