@@ -32,7 +32,7 @@ from nckemu.emulator.faces.opcua.units import (
     REVOLUTIONS_PER_MINUTE,
 )
 from nckemu.emulator.faces.opcua.values import raw_reader
-from nckemu.emulator.machine.nck.channel import CHAN_RESET
+from nckemu.emulator.machine.nck.channel import CHAN_RESET, PROG_ABORTED
 
 if TYPE_CHECKING:
     from nckemu.emulator.faces.opcua.parts import ModelValues
@@ -41,8 +41,9 @@ if TYPE_CHECKING:
 OPERATION_MODE = {0: 0, 1: 1, 2: 2}          # opMode JOG/MDA/AUTO -> CncOperationMode Manual/MDA/Automatic
 CHANNEL_STATUS = {0: 2, 1: 0, 2: 1}          # chanStatus reset/active/interrupted -> Reset/Active/Interrupted
 # progStatus 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted -> CncChannelProgramStatus
-PROGRAM_STATUS = {1: 3, 2: 0, 3: 1, 4: 2, 5: 4}
-PROG_ABORTED, STOPPED, CANCELED = 5, 0, 4
+# (aborted: Canceled or Stopped by the run's end, cnc_channel's variant)
+PROGRAM_STATUS = {1: 3, 2: 0, 3: 1, 4: 2}
+STOPPED, CANCELED = 0, 4
 TURN_DIRECTION = {0: 2, 1: 0, 2: 1}          # turnState stopped/M3/M4 -> CncSpindleTurnDirection None/CW/CCW
 
 

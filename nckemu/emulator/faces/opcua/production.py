@@ -35,7 +35,7 @@ from typing import Any, Protocol
 
 from asyncua import Server, ua
 
-from nckemu.emulator.faces.opcua import asyncua_internals, nodesets
+from nckemu.emulator.faces.opcua import nodesets
 from nckemu.emulator.faces.opcua.feeds import Feed
 from nckemu.emulator.faces.opcua.instances import Made, Types
 from nckemu.emulator.faces.opcua.program_states import (
@@ -239,7 +239,6 @@ class Production:
         self._wake: asyncio.Event | None = None
         self._sender: asyncio.Task[None] | None = None
         self._generators: dict[str, list[Any]] = {}
-        self.events_sent = 0
 
     # ------------------------------------------------------------------ nodes
     def bind(self, active_program: Made, job: Made, active_path: str, job_path: str) -> None:
@@ -305,7 +304,7 @@ class Production:
     async def _concrete(self, server: Server, abstract: ua.NodeId, name: str) -> ua.NodeId:
         """A concrete subtype of an abstract event type, in the instance namespace (once per address space)."""
         nodeid = ua.NodeId(name, self.models.instance_namespace)
-        if nodeid in asyncua_internals.nodes(server.iserver.aspace):
+        if nodeid in server.iserver.aspace:
             return nodeid
         made = await server.get_node(abstract).add_object_type(nodeid, ua.QualifiedName(name, nodeid.NamespaceIndex))
         return made.nodeid  # type: ignore[no-any-return]
@@ -377,7 +376,6 @@ class Production:
                     event.data_types[name] = _VARIANT_OF.get(type(plain), ua.VariantType.Variant)
             generator.event = event
             await generator.trigger(time_attr=now)
-        self.events_sent += 1
 
 
 _VARIANT_OF = {str: ua.VariantType.String, bool: ua.VariantType.Boolean, int: ua.VariantType.UInt32,

@@ -29,6 +29,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from nckemu.emulator.machine.nck.channel_states import (
+    PROG_ABORTED,
+    PROG_INTERRUPTED,
+    PROG_RUNNING,
+    PROG_STOPPED,
+    PROG_WAITING,
+)
+
 INITIALIZING, RUNNING, INTERRUPTED, ENDED, ABORTED = "Initializing", "Running", "Interrupted", "Ended", "Aborted"
 STATES = (INITIALIZING, RUNNING, INTERRUPTED, ENDED, ABORTED)
 CHANNEL_EVENTS = ("selected", "unselected", "started", "interrupted", "resumed", "ended", "aborted")
@@ -104,9 +112,9 @@ class JobStates(_StateMachine):
 
 # progStatus (BTSS): 1 interrupted, 2 stopped, 3 running, 4 waiting, 5 aborted. A program waiting (a
 # dwell, a wait mark) still runs: umati has no waiting state, CNC shows it (ActProgramStatus Waiting).
-_PAUSED = (1, 2)
-_RUNNING = (3, 4)
-_ABORTED_STATUS = 5
+_PAUSED = (PROG_INTERRUPTED, PROG_STOPPED)
+_RUNNING = (PROG_RUNNING, PROG_WAITING)
+_ABORTED_STATUS = PROG_ABORTED
 
 
 @dataclass(frozen=True)
