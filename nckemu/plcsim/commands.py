@@ -263,15 +263,7 @@ def _cycle(text: str) -> float:
 
 
 def _write_text_atomically(path: str, text: str) -> None:
-    from pathlib import Path
-
-    target = Path(path)
-    temporary = target.with_name(f".{target.name}.partial")
-    try:
-        temporary.write_text(text, encoding="utf-8")
-        temporary.replace(target)
-    finally:
-        temporary.unlink(missing_ok=True)
+    write_atomically(path, lambda target: target.write_text(text, encoding="utf-8"))
 
 
 def run_loop_command(args: argparse.Namespace) -> int:

@@ -200,13 +200,8 @@ def with_simulation(recording: Recording, letter: str, sim_um: np.ndarray) -> Re
 
 
 def write_atomically(path: str | Path, recording: Recording) -> None:
-    """Write to a temporary file beside ``path`` and rename: no partial SIM.csv on failure."""
+    """No partial SIM.csv on failure (``cliutil.write_atomically``)."""
+    from nckemu.cliutil import write_atomically as write_whole
     from nckemu.thermal.recordings.recording import write_recording
 
-    path = Path(path)
-    temporary = path.with_name(f".{path.name}.partial")
-    try:
-        write_recording(temporary, recording)
-        temporary.replace(path)
-    finally:
-        temporary.unlink(missing_ok=True)
+    write_whole(path, lambda temporary: write_recording(temporary, recording))

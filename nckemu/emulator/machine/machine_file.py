@@ -14,6 +14,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from nckemu.catalogue.edges import STANDARD_EDGE_PARAMS
 from nckemu.catalogue.table import VariableSpec, machine_table, row_lines
 from nckemu.emulator.machine.plc.memory import AREA_BYTES
 from nckemu.errors import NckConfigError
@@ -77,9 +78,8 @@ EDGE_PARAMETERS: dict[str, int] = {
     # and line 34 as its number of teeth (Siemens' $TC_DPH / $TC_DPNT by our reading; docs/assumptions.md).
     "h_number": 26, "teeth": 34,
 }
-# numCuttEdgeParams: "currently 25 parameters are reserved for each tool edge" (A2, 802D sl); LSC reads
-# 35 lines of one 840D sl edge at once, so a machine may configure up to that.
-STANDARD_EDGE_PARAMS = 25
+# numCuttEdgeParams: STANDARD_EDGE_PARAMS by default (catalogue/edges.py); LSC reads 35 lines of one
+# 840D sl edge at once, so a machine may configure up to that.
 MAX_EDGE_PARAMS = 35
 # D numbers per tool: MD18105's default maximum is 9 (Siemens W1); T numbers 1..32000 (A2).
 MAX_EDGES_PER_TOOL = 9
