@@ -222,6 +222,16 @@ def decimal_mark_breaks(text: str, decimal: str | None) -> str | None:
     return None
 
 
+def decimal_mark_refusal(text: str, decimal: str | None) -> str | None:
+    """Why a number cell breaks the file's decimal mark (``decimal_mark_breaks``), in words; None when it
+    does not. The caller names the file, line and field."""
+    mark = decimal_mark_breaks(text, decimal)
+    if mark is None:
+        return None
+    return (f"{text[:40]!r} writes {mark!r} as the decimal mark, where the file's numbers write {decimal!r} "
+            "(the first cell that breaks the file's convention)")
+
+
 def parse_number(text: str, decimal: str | None) -> float | None:
     """A number cell's value (``decimal``: the file's mark, None when unknown); None when it is not a
     number. A ``,`` mark with a ``.`` in the same cell (a thousands separator) is not read."""
@@ -269,10 +279,8 @@ def _parse_csv(data: bytes, source: str, need_errors: bool = True) -> Recording:
                                              line=line_number, field=header[index])
                     cells[index].append(math.nan)
                     continue
-                if (mark := decimal_mark_breaks(value_text, dialect.decimal)) is not None:
-                    raise NckConfigError(f"{value_text[:40]!r} writes {mark!r} as the decimal mark, where the file's "
-                                         f"numbers write {dialect.decimal!r} (the first cell that breaks the file's "
-                                         "convention)", path=source, line=line_number, field=header[index])
+                if (refusal := decimal_mark_refusal(value_text, dialect.decimal)) is not None:
+                    raise NckConfigError(refusal, path=source, line=line_number, field=header[index])
                 if comma_decimal and "," in value_text:
                     value = parse_number(value_text, ",")
                 else:

@@ -36,7 +36,7 @@ from .recording import (
     Recording,
     check_runs,
     column_kind,
-    decimal_mark_breaks,
+    decimal_mark_refusal,
     find_recordings,
     parse_number,
     sniff_csv,
@@ -597,10 +597,8 @@ def _check_decimal_marks(table: Table, rows: list[int], columns: list[int]) -> N
     for row in rows:
         for index in columns:
             cell = table.cells[index][row]
-            if isinstance(cell, str) and (mark := decimal_mark_breaks(cell.strip(), table.decimal)) is not None:
-                raise table.refuse(f"{cell.strip()[:40]!r} writes {mark!r} as the decimal mark, where the file's "
-                                   f"numbers write {table.decimal!r} (the first cell that breaks the file's "
-                                   "convention)", table.rows[row], table.header[index].strip())
+            if isinstance(cell, str) and (refusal := decimal_mark_refusal(cell.strip(), table.decimal)) is not None:
+                raise table.refuse(refusal, table.rows[row], table.header[index].strip())
 
 
 def _selected_tables(tables: list[Table], recording_map: RecordingMap, source: str) -> list[tuple[Table, bool]]:
