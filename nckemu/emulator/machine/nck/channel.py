@@ -104,13 +104,13 @@ class ChannelState:
 class Channel:
     """One channel's run state on the emulator's clock, and its program run."""
 
-    def __init__(self, number: int, clock: Clock, spindles: int) -> None:
+    def __init__(self, number: int, clock: Clock, spindles: int, parts: NckParts) -> None:
         self.number = number
         self._clock = clock
         self.state = ChannelState(spindles={n: Spindle() for n in range(1, spindles + 1)})
         self._net_s = 0.0
         self._running_since: float | None = None
-        self.parts: NckParts | None = None
+        self.parts = parts   # the NCK's parts it runs programs with (programs, axes, alarms, tools, frames)
         self.selected = ""
         # The NC path a run without a program is shown under (a recording's run: progName and the
         # program of the current block name it); kept after its end, as a selection is, until a select.
@@ -131,14 +131,10 @@ class Channel:
         # Told of every executed block (program run offline: the block table).
         self.block_listeners: list[Callable[[BlockRecord], None]] = []
 
-    def attach(self, parts: NckParts) -> None:
-        """The NCK's parts the channel runs programs with (programs, axes, alarms, tools, frames, store)."""
-        self.parts = parts
-
     # ------------------------------------------------------------------ the interface every face uses
     def select(self, path: str) -> None:
         """Select ``path`` for execution (only in reset). NckNoSuchFile without such a program."""
-        parts = self._parts()
+        parts = self.parts
         if not path.startswith("/"):
             from nckemu.catalogue.program_names import program_path
 
@@ -160,7 +156,7 @@ class Channel:
         if not self.selected:
             raise NckPiStateError(f"channel {self.number} has no program selected")
         self.selected = ""
-        if self.number == 1 and self.parts is not None:
+        if self.number == 1:
             self.parts.programs.selected = ""
         self._tell("unselected")
         self._tell_state()
@@ -169,9 +165,6 @@ class Channel:
         """NC start: from reset the selected program starts; interrupted, it resumes. Refused (an
         alarm, NckPiStateError) in JOG, with nothing selected, or with a program alarm pending."""
         if self.state.status == CHAN_ACTIVE:
-            return
-        if self.parts is None:  # a channel without the NCK (tests of the state alone)
-            self.run_without_program()
             return
         settings = self.parts.machine.program
         if self.state.mode == MODE_JOG:
@@ -199,7 +192,8 @@ class Channel:
 
         self.run = ProgramRun(self, self.parts, self.selected, program_text(text), now)
         self._run_key = (self.selected, hash(text))
-        self.parts.programs.running = self.selected if self.number == 1 else self.parts.programs.running
+        if self.number == 1:
+            self.parts.programs.running = self.selected
         self._net_s = 0.0
         self._begin_timing(now)
         self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
@@ -236,8 +230,7 @@ class Channel:
         if mode == self.state.mode:
             return
         if self.state.status == CHAN_ACTIVE:
-            alarm = self.parts.machine.program.mode_refused_alarm if self.parts is not None else 0
-            self._refuse(alarm, f"mode change to {MODE_NAMES[mode]} not possible while a program runs")
+            self._refuse(self.parts.machine.program.mode_refused_alarm, f"mode change to {MODE_NAMES[mode]} not possible while a program runs")
         self.state.mode = mode
         self._tell_state()
 
@@ -296,7 +289,7 @@ class Channel:
     def step(self, t_s: float) -> None:
         """Run the program up to simulated time ``t_s`` (at most the machine's blocks per cycle)."""
         run = self.run
-        if run is None or self.state.status != CHAN_ACTIVE or self.parts is None:
+        if run is None or self.state.status != CHAN_ACTIVE:
             return
         try:
             outcome = run.advance(t_s, self.parts.machine.program.max_blocks_per_cycle)
@@ -324,21 +317,15 @@ class Channel:
         block = alarm.block or self.state.block_number
         text = f"channel {self.number}: {alarm}"
         log.warning("%s", text)
-        if self.parts is not None:
-            self.parts.alarm_list.raise_alarm(text, alarm.number, (str(self.number), block or str(alarm.line)))
+        self.parts.alarm_list.raise_alarm(text, alarm.number, (str(self.number), block or str(alarm.line)))
         self._alarms.append(text)
         if self.state.status == CHAN_ACTIVE:
             self._interrupt(PROG_INTERRUPTED)
 
     # ------------------------------------------------------------------ helpers
-    def _parts(self) -> NckParts:
-        if self.parts is None:
-            raise NckPiStateError("the channel has no NCK to run programs with")
-        return self.parts
-
     def _refuse(self, alarm_number: int, reason: str) -> Any:
         text = f"channel {self.number}: {reason}"
-        if self.parts is not None and alarm_number:
+        if alarm_number:
             self.parts.alarm_list.raise_alarm(text, alarm_number, (str(self.number),))
             if text not in self._notices:
                 self._notices.append(text)
@@ -361,13 +348,12 @@ class Channel:
         if run is not None:
             run.close(run.t_s if run.ended else self._clock.now_s())
             self.last_run_blocks = run.blocks
-        if self.parts is not None and self.parts.programs.running and self.number == 1:
+        if self.parts.programs.running and self.number == 1:
             self.parts.programs.running = ""
 
     def _clear_alarms(self, texts: list[str]) -> None:
-        if self.parts is not None:
-            for text in texts:
-                self.parts.alarm_list.clear(text)
+        for text in texts:
+            self.parts.alarm_list.clear(text)
         texts.clear()
 
     def _begin_timing(self, at_s: float | None = None) -> None:

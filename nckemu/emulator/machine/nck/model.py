@@ -85,12 +85,12 @@ class NckModel:
         self.programs = Programs()
         self.alarm_list = Alarms(clock)
         spindles = sum(axis.spindle for axis in machine.axes)
-        self.channels = {number: Channel(number, clock, spindles if number == 1 else 0)
+        # The channels run programs with the NCK's parts (programs, axes, alarms, tools, frames, store),
+        # read when a program runs: the tools and frames below come before any.
+        self.channels = {number: Channel(number, clock, spindles if number == 1 else 0, self)
                          for number in range(1, machine.channels + 1)}
         self.tools = Tools(machine)
         self.frames = Frames(machine, machine.channels)
-        for channel in self.channels.values():
-            channel.attach(self)
         if machine.tool_settings.active_t:
             self.select_tool(machine.tool_settings.active_t, machine.tool_settings.active_d)
         self._power_on_hooks: list[Callable[[], None]] = []
