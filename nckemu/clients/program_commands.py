@@ -10,14 +10,27 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+from collections.abc import Awaitable, Callable
 from pathlib import Path
+from typing import TypeVar
 
 from nckemu.catalogue.program_names import program_path, user_name
 from nckemu.cliutil import command_group
 from nckemu.errors import NckConfigError
 
 from . import programs
+from .async_client import AsyncNckClient
 from .commands import _client, _connection_options
+
+T = TypeVar("T")
+
+
+def _on_client(args: argparse.Namespace, call: Callable[[AsyncNckClient], Awaitable[T]]) -> T:
+    """One call on a connection opened from the command's options, closed after it."""
+    async def go() -> T:
+        async with _client(args) as client:
+            return await call(client)
+    return asyncio.run(go())
 
 GROUP_HELP = "part programs: send, fetch, list, select, start, stop, reset"
 NAMES = ("Names as users write them (DAILY.MPF, WARMUP_CYCLE.SPF; a bare name is a main program) or as "
@@ -92,12 +105,7 @@ def run_put(args: argparse.Namespace) -> int:
     name = args.name or Path(args.file).name
     program_path(name)  # a name that is no NC file name is refused before anything is sent
     text = _read_program(args.file)
-
-    async def go() -> str:
-        async with _client(args) as client:
-            return await programs.put_program(client, name, text)
-
-    path = asyncio.run(go())
+    path = _on_client(args, lambda client: programs.put_program(client, name, text))
     print(json.dumps({"path": path, "name": user_name(path), "bytes": len(text)}) if args.json
           else f"{user_name(path)} ({path}): {len(text)} bytes sent")
     return 0
@@ -105,12 +113,7 @@ def run_put(args: argparse.Namespace) -> int:
 
 def run_get(args: argparse.Namespace) -> int:
     path = program_path(args.name)
-
-    async def go() -> bytes:
-        async with _client(args) as client:
-            return await programs.get_program(client, path)
-
-    text = asyncio.run(go())
+    text = _on_client(args, lambda client: programs.get_program(client, path))
     if args.out:
         try:
             Path(args.out).write_bytes(text)
@@ -127,11 +130,7 @@ def run_get(args: argparse.Namespace) -> int:
 
 
 def run_list(args: argparse.Namespace) -> int:
-    async def go() -> programs.Listing:
-        async with _client(args) as client:
-            return await programs.list_directory(client, args.directory)
-
-    listing = asyncio.run(go())
+    listing = _on_client(args, lambda client: programs.list_directory(client, args.directory))
     if args.json:
         print(json.dumps({"directory": listing.directory,
                           "entries": [{"name": name, "user_name": user_name(f"/{name}"), "bytes": size}
@@ -144,23 +143,14 @@ def run_list(args: argparse.Namespace) -> int:
 
 
 def run_select(args: argparse.Namespace) -> int:
-    async def go() -> str:
-        async with _client(args) as client:
-            return await programs.select_program(client, args.name)
-
-    path = asyncio.run(go())
+    path = _on_client(args, lambda client: programs.select_program(client, args.name))
     print(json.dumps({"selected": path}) if args.json else f"{user_name(path)} ({path}) selected")
     return 0
 
 
 def run_signal(args: argparse.Namespace) -> int:
     address = programs.signal_address(args.signal, args.channel)
-
-    async def go() -> str:
-        async with _client(args) as client:
-            return await programs.pulse(client, args.signal, args.channel)
-
-    asyncio.run(go())
+    _on_client(args, lambda client: programs.pulse(client, args.signal, args.channel))
     print(json.dumps({"signal": args.signal, "channel": args.channel, "address": address}) if args.json
           else f"{args.signal}: rising edge on {address} (channel {args.channel})")
     return 0
