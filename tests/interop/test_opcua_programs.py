@@ -84,13 +84,6 @@ async def _view(client: Client) -> dict[str, Any]:
     }
 
 
-def _on_loop(emulator: EmulatorThread, action: Any) -> None:
-    """Run a channel action on the emulator's loop, as the PLC interface would, and wait for it."""
-    async def act() -> None:
-        action()
-    asyncio.run_coroutine_threadsafe(act(), emulator._loop).result(timeout=10)
-
-
 def test_select_and_unselect_answer_as_the_control(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
     emulator, face = faces
     channel = emulator.emulator.nck.channels[1]
@@ -114,13 +107,13 @@ def test_select_and_unselect_answer_as_the_control(faces: tuple[EmulatorThread, 
             seen["view"] = await _view(admin)
             ns = await admin.get_namespace_index(NS_URI)
             seen["by node id"] = await _call(admin, "Select", ua.Variant(ua.NodeId("/_N_MPF_DIR/_N_SEL_MPF", ns)), one)
-            _on_loop(emulator, channel.start)
+            emulator.call(channel.start)
             seen["select running"] = await _call(admin, "Select", ua.Variant("SEL.MPF"), one)
             seen["unselect running"] = await _call(admin, "Unselect", one)
-            _on_loop(emulator, channel.stop)
+            emulator.call(channel.stop)
             seen["select interrupted"] = await _call(admin, "Select", ua.Variant("SEL.MPF"), one)
             seen["unselect interrupted"] = await _call(admin, "Unselect", one)
-            _on_loop(emulator, channel.reset)
+            emulator.call(channel.reset)
             seen["unselect"] = await _call(admin, "Unselect", one)
             seen["unselect again"] = await _call(admin, "Unselect", one)
             seen["unselect no channel"] = await _call(admin, "Unselect", ua.Variant(0, ua.VariantType.UInt32))
@@ -321,7 +314,7 @@ def test_a_recording_s_run_is_followed(faces: tuple[EmulatorThread, OpcUaFace]) 
             states = [(await _view(client))["program"]]
             for action, wanted in ((run, "Running"), (channel.stop, "Interrupted"), (channel.reset, "Aborted"),
                                    (run, "Running"), (channel.end_program, "Ended")):
-                _on_loop(emulator, action)
+                emulator.call(action)
                 states.append((await _until(client, wanted, 5.0))["program"])
             await asyncio.sleep(0.5)
             ids.update(await _ids(client, f"{ACTIVE}/State"))
@@ -402,9 +395,9 @@ def test_a_recording_s_run_is_named_by_the_recording_on_every_face(tmp_path: Pat
                 drive.apply(nck, k)
 
         before = seen_by_faces(emulator, face)
-        _on_loop(emulator, lambda: apply(range(0, 1500)))   # the spindle turns from 1200 s
+        emulator.call(lambda: apply(range(0, 1500)))   # the spindle turns from 1200 s
         running = seen_by_faces(emulator, face)
-        _on_loop(emulator, lambda: apply(range(1500, 2400 + int(PROGRAM_END_IDLE_S) + 60)))  # stood long: M30
+        emulator.call(lambda: apply(range(1500, 2400 + int(PROGRAM_END_IDLE_S) + 60)))  # stood long: M30
         ended = seen_by_faces(emulator, face)
     assert before["s7"][1:] == ("", "") and before["name"] == before["cnc name"] == ""
     assert running["s7"] == (3, name, path)
