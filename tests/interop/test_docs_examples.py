@@ -180,6 +180,17 @@ def test_the_runner_finds_the_examples() -> None:
     assert span_kind("nckemu vars --json") == "run" and span_kind("nckemu get SD43900") == "run"
 
 
+def test_the_examples_that_need_shared_are_known() -> None:
+    """Without ../shared beside the clone (a new user's first `make test`), every example that reads from it,
+    or reads what such an example wrote, skips with the reason instead of failing."""
+    reasons = {example.source: reason for example, reason in NEEDS_SHARED.items()}
+    runs_syil = next(e.source for e in EXAMPLES if "syil_828d_warmup/routines/DAILY.MPF" in e.text)
+    reads_syil = next(e.source for e in EXAMPLES if "--inputs syil.csv" in e.text)
+    assert runs_syil in reasons and reasons[reads_syil].endswith(f"{runs_syil} writes from ../shared")
+    assert not any("fixtures/" in e.text and "../shared" not in e.text and "syil" not in e.text
+                   for e in NEEDS_SHARED), "an example on fixtures alone is marked as needing ../shared"
+
+
 # ------------------------------------------------------------------------------------ running
 def _free_port() -> int:
     with socket.socket() as probe:
@@ -306,9 +317,41 @@ def _marks(example: Example) -> list[pytest.MarkDecorator]:
         marks.append(pytest.mark.slow)
     if example.text in PENDING:
         marks.append(pytest.mark.xfail(reason=PENDING[example.text], strict=True))
-    if "shared/data" in example.text and not (SHARED / "data").is_dir():
-        marks.append(pytest.mark.skip(reason=f"{SHARED}/data is absent"))
+    if not SHARED.is_dir() and example in NEEDS_SHARED:
+        marks.append(pytest.mark.skip(reason=NEEDS_SHARED[example]))
     return marks
+
+
+# Options and redirections whose next word is a file the command writes.
+_WRITES = ("--out", "--json-out", "--report", "--record", "-o", ">")
+
+
+def _written_files(line: str) -> set[str]:
+    words = line.replace(">", " > ").split()
+    return {words[i + 1] for i, word in enumerate(words[:-1]) if word in _WRITES}
+
+
+def needs_shared(found: list[Example]) -> dict[Example, str]:
+    """The examples that cannot run without ../shared, with the reason: those naming a path in it, and those
+    reading a file that such an example writes (docs/programs.md's `plc run --inputs syil.csv` reads what the
+    SYIL warm-up run wrote), in the order the examples stand in their page."""
+    needing: dict[Example, str] = {}
+    written_by: dict[tuple[str, str], str] = {}  # (page, file) -> the example that writes it from ../shared
+    for example in found:
+        page = example.source.split(":", 1)[0]
+        reads = [written_by[(page, word)] for word in example.text.split() if (page, word) in written_by]
+        if "../shared" in example.text:
+            needing[example] = f"{SHARED} is absent: the example runs files from ../shared"
+        elif reads:
+            needing[example] = f"{SHARED} is absent: the example reads what {reads[0]} writes from ../shared"
+        if example in needing:
+            for line in example.lines:
+                for name in _written_files(line):
+                    written_by[(page, name)] = example.source
+    return needing
+
+
+NEEDS_SHARED = needs_shared(EXAMPLES)
 
 
 @pytest.mark.timeout(1800)
