@@ -12,13 +12,25 @@ every write asked for before the snapshot was taken is then acknowledged togethe
 from __future__ import annotations
 
 import asyncio
-from typing import TYPE_CHECKING
+from typing import Protocol
 
-if TYPE_CHECKING:
-    from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.state import RetainedStore
+
+
+class RetainedSource(Protocol):
+    """What a group save needs of the machine (the Emulator is one): no import of the machine's core, so
+    the two modules are no circle."""
+
+    @property
+    def store(self) -> RetainedStore | None: ...
+
+    def encode_retained(self) -> tuple[bytes, int]: ...
+
+    def saved(self, exc: Exception | None) -> None: ...
+
 
 class GroupSaves:
-    def __init__(self, emulator: Emulator) -> None:
+    def __init__(self, emulator: RetainedSource) -> None:
         self._emulator = emulator
         self.requested = 0  # saves asked for so far: a caller compares it before and after its work
         self._waiting: list[tuple[int, asyncio.Future[None]]] = []
