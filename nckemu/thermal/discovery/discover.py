@@ -34,7 +34,7 @@ from nckemu.thermal import stats
 from nckemu.thermal.model.terms import Term, ThermalModel
 from nckemu.thermal.recordings.recording import Recording
 
-from . import explain
+from . import explain, unusable
 from .findings import Closest, Finding, GuardFigure, Likely, Withdrawn
 from .library import Library
 from .problem import Problem
@@ -89,6 +89,9 @@ class Discovery:
     # A program's sim_ column that is one constant (e.g. all zeros): it explains nothing, so candidates
     # were tried against it plus an offset, as against a constant-offset baseline. None otherwise.
     baseline_constant_um: float | None = None
+    # What the recording cannot give (unusable.py): a still error column, a still sensor, a time
+    # constant at the edge of what its length can tell; one line each.
+    cannot_use: list[str] = field(default_factory=list)
 
     @property
     def residual_is_structure(self) -> bool:
@@ -113,6 +116,7 @@ class Discovery:
             "left": self.left,
             "stopped_at_limit": self.stopped_at_limit,
             "residual_structure": self.residual_structure,
+            "cannot_use": self.cannot_use,
         }
         if self.baseline_constant_um is not None:
             document["baseline_constant_um"] = round(self.baseline_constant_um, 6)
@@ -280,6 +284,9 @@ class Discoverer:
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Discovery:
+        still = unusable.still_error(self.problem.recording, self.problem.axis, self.y)
+        if still is not None:  # every candidate would "explain" a still column: say so and search nothing
+            return self._nothing_to_explain(still)
         setup = self.baseline()
         selector = Selector(self.y, self.problem.t_s, Library(self.problem, self.settings), self.settings, setup)
         recalibrate = selector.search(gain_mode=False)
@@ -295,6 +302,25 @@ class Discoverer:
         self._honest(result, selector, setup, chosen)
         if len(self.problem.runs) > 1:
             self._per_run(result, setup, chosen)
+        self._cannot_use(result)
+        return result
+
+    def _cannot_use(self, result: Discovery) -> None:
+        runs = [run.readings.raw for run in self.problem.runs]
+        result.cannot_use = unusable.still_sensors(runs)
+        shortest_s = min(run.duration_s for run in runs)
+        named = [(explain.label(Term(m.effect, m.parameters)), m.parameters)
+                 for m in result.missing_physics]
+        result.cannot_use += unusable.short_time_constants(named, shortest_s)
+
+    def _nothing_to_explain(self, line: str) -> Discovery:
+        problem = self.problem
+        result = Discovery(axis=problem.axis, baseline_rms_um=0.0, recalibrated_rms_um=0.0,
+                           heldout_rms_before_um=0.0, heldout_rms_after_um=0.0, mismatch=[], missing_physics=[],
+                           improved_model=problem.model, data_quality=self.data_quality, samples=len(self.y),
+                           why_nothing=line, baseline_constant_um=self.constant_um,
+                           before_is="nothing to explain: the error column is one value")
+        result.cannot_use = [line, *unusable.still_sensors(run.readings.raw for run in problem.runs)]
         return result
 
     def _honest(self, result: Discovery, selector: Selector, setup: Baseline, path: Path) -> None:

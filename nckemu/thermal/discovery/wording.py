@@ -111,7 +111,10 @@ def finding_lines(discovery: Discovery) -> list[str]:
     """The text output's lines after the headline: found, likely, why nothing, coverage, data quality."""
     import json
 
-    lines = [f"missing: {m.effect} {json.dumps(m.parameters)}" for m in discovery.missing_physics]
+    lines = [f"cannot use: {line}" for line in discovery.cannot_use]
+    if discovery.cannot_use and discovery.why_nothing == discovery.cannot_use[0]:
+        return lines  # a still error column: nothing was searched, nothing more to say
+    lines += [f"missing: {m.effect} {json.dumps(m.parameters)}" for m in discovery.missing_physics]
     lines += time_constant_lines(discovery)
     lines += attribution_lines(discovery)
     for item in discovery.likely:
