@@ -399,10 +399,11 @@ def test_frames_work_offsets_trans_atrans_supa() -> None:
     assert moves[3].programmed == {"X": 0.0, "Z": 0.0}
 
 
-def test_rotation_with_values_is_refused_bare_rot_clears() -> None:
-    result = run("TRANS X10\nROT\nG0 X1\nROT Z45\nM30")
+def test_bare_rot_clears_the_frame_and_rot_with_values_turns_it() -> None:
+    result = run("TRANS X10\nROT\nG0 X1\nROT Z90\nG0 X1\nM30")
+    assert result.alarm is None
     assert result.moves[0].target_mm == {"X": 1.0}
-    assert result.alarm is not None and result.alarm.line == 4
+    assert result.moves[1].target_mm == pytest.approx({"X": 0.0, "Y": 1.0})  # tests/unit/test_program_frames.py
 
 
 def test_arcs_ijk_cr_helical_and_planes() -> None:

@@ -6,8 +6,9 @@ AXCONF_GEOAX_NAME_TAB (X, Y, Z by default), then the channel's other path axes b
 (assumed; a spindle has no WCS position). On the default machine (X1, Y1, SP1, Z1) line 3 is Z1, machine
 axis 4. Only channel 1 holds axes, as for the channel axis names (MD20080).
 
-Positions: the machine position less the active settable frame's translation (the work offset the
-``workPosition`` row takes off too; no programmable frame is emulated here), the tool base; the
+Positions: the machine position less the active settable frame's translation and through the frame a
+running program has programmed (TRANS, ROT, SCALE, MIRROR; the ``workPosition`` row takes them off too),
+the tool base; the
 programmed point (``actProgPos``, ``cmdProgPos``) lies the active tool edge's length along that geometry
 axis below it (actOriToolLength1..3). ``cmd...`` is where the NCK commands the axis, ``act...`` where it
 is, the temperature and leadscrew compensation included.
@@ -64,8 +65,8 @@ def _tool_length_mm(model: NckParts, channel: int, geometry: int) -> float:
 
 def _tool_base_of_mm(model: NckParts, channel: int, number: int, actual: bool) -> float:
     """The tool base of machine axis ``number`` in the channel's WCS."""
-    machine_mm = model.actual_position_mm(number) if actual else model.axes.positions_mm[number]
-    return machine_mm - model.frames.active_shift_mm(channel, number)
+    machine_mm = model.actual_position_mm if actual else model.axes.positions_mm.__getitem__
+    return model.frames.work_position_mm(channel, number, machine_mm)
 
 
 def tool_base_mm(model: NckParts, channel: int, line: int, *, actual: bool = True) -> float:

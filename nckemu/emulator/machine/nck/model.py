@@ -234,9 +234,9 @@ class NckModel:
         self.frames.select(channel, index)
 
     def work_position_mm(self, axis: int, channel: int = 1) -> float:
-        """The actual position in the settable zero system: machine position less the active work
-        offset's translation (no other frame is emulated)."""
-        return self.actual_position_mm(axis) - self.frames.active_shift_mm(channel, axis)
+        """The actual position in the work coordinate system: machine position less the active work
+        offset's translation, through the frame the running program has programmed on it."""
+        return self.frames.work_position_mm(channel, axis, self.actual_position_mm)
 
     def add_program(self, path: str) -> None:
         self.programs.add(path)

@@ -53,6 +53,11 @@ class ProgramEnvironment:
         """A block selected the settable frame ``frame`` (G500, G54...G57, G505...): the NCK makes it
         the active one, so what it reports (actFrameIndex, work positions) follows the program."""
 
+    def set_programmable_frame(self, frame: object) -> None:
+        """The frame the program has programmed on the settable frame (a
+        :class:`~nckemu.emulator.machine.nck.frames.Frame`; identity after TRANS without values), so
+        that the work positions the NCK reports follow it."""
+
     def tool_length_mm(self, tool: int | str | None, edge: int | None) -> float:
         """The active tool edge's length 1 (applied along the infeed axis of the plane)."""
         return 0.0

@@ -172,6 +172,12 @@ class NckEnvironment(ProgramEnvironment):
         if index is not None and index < self._parts.frames.count:
             self._parts.frames.select(self._channel.number, index)
 
+    def set_programmable_frame(self, frame: object) -> None:
+        from nckemu.emulator.machine.nck.frames import Frame
+
+        if isinstance(frame, Frame):
+            self._parts.frames.set_programmable(self._channel.number, frame)
+
     def tool_length_mm(self, tool: int | str | None, edge: int | None) -> float:
         number = self._tool_number(tool)
         if not number or not edge:
@@ -296,6 +302,7 @@ class ProgramRun:
             self._move_axes(now_s)
         self._motion = None
         self._finish_record(now_s)
+        self._drop_programmable_frame()
         close = getattr(self._events, "close", None)
         if close is not None:
             close()
@@ -360,9 +367,17 @@ class ProgramRun:
                     self.record.m_codes.append(event.code)
                 return self._end()
 
+    def _drop_programmable_frame(self) -> None:
+        """Reset and program end delete the programmable frame (MD20110 RESET_MODE as delivered,
+        UNCONFIRMED); the settable frame stays selected."""
+        from nckemu.emulator.machine.nck.frames import IDENTITY_FRAME
+
+        self.parts.frames.set_programmable(self.channel.number, IDENTITY_FRAME)
+
     # ------------------------------------------------------------------ events
     def _end(self) -> str:
         self.ended = True
+        self._drop_programmable_frame()
         self._finish_record(self.t_s)
         return "ended"
 

@@ -26,3 +26,6 @@ MAX_CALL_DEPTH = 15
 # spindle) in the same block ("auxiliary function programmed incorrectly").
 ALARM_AUXILIARY = 14770
 MAX_M_PER_BLOCK = 5
+# UNCONFIRMED ("frame instruction not permissible", as we remember the 18310 group): a frame that
+# scales an axis by 0, a rotation about an axis that is no geometry axis.
+ALARM_FRAME = 18311

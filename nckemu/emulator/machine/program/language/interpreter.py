@@ -15,6 +15,8 @@ from collections.abc import Iterator
 from types import FunctionType
 from typing import Any
 
+from nckemu.emulator.machine.nck.frames import IDENTITY_FRAME, Frame
+
 from ..environment import ProgramEnvironment, UndefinedName
 from ..motions import (
     ALARM_CIRCLE_END_POINT,
@@ -36,6 +38,7 @@ from ..motions import (
     ToolSelect,
 )
 from . import blocks as b
+from . import framing
 from .alarms import (
     ALARM_ARITHMETIC,
     ALARM_AUXILIARY,
@@ -123,7 +126,8 @@ class Interpreter:
         self.spindle_speed: dict[int, float] = {}
         self.frame_name = "G500"
         self.settable: dict[str, float] = {}
-        self.trans: dict[str, float] = {}
+        self.pframe: Frame = IDENTITY_FRAME   # the programmable frame (TRANS, ROT, SCALE, MIRROR)
+        self.chain: Frame | None = None       # settable + programmable frame when more than a translation
         self.tool: int | str | None = None
         self.edge: int | None = None
         self.preselected: int | str | None = None
@@ -138,7 +142,7 @@ class Interpreter:
         self._load_settable("G500")
 
     _MODAL_FIELDS = ("motion", "plane", "absolute", "inch_geometry", "inch_feed", "feed_mode", "exact_stop",
-                     "frame_name", "settable", "trans", "shift")
+                     "frame_name", "settable", "pframe", "chain", "shift")
 
     def _snapshot_modal(self) -> dict[str, Any]:
         return {name: (dict(value) if isinstance(value, dict) else value)
@@ -147,6 +151,7 @@ class Interpreter:
     def _restore_modal(self, saved: dict[str, Any]) -> None:
         for name, value in saved.items():
             setattr(self, name, value)
+        self.env.set_programmable_frame(self.pframe)
 
     def _load_settable(self, name: str) -> None:
         self.frame_name = name
@@ -162,11 +167,9 @@ class Interpreter:
         self._update_shift()
 
     def _update_shift(self) -> None:
-        shift: dict[str, float] = {}
-        for axis, offset in self.settable.items():
-            shift[axis] = shift.get(axis, 0.0) + offset
-        for axis, offset in self.trans.items():
-            shift[axis] = shift.get(axis, 0.0) + offset
+        chain = framing.chain(self.settable, self.pframe)
+        self.chain = None if chain.is_translation else chain
+        shift = dict(chain.translation)
         if self.tool_length_mm:
             infeed = _PLANES[self.plane][2]
             shift[infeed] = shift.get(infeed, 0.0) + self.tool_length_mm
@@ -376,7 +379,13 @@ class Interpreter:
             if name == "$P_EP":
                 return self.work_pos[axis]
             machine = float(self.env.machine_position_mm(axis))
-            return machine - self.shift.get(axis, 0.0) if name == "$AA_IW" else machine
+            if name != "$AA_IW":
+                return machine
+            if self.chain is None:
+                return machine - self.shift.get(axis, 0.0)
+            return self._work_position(axis)
+        if name in framing.FRAME_VARIABLES:
+            return self._frame_variable(name, indices)
         if not indices:
             if name == "$P_F":
                 return self.feed_mm
@@ -387,6 +396,34 @@ class Interpreter:
             if name == "$P_S":
                 return self.spindle_speed.get(1, 0.0)
         raise undefined(name)
+
+    def _work_position(self, axis: str) -> float:
+        """Where ``axis`` is now in the work system, back through the frame chain (and the tool)."""
+        chain = self.chain or Frame(self.shift)
+        infeed = _PLANES[self.plane][2]
+        point = {}
+        for name in self._axes:
+            try:
+                point[name] = float(self.env.machine_position_mm(name))
+            except Exception:
+                point[name] = 0.0
+            if name == infeed:
+                point[name] -= self.tool_length_mm
+        return chain.inverse_apply(point)[axis]
+
+    def _frame_variable(self, name: str, indices: tuple) -> float:
+        """$P_PFRAME[X,TR], $P_IFRAME[..], $P_ACTFRAME[..], $P_BFRAME[..] and $P_UIFR[n,X,TR]."""
+        if name == "$P_UIFR":
+            if len(indices) != 3:
+                raise ProgramAlarm(ALARM_SYNTAX, "$P_UIFR[frame, axis, component]")
+            index = int(number(indices[0]))
+            frame_name = "G500" if index == 0 else (f"G{53 + index}" if index <= 4 else f"G{500 + index}")
+            if str(indices[2]).upper() == "TR":
+                return float(self.env.work_offset_mm(frame_name, self._axis_name(indices[1])))
+            return framing.read_component(IDENTITY_FRAME, indices[1:], name)
+        frame = {"$P_PFRAME": self.pframe, "$P_IFRAME": Frame(dict(self.settable)),
+                 "$P_BFRAME": IDENTITY_FRAME}.get(name) or framing.chain(self.settable, self.pframe)
+        return framing.read_component(frame, indices, name)
 
     def _read_setting(self, name: str, indices: tuple) -> Any:
         if len(indices) != 1:
@@ -403,6 +440,11 @@ class Interpreter:
             evaluated = tuple(evaluate(i, self) for i in indices)
             if name == "$R" and len(evaluated) == 1:
                 self.env.set_r_parameter(self._r_index(evaluated[0]), float(number(value)))
+                return
+            if name == "$P_PFRAME":
+                self.pframe = framing.with_component(self.pframe, evaluated, name, float(number(value)))
+                self._update_shift()
+                self.env.set_programmable_frame(self.pframe)
                 return
             try:
                 self.env.set_system_variable(name, evaluated, value)
@@ -470,7 +512,7 @@ class Interpreter:
         if not axis_words:
             return None
         motion = self.motion
-        if self.inch_geometry or not self.absolute or motion > 1:
+        if self.inch_geometry or not self.absolute or motion > 1 or self.chain is not None:
             events: list[Event] = [self._motion([(axis, value, None) for axis, value in axis_words], {}, {})]
         else:
             shift = self.shift
@@ -878,19 +920,60 @@ class Interpreter:
                                          direction=directions.get(spindle)))  # type: ignore[arg-type]
 
     def _frame_instruction(self, word: str, pairs: list) -> None:
-        if word in ("ROT", "SCALE", "MIRROR", "AROT", "ASCALE", "AMIRROR") and pairs:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{word} with values is not supported by the emulator")
-        if word in ("TRANS", "ROT", "SCALE", "MIRROR"):
-            self.trans = {}
+        values: list[tuple[str, float]] = []
         for axis, raw in pairs:
             value = float(number(evaluate(raw, self)))
-            if not self._is_rotary(axis) and self.inch_geometry:
+            if word.endswith("TRANS") and not self._is_rotary(axis) and self.inch_geometry:
                 value *= INCH_MM
-            self.trans[axis] = self.trans.get(axis, 0.0) + value
+            values.append((axis, value))
+        self.pframe = framing.programmed_frame(self.pframe, word, values, self.plane)
         self._update_shift()
+        self.env.set_programmable_frame(self.pframe)
+
+    def _framed_motion(self, axis_words: list, address: dict, flags: dict, chain: Frame) -> Event:
+        """A move or circle through a frame that rotates, scales or mirrors: the end point (and centre)
+        worked out in the work system, then taken through the frame chain and the tool length."""
+        work_pos = self.work_pos
+        unit_mm = INCH_MM if self.inch_geometry else 1.0
+        start = dict(work_pos)
+        programmed: dict[str, float] = {}
+        for axis, raw, mode in axis_words:
+            value = raw if raw.__class__ is float else float(number(raw))
+            unit = unit_mm if not self._is_rotary(axis) else 1.0
+            incremental = mode == "IC" or (mode is None and not self.absolute)
+            work = (work_pos[axis] + value * unit) if incremental else value * unit
+            programmed[axis] = work / unit
+            work_pos[axis] = work
+        moving = chain.coupled(set(programmed)) & set(work_pos)
+        work_targets = {axis: work_pos[axis] for axis in moving}
+        tool = {_PLANES[self.plane][2]: self.tool_length_mm} if self.tool_length_mm else {}
+        exact_stop = self.exact_stop or bool(flags.get("g9"))
+        if self.motion > 1:
+            if self.feed_mm <= 0:
+                raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
+            saved_shift, self.shift = self.shift, {}
+            try:
+                first, second, _ = _PLANES[self.plane]
+                # a circle starts where the tool is: that point in the work system of this frame
+                plane_start = {axis: self._work_position(axis) for axis in (first, second) if axis in start}
+                arc = self._arc(work_targets, programmed, plane_start, address, {}, exact_stop)
+            finally:
+                self.shift = saved_shift
+            return framing.framed_arc(arc, chain, tool)
+        targets = chain.apply(work_targets)
+        for axis, length in tool.items():
+            if axis in targets:
+                targets[axis] += length
+        if self.motion == 0:
+            return Move(targets, None, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
+        if self.feed_mm <= 0:
+            raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
+        return Move(targets, self.feed_mm, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
 
     def _motion(self, axis_words: list, address: dict, flags: dict) -> Event:
         suppress = bool(flags.get("supa"))
+        if self.chain is not None and not suppress:
+            return self._framed_motion(axis_words, address, flags, self.chain)
         shift = self.shift
         work_pos = self.work_pos
         inch = self.inch_geometry

@@ -1,0 +1,147 @@
+"""Frames in a program: the programmable frame's instructions, the chain they make with the settable
+frame, moves and circles through that chain, and the frame system variables.
+
+The chain is the control's: the settable frame (G54...; translation only here, as the NCK stores it),
+then the programmable frame on it. Within the programmable frame the components act in the
+control's order, translation, rotation, scale, mirror (:class:`~nckemu.emulator.machine.nck.frames.Frame`).
+``TRANS``, ``ROT``, ``SCALE`` and ``MIRROR`` replace the whole programmable frame with their one
+component (without values: delete it); ``ATRANS``, ``AROT``, ``ASCALE`` and ``AMIRROR`` add theirs in
+the system the frame has made so far (an ATRANS after a ROT goes along the rotated axes).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from nckemu.emulator.machine.nck.frames import GEOMETRY, IDENTITY_FRAME, Frame, rotation_rpy
+
+from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, Arc, ProgramAlarm
+from .alarms import ALARM_FRAME
+
+# The axis a plane rotation (RPL=) turns about: the plane's infeed axis.
+PLANE_NORMAL = {"G17": "Z", "G18": "Y", "G19": "X"}
+# The machine plane whose normal is a geometry axis, and the planes' axes (first, second).
+_PLANE_OF_NORMAL = {"Z": "G17", "Y": "G18", "X": "G19"}
+_PLANE_AXES = {"G17": ("X", "Y"), "G18": ("Z", "X"), "G19": ("Y", "Z")}
+# $P_UIFR[n,X,TR] and friends: the component names the control reads.
+COMPONENTS = frozenset({"TR", "FI", "RT", "SC", "MI"})
+FRAME_VARIABLES = frozenset({"$P_PFRAME", "$P_UIFR", "$P_IFRAME", "$P_ACTFRAME", "$P_BFRAME"})
+
+
+def programmed_frame(current: Frame, word: str, values: list[tuple[str, float]], plane: str) -> Frame:
+    """The programmable frame after ``word`` (TRANS, AROT, ...) with its values (axis or RPL, value)."""
+    additive = word[0] == "A"
+    kind = word[1:] if additive else word
+    base = current if additive else IDENTITY_FRAME
+    if not values:
+        return base
+    if kind != "ROT" and any(axis == "RPL" for axis, _ in values):
+        raise ProgramAlarm(ALARM_SYNTAX, f"{word}: RPL= belongs to ROT and AROT")
+    if kind == "TRANS":
+        return base.then_translate(_summed(values))
+    if kind == "ROT":
+        angles: dict[str, float] = {}
+        for axis, angle in values:
+            name = PLANE_NORMAL.get(plane, "Z") if axis == "RPL" else axis
+            if name not in GEOMETRY:
+                raise ProgramAlarm(ALARM_FRAME, f"{word} {axis}: a rotation is about a geometry axis (X, Y, Z)")
+            angles[name] = angles.get(name, 0.0) + angle
+        return base.then_rotate(rotation_rpy(angles))
+    if kind == "SCALE":
+        for axis, factor in values:
+            if factor == 0:
+                raise ProgramAlarm(ALARM_FRAME, f"{word} {axis}0: a frame cannot scale an axis by 0")
+        factors: dict[str, float] = {}
+        for axis, factor in values:
+            factors[axis] = factors.get(axis, 1.0) * factor
+        return base.then_scale(factors)
+    return base.then_mirror({axis for axis, _ in values})
+
+
+def _summed(values: list[tuple[str, float]]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for axis, value in values:
+        out[axis] = out.get(axis, 0.0) + value
+    return out
+
+
+def chain(settable: dict[str, float], programmable: Frame) -> Frame:
+    """The settable frame (its translation) with the programmable frame on it."""
+    if not settable:
+        return programmable
+    return Frame(dict(settable)).after(programmable)
+
+
+def framed_arc(arc: Arc, frame: Frame, tool: dict[str, float]) -> Arc:
+    """A circle computed in the work system (targets and centre there) brought below ``frame`` and the
+    tool length ``tool`` (machine axis -> mm). The circle's plane must come out as a machine plane and
+    its two axes scaled alike; otherwise the emulator has no model for it (an ellipse, an oblique
+    plane) and says so."""
+    first, second = _PLANE_AXES[arc.plane]
+    normal = PLANE_NORMAL[arc.plane]
+    factors = (frame.scale.get(first, 1.0), frame.scale.get(second, 1.0))
+    if abs(abs(factors[0]) - abs(factors[1])) > 1e-12:
+        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"a circle in {arc.plane} with its axes scaled differently "
+                                                   "(an ellipse) is not supported by the emulator")
+    turned = Frame(rotation=frame.rotation).vector({normal: 1.0})
+    axis = max(turned, key=lambda name: abs(turned[name]))
+    if abs(abs(turned[axis]) - 1.0) > 1e-9:
+        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "a circle in a plane the frame turns away from the machine's "
+                                                   "planes is not supported by the emulator")
+    plane = _PLANE_OF_NORMAL[axis]
+    # The sense of turning: flipped when the normal comes out reversed, and once more per mirrored
+    # (or negatively scaled) axis of the plane.
+    flips = (turned[axis] < 0) + sum(1 for name, factor in zip((first, second), factors, strict=True)
+                                     if (name in frame.mirror) != (factor < 0))
+    clockwise = arc.clockwise if flips % 2 == 0 else not arc.clockwise
+    targets = frame.apply(arc.target_mm)
+    centre_work = dict(arc.centre_mm)
+    centre_work.setdefault(normal, 0.0)
+    centre = frame.apply(centre_work)
+    machine_first, machine_second = _PLANE_AXES[plane]
+    for name, length in tool.items():
+        if name in targets:
+            targets[name] += length
+        if name in centre:
+            centre[name] += length
+    return Arc(targets, {machine_first: centre.get(machine_first, 0.0), machine_second: centre.get(machine_second, 0.0)},
+               clockwise, plane, arc.feed, arc.feed_mode, arc.turns, arc.exact_stop,  # type: ignore[arg-type]
+               arc.programmed)
+
+
+def read_component(frame: Frame, indices: tuple[Any, ...], name: str) -> float:
+    """``$P_PFRAME[X,TR]``: one component of one axis of ``frame``."""
+    if len(indices) != 2:
+        raise ProgramAlarm(ALARM_SYNTAX, f"{name}[axis, component] (a whole FRAME value is not supported "
+                                         f"by the emulator)")
+    axis, kind = (str(index).upper() for index in indices)
+    if kind not in COMPONENTS:
+        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}: {kind} is no frame component (TR FI RT SC MI)")
+    return frame.component(axis, kind)
+
+
+def with_component(frame: Frame, indices: tuple[Any, ...], name: str, value: float) -> Frame:
+    """``$P_PFRAME[X,TR]=5``: ``frame`` with one component of one axis set."""
+    if len(indices) != 2:
+        raise ProgramAlarm(ALARM_SYNTAX, f"{name}[axis, component]=value")
+    axis, kind = (str(index).upper() for index in indices)
+    if kind == "TR":
+        translation = dict(frame.translation)
+        translation[axis] = value
+        return Frame(translation, frame.rotation, frame.scale, frame.mirror)
+    if kind == "SC":
+        if value == 0:
+            raise ProgramAlarm(ALARM_FRAME, f"{name}[{axis},SC]=0: a frame cannot scale an axis by 0")
+        scale = dict(frame.scale)
+        scale[axis] = value
+        return Frame(frame.translation, frame.rotation, scale, frame.mirror)
+    if kind == "MI":
+        mirror = frame.mirror | {axis} if value else frame.mirror - {axis}
+        return Frame(frame.translation, frame.rotation, frame.scale, mirror)
+    if kind == "RT" and axis in GEOMETRY:
+        angles = {name: frame.component(name, "RT") for name in GEOMETRY}
+        angles[axis] = value
+        return Frame(frame.translation, rotation_rpy(angles), frame.scale, frame.mirror)
+    if kind == "FI":
+        return frame
+    raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}[{axis},{kind}] cannot be written")
