@@ -173,7 +173,7 @@ class NckEnvironment(ProgramEnvironment):
             self._parts.frames.select(self._channel.number, index)
 
     def set_programmable_frame(self, frame: object) -> None:
-        from nckemu.emulator.machine.nck.frames import Frame
+        from nckemu.emulator.machine.nck.frame_math import Frame
 
         if isinstance(frame, Frame):
             self._parts.frames.set_programmable(self._channel.number, frame)
@@ -370,7 +370,7 @@ class ProgramRun:
     def _drop_programmable_frame(self) -> None:
         """Reset and program end delete the programmable frame (MD20110 RESET_MODE as delivered,
         UNCONFIRMED); the settable frame stays selected."""
-        from nckemu.emulator.machine.nck.frames import IDENTITY_FRAME
+        from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME
 
         self.parts.frames.set_programmable(self.channel.number, IDENTITY_FRAME)
 
