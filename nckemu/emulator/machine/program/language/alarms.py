@@ -16,8 +16,11 @@ ALARM_TYPE = 12150
 ALARM_NESTING = 12640
 # UNCONFIRMED: an array index outside the declared size.
 ALARM_INDEX = 17020
-# UNCONFIRMED: a G function the control does not know.
+# UNCONFIRMED: a G function the control does not know (no SINUMERIK has it: G43 of ISO controls, G999).
 ALARM_UNKNOWN_G = 12470
+# UNCONFIRMED: two G functions of one syntax-defining group (1 motion, 2 non-modal motion, 3 frames)
+# in one block ("too many syntax-defining G functions": G0 G1 X10).
+ALARM_SYNTAX_G_TWICE = 12070
 # UNCONFIRMED: subprogram calls nested deeper than the control allows.
 ALARM_CALL_DEPTH = 14000
 # Subprogram levels a program may open below the main program (840D sl: 16 levels in all; UNCONFIRMED).

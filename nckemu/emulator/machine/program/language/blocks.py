@@ -10,17 +10,16 @@ read, so a compiled block can be kept and run again in a loop.
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from typing import Any
 
-from ..motions import ALARM_SYNTAX, ProgramAlarm
+from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, ProgramAlarm
 from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, is_dynamic
+from .gfunctions import G_FUNCTIONS, GROUP_TITLES, NO_EFFECT, NOT_SUPPORTED, STRAIGHT_G, check_block
 
 # block kinds
 WORDS, IF, ELSE, ENDIF, WHILE, ENDWHILE, FOR, ENDFOR, REPEAT, UNTIL, LOOP, ENDLOOP = range(12)
-IF_JUMP, CASE, DEF, PROC, EXTERN, NOTHING, STRAIGHT = range(12, 19)
-# G functions a STRAIGHT block may carry: modal settings that need nothing of the block's other words
-STRAIGHT_G = frozenset({0, 1, 17, 18, 19, 40, 60, 64, 70, 71, 90, 91, 94, 95, 601, 602, 603, 641, 642, 643,
-                        644, 645, 700, 710})
+IF_JUMP, CASE, DEF, PROC, EXTERN, NOTHING, STRAIGHT, SECTION = range(12, 20)
 
 _KEYWORD_KINDS = {"ELSE": ELSE, "ENDIF": ENDIF, "ENDWHILE": ENDWHILE, "ENDFOR": ENDFOR,
                   "REPEAT": REPEAT, "LOOP": LOOP, "ENDLOOP": ENDLOOP}
@@ -50,13 +49,28 @@ NO_OP_WORDS = frozenset({
     "CDOF", "CDOF2", "DISC", "OFFN", "FENDNORM", "TOFFON", "TOFFOF", "G40", "RESET", "WAITMC",
     "FGROUP", "FTOCON", "FTOCOF", "ORISON", "ORISOF", "PAROT", "PAROTOF", "TOROT", "TOROTOF",
     "TCARR", "TCOABS", "TCOFR", "SUPD", "CPROTDEF", "LIFTFAST", "SETMS", "PROTA", "PROTS",
-})
+}) | frozenset(name for name, entry in G_FUNCTIONS.items() if entry.number is None and entry.emulation is NO_EFFECT)
+# Named G functions of the control that the emulator cannot run right (CIP, CT, REPOSA, ...): 12550.
+NOT_SUPPORTED_WORDS = frozenset(
+    name for name, entry in G_FUNCTIONS.items() if entry.number is None and entry.emulation is NOT_SUPPORTED)
 SPLINES = frozenset({"ASPLINE", "BSPLINE", "CSPLINE", "POLY"})
 
 # X=IC(..) incremental, AC absolute; for rotary axes DC/ACP/ACN (shortest way, positive, negative
 # direction) and CIC are absolute/incremental positions here (the direction is not modelled)
 _DIMENSION_MODES = {"IC": "IC", "AC": "AC", "DC": "AC", "ACP": "AC", "ACN": "AC", "CIC": "IC"}
 _ADDRESS_WORD = re.compile(r"([A-Z]+?)(\d+)")
+
+
+@dataclass(frozen=True, slots=True)
+class Section:
+    """A program section repetition: run the lines from label ``start`` to ``end`` (the line before
+    the REPEAT when None; the ENDLABEL: line for "ENDLABEL"; ``start`` alone when ``single``)
+    ``count`` times (an expression), then go on after the REPEAT."""
+
+    start: str
+    end: str | None
+    count: Any
+    single: bool = False
 
 
 class Compiled:
@@ -121,6 +135,7 @@ class BlockCompiler:
                 items.append((I_ADDR, letters, value, None))
             else:
                 return None
+        _check_groups(items)
         return Compiled(number, WORDS, items, text)
 
     def _straight(self, words: list[tuple[str, str]], text: str) -> Compiled | None:
@@ -151,6 +166,8 @@ class BlockCompiler:
                 number = "N" + digits
             else:
                 return None
+        if len(g_codes) > 1:
+            check_block([f"G{code}" for code in g_codes])
         return Compiled(number, STRAIGHT, (tuple(g_codes), tuple(axis_words), feed), text)
 
     def compile(self, text: str, tokens: list) -> Compiled:
@@ -178,6 +195,9 @@ class BlockCompiler:
         if token[0] == NAME and token[2] is None:
             keyword = token[1]
             kind = _KEYWORD_KINDS.get(keyword)
+            if keyword in ("REPEAT", "REPEATB") and (keyword == "REPEATB" or parser.pos + 1 < len(tokens)):
+                parser.pos += 1
+                return Compiled(number, SECTION, self._section(parser, keyword), text)
             if kind is not None:
                 parser.pos += 1
                 if not parser.at_end():
@@ -213,9 +233,32 @@ class BlockCompiler:
                 return Compiled(number, PROC, self.proc_header(parser), text)
             if keyword == "EXTERN":
                 return Compiled(number, EXTERN, (), text)
-        return Compiled(number, WORDS, self._words(parser), text)
+        items = self._words(parser)
+        _check_groups(items)
+        return Compiled(number, WORDS, items, text)
 
     # --- pieces ----------------------------------------------------------------------------------
+    def _section(self, parser: Parser, keyword: str) -> Section:
+        """Program section repetition: ``REPEAT START [END | ENDLABEL] [P=n]`` or ``REPEATB LABEL [P=n]``."""
+        start = self._target(parser)
+        end: str | None = None
+        if keyword == "REPEAT" and not parser.at_end() and not parser.at_name("P") \
+                and not self._at_repeat_count(parser):
+            end = self._target(parser)
+        count: Any = 1
+        if not parser.at_end():
+            count = self._repeat(parser)
+            if count is None:
+                token = parser.peek()
+                raise ProgramAlarm(ALARM_SYNTAX, f"{keyword}: P=count expected, found {token[1]!r}")  # type: ignore[index]
+        self._end(parser)
+        return Section(start, end, count, single=keyword == "REPEATB")
+
+    @staticmethod
+    def _at_repeat_count(parser: Parser) -> bool:
+        token = parser.peek()
+        return token is not None and token[0] == NAME and re.fullmatch(r"P\d+", token[1]) is not None
+
     def _end(self, parser: Parser) -> None:
         if not parser.at_end():
             token = parser.peek()
@@ -515,6 +558,10 @@ class BlockCompiler:
             if name in SPLINES:
                 items.append((I_G, 1, name, None))
                 continue
+            if name in NOT_SUPPORTED_WORDS:
+                entry = G_FUNCTIONS[name]
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} (G group {entry.group}, "
+                                   f"{GROUP_TITLES[entry.group]}) is not supported by the emulator")
             if name in NO_OP_WORDS:
                 if parser.at_op("("):
                     parser.arguments()
@@ -589,3 +636,21 @@ class BlockCompiler:
                 break
         return pairs
 
+
+
+# item kinds whose name may be a G function of a group (G1, SUPA, TRANS, BRISK)
+_GROUPED_ITEMS = frozenset({I_G, I_SUPA, I_FRAME, I_NOOP})
+
+
+def _check_groups(items: list[tuple]) -> None:
+    """The control's alarm for two G functions of one group in the block (gfunctions.check_block)."""
+    names = []
+    for item in items:
+        code = item[0]
+        if code in _GROUPED_ITEMS:
+            if code == I_G:
+                names.append(item[2] or f"G{item[1]}")
+            elif item[1] in G_FUNCTIONS:
+                names.append(item[1])
+    if len(names) > 1:
+        check_block(names)

@@ -50,8 +50,9 @@ from .alarms import (
 )
 from .blocks import BlockCompiler, Compiled
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
+from .gfunctions import BY_NUMBER, GROUP_TITLES, NOT_SUPPORTED
 from .lexer import strip_comment, tokenize
-from .source import ProgramSource
+from .source import ProgramSource, decode_program, normalized
 from .variables import Variable
 
 log = logging.getLogger(__name__)
@@ -65,20 +66,18 @@ CIRCLE_ERROR_FACTOR = 0.001
 
 _PLANES = {"G17": ("X", "Y", "Z"), "G18": ("Z", "X", "Y"), "G19": ("Y", "Z", "X")}
 _CENTRE_WORD = {"X": "I", "Y": "J", "Z": "K"}
-_SETTLED_G = frozenset({
-    601, 602, 603, 40, 41, 42, 97, 96, 25, 26, 450, 451, 340, 341, 140, 141, 142, 143, 147, 148, 247, 248,
-    347, 348, 620, 621, 460, 461, 462, 810, 811, 812, 820, 821, 822, 931, 942, 952, 962, 971, 973, 290, 291,
-})
 _STANDARD_CYCLE = re.compile(r"(CYCLE\d+[A-Z]?|POCKET\d+|SLOT\d+|LONGHOLE|HOLES\d|WORKPIECE|[EF]_[A-Z0-9_]+)")
 _BLOCK_NUMBER = re.compile(r"(?:/\d?\s*)?(N\d+)", re.IGNORECASE)
 _END_CODES = frozenset({0, 1, 2, 17, 30})
+# a line that is a block: not blank, not only a comment, not a % header
+_BLOCK_LINE = re.compile(r"^[ \t]*[^ \t;%\n]", re.MULTILINE)
 
 
 class _Frame:
     """One program level: the main program (depth 0) or a subprogram call."""
 
     __slots__ = ("source", "pos", "line", "depth", "vars", "for_state", "back_refs", "saved_modal",
-                 "repeat_left", "call_args")
+                 "repeat_left", "call_args", "sections")
 
     def __init__(self, source: ProgramSource, pos: int, line: int, depth: int) -> None:
         self.source = source
@@ -91,6 +90,22 @@ class _Frame:
         self.saved_modal: dict[str, Any] | None = None
         self.repeat_left = 0
         self.call_args: tuple[Any, ...] = ()
+        # program section repetitions under way (REPEAT LABEL P=n), innermost last
+        self.sections: list[_Repetition] = []
+
+
+class _Repetition:
+    """A REPEAT of a program section under way: lines ``start``..``last`` (offsets of line starts),
+    ``left`` more passes, then on at ``back_pos``/``back_line`` (the line after the REPEAT)."""
+
+    __slots__ = ("start", "last", "left", "back_pos", "back_line")
+
+    def __init__(self, start: int, last: int, left: int, back_pos: int, back_line: int) -> None:
+        self.start = start
+        self.last = last
+        self.left = left
+        self.back_pos = back_pos
+        self.back_line = back_line
 
 
 class Interpreter:
@@ -213,11 +228,19 @@ class Interpreter:
         frame = _Frame(self._main, 0, 1, 0)
         self._stack = [frame]
         self._frame = frame
+        try:
+            self._main_proc(frame)
+        except ProgramAlarm as alarm:  # the PROC line is the faulty block on the display
+            yield Block(self._main.path, alarm.line, "", alarm.block, 0)
+            raise
         while True:
             frame = self._frame
             source = frame.source
             text = source.text
             pos = frame.pos
+            if frame.sections and pos > frame.sections[-1].last:
+                self._section_pass_done(frame)
+                continue
             if pos >= len(text):
                 if frame.depth == 0:
                     yield ProgramEnd(0)
@@ -540,6 +563,9 @@ class Interpreter:
             return self._words(compiled.items, frame, pos)
         if kind == b.NOTHING or kind == b.EXTERN:
             return None
+        if kind == b.SECTION:
+            self._repeat_section(compiled.items, frame, pos)
+            return None
         source = frame.source
         if kind == b.IF:
             if pos in source.bad_nesting or pos not in source.partner:
@@ -608,6 +634,41 @@ class Interpreter:
                 return None
         return None
 
+    def _repeat_section(self, section: b.Section, frame: _Frame, pos: int) -> None:
+        """REPEAT/REPEATB: find the section's lines and run them ``count`` times from here."""
+        count = int(number(evaluate(section.count, self)))
+        if count < 1:
+            return
+        source = frame.source
+        start = source.find_target(section.start, pos, "B")
+        if start is None:
+            start = source.find_target(section.start, pos, "F")
+        if start is None:
+            raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {section.start} not found")
+        if section.single:
+            last: int | None = start
+        elif section.end is None:  # from the label up to the line before the REPEAT
+            last = source.text.rfind("\n", 0, max(pos - 1, 0)) + 1 if pos > 0 else -1
+            if start >= pos or last is None or last < start:
+                raise ProgramAlarm(ALARM_JUMP_TARGET, f"REPEAT {section.start}: the label is not before the REPEAT")
+        elif section.end == section.start:
+            last = start
+        else:
+            last = source.find_target(section.end, start, "F")
+            if last is None:
+                raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {section.end} not found")
+        frame.sections.append(_Repetition(start, last, count - 1, frame.pos, frame.line))
+        self._go_to(frame, start)
+
+    def _section_pass_done(self, frame: _Frame) -> None:
+        section = frame.sections[-1]
+        if section.left > 0:
+            section.left -= 1
+            self._go_to(frame, section.start)
+        else:
+            frame.sections.pop()
+            frame.pos, frame.line = section.back_pos, section.back_line
+
     def _read_target(self, target: tuple) -> Any:
         kind, name, indices = target
         if kind == "R":
@@ -654,7 +715,7 @@ class Interpreter:
         if frame.depth + 1 > MAX_CALL_DEPTH:
             raise ProgramAlarm(ALARM_CALL_DEPTH, f"{name}: subprograms nested deeper than {MAX_CALL_DEPTH} levels")
         source = self._sources.get(path)
-        if source is None or source.text != text.replace("\r\n", "\n"):
+        if source is None or source.text != normalized(text):
             source = ProgramSource(path, text, subprogram=True)
             self._sources[path] = source
         values = tuple(None if arg is None else evaluate(arg, self) for arg in (args or ()))
@@ -668,21 +729,7 @@ class Interpreter:
     def _enter(self, source: ProgramSource, values: tuple, refs: tuple, repeat_left: int) -> None:
         depth = self._frame.depth + 1  # type: ignore[union-attr]
         frame = _Frame(source, 0, 1, depth)
-        params: list = []
-        save = False
-        if source.proc_offset >= 0:
-            end = source.text.find("\n", source.proc_offset)
-            header = source.text[source.proc_offset: len(source.text) if end < 0 else end]
-            body = strip_comment(header).strip()
-            tokens = tokenize(body)
-            parser = Parser(tokens, self._resolve)
-            while not parser.at_name("PROC"):
-                parser.pos += 1
-            parser.pos += 1
-            _, params = self._compiler.proc_header(parser)
-            save = any(token[0] == NAME and token[1] == "SAVE" for token in tokens[parser.pos:])
-            frame.pos = len(source.text) if end < 0 else end + 1
-            frame.line = source.line_number(source.proc_offset) + 1
+        params, save = self._proc_line(source, frame)
         if len(values) > len(params):
             raise ProgramAlarm(ALARM_SYNTAX, f"{len(values)} parameters given, the program takes {len(params)}")
         for index, (param, kind, by_reference, dims) in enumerate(params):
@@ -700,6 +747,38 @@ class Interpreter:
         frame.call_args = (values, refs)
         self._stack.append(frame)
         self._frame = frame
+
+    def _proc_line(self, source: ProgramSource, frame: _Frame) -> tuple[list, bool]:
+        """The parameters and SAVE of the program's PROC line (none without one); ``frame`` starts
+        after that line."""
+        if source.proc_offset < 0:
+            return [], False
+        end = source.text.find("\n", source.proc_offset)
+        header = source.text[source.proc_offset: len(source.text) if end < 0 else end]
+        tokens = tokenize(strip_comment(header).strip())
+        parser = Parser(tokens, self._resolve)
+        while not parser.at_name("PROC"):
+            parser.pos += 1
+        parser.pos += 1
+        _, params = self._compiler.proc_header(parser)
+        save = any(token[0] == NAME and token[1] == "SAVE" for token in tokens[parser.pos:])
+        frame.pos = len(source.text) if end < 0 else end + 1
+        frame.line = source.line_number(source.proc_offset) + 1
+        return params, save
+
+    def _main_proc(self, frame: _Frame) -> None:
+        """A main program that starts with ``PROC NAME(...)`` (as a subprogram does): its parameters
+        are its variables, 0 (empty) as nobody passes them. A PROC line after blocks is left where it is."""
+        source = self._main
+        if source.proc_offset < 0 or _BLOCK_LINE.search(source.text, 0, source.proc_offset):
+            return
+        try:
+            params, _ = self._proc_line(source, frame)
+        except ProgramAlarm as alarm:
+            raise self._located(alarm, source, source.line_number(source.proc_offset),
+                                source.text[source.proc_offset:].split("\n", 1)[0]) from None
+        for param, kind, _by_reference, dims in params:
+            frame.vars[param] = Variable(param, kind, tuple(d for d in dims if isinstance(d, int)))
 
     def _return(self) -> None:
         frame = self._stack.pop()
@@ -744,10 +823,18 @@ class Interpreter:
             self.env.select_settable_frame(f"G{code}")
         elif code in (25, 26):
             flags["limit"] = True
-        elif code in _SETTLED_G:
-            self._log_once(f"G{code}", f"G{code} accepted, not modelled")
         else:
-            raise ProgramAlarm(ALARM_UNKNOWN_G, f"G function G{code} unknown")
+            self._g_not_run(code)
+
+    def _g_not_run(self, code: int) -> None:
+        """A G function the interpreter does not act on: as the table (gfunctions.py) says it is."""
+        entry = BY_NUMBER.get(code)
+        if entry is None:
+            raise ProgramAlarm(ALARM_UNKNOWN_G, f"G function G{code} unknown (no SINUMERIK G function)")
+        if entry.emulation is NOT_SUPPORTED:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"G{code} (G group {entry.group}, "
+                               f"{GROUP_TITLES[entry.group]}) is not supported by the emulator")
+        self._log_once(f"G{code}", f"G{code} accepted, not modelled")
 
     def _words(self, items: list, frame: _Frame, pos: int) -> list[Event] | None:
         flags: dict[str, Any] = {}
@@ -1066,9 +1153,9 @@ def _centre_from_radius(start_first: float, start_second: float, end_first: floa
 
 
 def _as_text(text: str | bytes) -> str:
-    """A program's text; bytes (as the program store keeps them) are read as UTF-8, bad bytes replaced."""
+    """A program's text; bytes (as the program store keeps them) are UTF-8 or else Latin-1."""
     if isinstance(text, bytes | bytearray):
-        return bytes(text).decode("utf-8", errors="replace")
+        return decode_program(bytes(text))
     return text
 
 

@@ -13,8 +13,10 @@ from collections.abc import Iterator
 from typing import Any
 
 _PREFIX = r"^[ \t]*(?:/\d?[ \t]*)?(?:[N:]\d+[ \t]*)?(?:[A-Z_][A-Z0-9_]*:[ \t]*)?"
+# REPEAT opens a REPEAT ... UNTIL loop only when it stands alone; ``REPEAT LABEL P=3`` repeats a
+# program section (no closer).
 _STRUCTURE = re.compile(
-    _PREFIX + r"(IF|ELSE|ENDIF|WHILE|ENDWHILE|FOR|ENDFOR|REPEAT|UNTIL|LOOP|ENDLOOP)\b(?![ \t]*:)",
+    _PREFIX + r"(IF|ELSE|ENDIF|WHILE|ENDWHILE|FOR|ENDFOR|REPEAT(?=[ \t]*(?:;|$))|UNTIL|LOOP|ENDLOOP)\b(?![ \t]*:)",
     re.IGNORECASE | re.MULTILINE)
 _JUMP_IN_LINE = re.compile(r"\bGOTO[FBCS]?\b", re.IGNORECASE)
 _PROC = re.compile(_PREFIX + r"PROC\b", re.IGNORECASE | re.MULTILINE)
@@ -49,12 +51,32 @@ def structure_matches(text: str, upper: str) -> Iterator[re.Match[str]]:
             yield match
 
 
+BYTE_ORDER_MARK = "\ufeff"
+
+
+def decode_program(data: bytes) -> str:
+    """A program file's bytes as text: UTF-8 where they are (a CAM post's or an editor's "°"), else
+    Latin-1 (every byte is a character: an old control's or a Windows editor's file)."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def normalized(text: str) -> str:
+    """The text the interpreter walks: no byte-order mark (Windows editors write one), LF line ends."""
+    if text.startswith(BYTE_ORDER_MARK):
+        text = text[1:]
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text
+
+
 class ProgramSource:
     """A program's text and the structure of its control blocks (offsets of line starts)."""
 
     def __init__(self, path: str, text: str, *, subprogram: bool = False) -> None:
-        if "\r" in text:
-            text = text.replace("\r\n", "\n").replace("\r", "\n")
+        text = normalized(text)
         self.path = path
         self.text = text
         self.subprogram = subprogram
