@@ -29,6 +29,19 @@ class Block:
 
 
 @dataclass(frozen=True, slots=True)
+class ConstantCuttingSpeed:
+    """G96: the spindle turns at ``speed_m_min`` (the S under G96) over the radius of the transverse axis
+    ``axis`` about ``centre_mm`` (its machine position where the work's X is 0), at most ``limit_rpm``
+    (LIMS; 0: the spindle's own limit)."""
+
+    speed_m_min: float
+    limit_rpm: float = 0.0
+    axis: str = "X"
+    centre_mm: float = 0.0
+    spindle: int = 1
+
+
+@dataclass(frozen=True, slots=True)
 class Move:
     """A straight move: rapid (G0, ``feed`` None) or at feed (G1)."""
 
@@ -37,6 +50,9 @@ class Move:
     feed_mode: FeedMode = "G94"
     exact_stop: bool = True       # G60/G9; False under G64 path control
     programmed: dict[str, float] = field(default_factory=dict)
+    fgroup: frozenset[str] | None = None   # the axes F applies to (FGROUP); None: the geometry axes
+    css: ConstantCuttingSpeed | None = None  # G96 (with feed per revolution)
+    thread: bool = False          # G33/G331/G332: the feed override does not act
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,6 +68,8 @@ class Arc:
     turns: int = 0                # full turns beyond the first (TURN=)
     exact_stop: bool = True
     programmed: dict[str, float] = field(default_factory=dict)
+    fgroup: frozenset[str] | None = None
+    css: ConstantCuttingSpeed | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +87,7 @@ class SpindleCommand:
     spindle: int = 1
     speed_rpm: float | None = None
     direction: Literal["M3", "M4", "M5"] | None = None
+    css: ConstantCuttingSpeed | None = None  # G96: the speed follows the transverse axis (speed_rpm None)
 
 
 @dataclass(frozen=True, slots=True)

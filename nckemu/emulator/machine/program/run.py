@@ -35,11 +35,14 @@ from nckemu.emulator.machine.program.motions import (
 )
 from nckemu.emulator.machine.program.planner import (
     EPSILON_MM,
+    ArcPath,
     AxisLimits,
     MotionLimits,
     Overrides,
     Planner,
     SpindleRamp,
+    TimeLaw,
+    css_rpm,
 )
 from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments
 
@@ -113,11 +116,15 @@ class BlockRecord:
 
 @dataclass(slots=True)
 class _Motion:
+    """The segment the channel runs: positions at an instant come from its time law and its geometry."""
+
     start_s: float
     end_s: float
-    # (machine axis number, position at the start, target) of every axis the block names
+    # (machine axis number, position at the start, target) of every axis the block moves
     axes: list[tuple[int, float, float]]
     feed_mm_min: float
+    law: TimeLaw | None = None     # share of the path behind at a time since start_s (None: linear in time)
+    arc: ArcPath | None = None     # a circle or helix (by channel axis name); None: a straight line
 
 
 class NckEnvironment(ProgramEnvironment):
@@ -424,29 +431,43 @@ class ProgramRun:
         if not axes.keys() >= targets.keys():  # names as the interpreter wrote them: ours are upper case
             targets = {self._axis_name(axis): value for axis, value in targets.items()}
         moving = self._check_travel(targets, positions)
-        if event.__class__ is Move:
+        arc = law = None
+        if event.__class__ is Move and event.css is None and not event.thread:
             # the common case: the planner's straight move on the deltas, no records built
             deltas = [(name, target - start) for name, _, start, target in moving
                       if abs(target - start) > EPSILON_MM]
             spindle_rpm = self._spindle_rpm(start_s) if event.feed_mode == "G95" else 0.0
-            duration_s, feed_mm_min, _ = self.planner.straight(
+            duration_s, feed_mm_min, _, law = self.planner.straight(
                 deltas, feed, event.feed_mode, event.exact_stop, state.feed_override_pct,
-                state.rapid_override_pct, spindle_rpm)
+                state.rapid_override_pct, spindle_rpm, event.fgroup)
         else:
             spindle_rpm = self._spindle_rpm(start_s)
             start_mm = {name: positions[number] for name, number in axes.items()}
-            centre = event.centre_mm
-            if targets is not event.target_mm or not all(axis in axes for axis in centre):
-                centre = {self._axis_name(axis): value for axis, value in centre.items()}
-                event = replace(event, target_mm=targets, centre_mm=centre)
-            timed = self.planner.arc(start_mm, event, self._overrides(), spindle_rpm)
-            duration_s, feed_mm_min = timed.duration_s, timed.feed_mm_min
+            if event.__class__ is Move:
+                if targets is not event.target_mm:
+                    event = replace(event, target_mm=targets)
+                timed = self.planner.move(start_mm, event, self._overrides(), spindle_rpm)
+            else:
+                centre = event.centre_mm
+                if targets is not event.target_mm or not all(axis in axes for axis in centre):
+                    centre = {self._axis_name(axis): value for axis, value in centre.items()}
+                    event = replace(event, target_mm=targets, centre_mm=centre)
+                timed = self.planner.arc(start_mm, event, self._overrides(), spindle_rpm)
+                arc = timed.arc
+                if arc is not None:  # both plane axes turn, named in the block or not
+                    named = {name for name, _, _, _ in moving}
+                    moving += [(name, axes[name], positions[axes[name]], positions[axes[name]])
+                               for name in (arc.first, arc.second) if name not in named and name in axes]
+            duration_s, feed_mm_min, law = timed.duration_s, timed.feed_mm_min, timed.law
+            if event.css is not None and duration_s != math.inf:
+                self._follow_cutting_speed(event, start_s, start_s + duration_s)
         if duration_s == math.inf:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity is zero (F0, or G95 with the "
                                                 "spindle standing)", program=state.program,
                                line=state.line_number, block=state.block_number)
         self._motion = _Motion(start_s, start_s + duration_s,
-                               [(number, start, target) for _, number, start, target in moving], feed_mm_min)
+                               [(number, start, target) for _, number, start, target in moving], feed_mm_min,
+                               law, arc)
         if self.record is not None:
             self.record.feed_mm_min = feed or 0.0
         state.commanded_feed_mm_min = feed if feed_move else 0.0
@@ -489,8 +510,16 @@ class ProgramRun:
         if span <= 0 or t_s >= motion.end_s:
             self._arrive(motion)
             return
-        fraction = (t_s - motion.start_s) / span
+        law = motion.law
+        fraction = law.fraction(t_s - motion.start_s) if law is not None else (t_s - motion.start_s) / span
         positions = self.parts.axes.positions_mm
+        if motion.arc is not None:
+            axes = self.axes
+            for name, value in motion.arc.position(fraction).items():
+                number = axes.get(name)
+                if number is not None:
+                    positions[number] = value
+            return
         for number, start, target in motion.axes:
             positions[number] = start + (target - start) * fraction
 
@@ -509,11 +538,34 @@ class ProgramRun:
             return spindle.ramp.rpm_at(t_s)
         return 0.0 if spindle.direction == TURN_STOPPED else spindle.commanded_rpm * spindle.override_pct / 100.0
 
+    def _follow_cutting_speed(self, event: Move | Arc, start_s: float, end_s: float) -> None:
+        """G96: the spindle's speed goes from the speed at the block's start radius to the one at its end
+        (linear in time: what the faces show meanwhile; the block's time integrates the true law)."""
+        css = event.css
+        assert css is not None
+        spindle = self.channel.state.spindles.get(css.spindle)
+        if spindle is None:
+            return
+        axis = self.axes.get(css.axis)
+        if axis is None:
+            return
+        limit = self.planner.limits.spindle_max_rpm
+        begin_rpm = css_rpm(css, self.parts.axes.positions_mm[axis], limit)
+        end_rpm = css_rpm(css, event.target_mm.get(css.axis, self.parts.axes.positions_mm[axis]), limit)
+        spindle.commanded_rpm = end_rpm
+        if spindle.direction != TURN_STOPPED:
+            scale = spindle.override_pct / 100.0
+            spindle.ramp = SpindleRamp(begin_rpm * scale, min(end_rpm * scale, limit), start_s, end_s)
+
     def _spindle(self, command: SpindleCommand) -> None:
         spindle = self.channel.state.spindles.get(command.spindle)
         if spindle is None:
             return  # a machine without that spindle: S and M3 are taken and change nothing
-        if command.speed_rpm is not None:
+        if command.css is not None:
+            axis = self.axes.get(command.css.axis)
+            position = self.parts.axes.positions_mm[axis] if axis is not None else 0.0
+            spindle.commanded_rpm = css_rpm(command.css, position, self.planner.limits.spindle_max_rpm)
+        elif command.speed_rpm is not None:
             spindle.commanded_rpm = min(abs(command.speed_rpm), self.planner.limits.spindle_max_rpm)
         if command.direction is not None:
             spindle.direction = _DIRECTIONS[command.direction]
