@@ -14,7 +14,7 @@ import re
 from nckemu.errors import NckPiBadArguments
 
 # File types and the directory a bare name of that type lives in.
-TYPE_DIRECTORIES = {"MPF": "_N_MPF_DIR", "SPF": "_N_SPF_DIR"}
+TYPE_DIRECTORIES = {"MPF": "_N_MPF_DIR", "SPF": "_N_SPF_DIR", "DEF": "_N_DEF_DIR"}
 # Directories every NCK has (part programs, subprograms, workpieces), even when empty.
 DIRECTORIES = ("/_N_MPF_DIR", "/_N_SPF_DIR", "/_N_WKS_DIR")
 _CONTROL_NAME = re.compile(r"_N_([A-Z0-9_]+)_(MPF|SPF|DEF|INI|WPD)")

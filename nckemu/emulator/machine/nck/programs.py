@@ -12,6 +12,7 @@ import base64
 from typing import Any
 
 from nckemu.catalogue.program_names import DIRECTORIES, directory_path, program_path
+from nckemu.emulator.machine.program.language.definitions import GlobalDefinitions, is_definition_file
 from nckemu.errors import NckNoSuchFile, NckPiStateError
 
 DEFAULT_PROGRAMS = ("/_N_MPF_DIR/_N_TEST_MPF", "/_N_MPF_DIR/_N_MAIN_MPF")
@@ -37,6 +38,9 @@ class Programs:
         self.stamps: dict[str, str] = {}
         # Paths PI _N_F_XFER marked for upload, by their last part (an upload names only that).
         self.marked_for_transfer: dict[str, str] = {}
+        # The activated definition files (GUD variables, macros): a file of those names is parsed
+        # when it is written, and refused whole (its old definitions stay) when it has an error.
+        self.definitions = GlobalDefinitions()
 
     def add(self, path: str) -> None:
         self.paths.add(path)
@@ -54,6 +58,8 @@ class Programs:
         """Store ``text`` as the program at ``path``, whole (refused while it runs)."""
         if path == self.running:
             raise NckPiStateError(f"{path} is running")
+        if is_definition_file(path):
+            self.definitions.activate(path, bytes(text))  # raises DefinitionRefused
         self.texts[path] = bytes(text)
         self.paths.add(path)
         self.stamps.pop(path, None)
@@ -115,6 +121,7 @@ class Programs:
         self.paths = paths | set(texts)
         self.texts = texts
         self.stamps = stamps
+        self.definitions.restore(texts)
 
     def select(self, path: str) -> None:
         if path not in self.paths:
@@ -129,3 +136,4 @@ class Programs:
         self.paths.discard(path)
         self.texts.pop(path, None)
         self.stamps.pop(path, None)
+        self.definitions.remove(path)

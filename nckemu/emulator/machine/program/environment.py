@@ -69,6 +69,16 @@ class ProgramEnvironment:
     def set_system_variable(self, name: str, indices: tuple[object, ...], value: object) -> None:
         raise UndefinedName(name)
 
+    # definition files (GUD and macros, language/definitions.py)
+    def global_variables(self) -> dict:
+        """The NCK's activated GUD variables by name (``language.variables.Variable``): a program
+        reads and writes these objects, so their values outlive the run."""
+        return {}
+
+    def macros(self) -> dict[str, str]:
+        """The activated ``DEFINE name AS text`` macros."""
+        return {}
+
     # subprograms
     def find_program(self, name: str, caller: str) -> tuple[str, str] | None:
         """The NC path and text of the program a call names (``WARMUP_CYCLE``), searched from the

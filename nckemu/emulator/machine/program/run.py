@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from datetime import datetime
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -21,6 +22,7 @@ from nckemu.emulator.machine.nck.programs import program_text
 from nckemu.emulator.machine.program.environment import ProgramEnvironment, UndefinedName
 from nckemu.emulator.machine.program.motions import (
     ALARM_FEED_ZERO,
+    ALARM_NAME_NOT_DEFINED,
     Arc,
     Block,
     Dwell,
@@ -47,6 +49,7 @@ from nckemu.emulator.machine.program.planner import (
 from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments
 
 if TYPE_CHECKING:
+    from nckemu.catalogue.table import VariableSpec
     from nckemu.emulator.machine.nck.channel import Channel, Spindle
     from nckemu.emulator.machine.nck.parts import NckParts
 
@@ -54,9 +57,23 @@ if TYPE_CHECKING:
 SEARCH_DIRECTORIES = ("/_N_SPF_DIR", "/_N_CUS_DIR", "/_N_CMA_DIR", "/_N_CST_DIR", "/_N_MPF_DIR")
 TURN_STOPPED, TURN_CW, TURN_CCW = 0, 1, 2
 _DIRECTIONS = {"M3": TURN_CW, "M4": TURN_CCW, "M5": TURN_STOPPED}
+# Machine data ($MN_ NCK, $MC_ channel, $MA_ axis) and setting data ($SN_, $SC_, $SA_) a program
+# reads by their catalogue name; writing machine data is the control's "data write-protected".
+DATA_PREFIXES = frozenset({"$MN_", "$MC_", "$MA_", "$SN_", "$SC_", "$SA_"})
+ALARM_WRITE_PROTECTED = 17070  # UNCONFIRMED number ("data write-protected")
+# The NCK's date and time ($A_YEAR ... $A_MSECOND), local time of the emulator's clock.
+CLOCK_VARIABLES = frozenset({"$A_YEAR", "$A_MONTH", "$A_DAY", "$A_HOUR", "$A_MINUTE", "$A_SECOND",
+                             "$A_MSECOND"})
 # The part counters a program reads and writes: system variable -> the channel state's field.
 PART_COUNTERS = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
                  "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
+
+
+def _clock_value(key: str, now_s: float) -> int:
+    moment = datetime.fromtimestamp(now_s) if now_s > 1.0e8 else datetime.now()
+    if key == "$A_MSECOND":
+        return moment.microsecond // 1000
+    return int(getattr(moment, key[3:].lower()))
 
 
 def channel_axes(parts: NckParts) -> dict[str, int]:
@@ -219,13 +236,69 @@ class NckEnvironment(ProgramEnvironment):
             return state.t_number
         if key == "$P_TOOL":
             return state.d_number
+        if key[:4] in DATA_PREFIXES:
+            spec, unit, line = self._data_address(key, indices)
+            return self._parts.store.active_value(spec.name, unit, line)
+        if key in CLOCK_VARIABLES:
+            return _clock_value(key, self._parts.clock.now_s())
         raise UndefinedName(name)
 
     def set_system_variable(self, name: str, indices: tuple[object, ...], value: object) -> None:
-        attribute = PART_COUNTERS.get(name.upper())
+        key = name.upper()
+        if key[:4] in DATA_PREFIXES:
+            spec, unit, line = self._data_address(key, indices)
+            if key[1] == "M":  # machine data: set up by the machine maker, not by a part program
+                raise ProgramAlarm(ALARM_WRITE_PROTECTED, f"{name}: machine data {spec.number} is write-protected "
+                                                          "for a part program (the machine file sets it)")
+            store = self._parts.store
+            store.write_lines(spec, unit, line, [store.checked_value(spec, value)])
+            return
+        attribute = PART_COUNTERS.get(key)
         if attribute is None:
             raise UndefinedName(name)
         setattr(self._channel.state, attribute, float(value))  # type: ignore[arg-type]
+
+    def _data_address(self, key: str, indices: tuple[object, ...]) -> tuple[VariableSpec, int, int]:
+        """The catalogue entry, unit and line of ``$MA_MAX_AX_VELO[X]``, ``$MN_..[2]``, ``$SA_..[AX4]``:
+        axis data take the axis (its name, AXn, or its number) as the last index, an array its element
+        (from 0) first; channel data are this channel's."""
+        try:
+            spec = self._parts.store.spec(key[4:])
+        except KeyError:
+            raise UndefinedName(key) from None
+        area = key[2]
+        rest = list(indices)
+        if area == "A":
+            if not rest:
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{key}: axis data need the axis ({key}[X])")
+            unit = self._axis_unit(rest.pop())
+        else:
+            unit = self._channel.number if area == "C" else 1
+        line = 1
+        if rest:
+            element = rest[0]
+            if not isinstance(element, int | float) or not 0 <= int(element) < spec.lines:
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{key}[{element}]: index outside 0..{spec.lines - 1}")
+            line = int(element) + 1
+        if (spec.name, unit) not in self._parts.store.active:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{key}: not defined for unit {unit}")
+        return spec, unit, line
+
+    def _axis_unit(self, axis: object) -> int:
+        if isinstance(axis, int | float):
+            return int(axis)
+        text = str(axis).upper()
+        if text in self._axes:
+            return self._axes[text]
+        if text.startswith("AX") and text[2:].isdigit():
+            return int(text[2:])
+        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"axis {axis} not defined")
+
+    def global_variables(self) -> dict:
+        return self._parts.programs.definitions.variables()
+
+    def macros(self) -> dict[str, str]:
+        return self._parts.programs.definitions.macros()
 
     def find_program(self, name: str, caller: str) -> tuple[str, str] | None:
         from nckemu.catalogue.program_names import program_path

@@ -313,7 +313,7 @@ class BlockCompiler:
         if token is not None and token[0] == NAME and token[1] in ("NCK", "CHAN"):
             parser.pos += 1
             shared = True
-            token = parser.peek()
+        token = _skip_attributes(parser)
         if token is None or token[0] != NAME or token[1] not in ("INT", "REAL", "BOOL", "STRING", "CHAR", "AXIS"):
             found = token[1] if token else "end of block"
             raise ProgramAlarm(ALARM_SYNTAX, f"DEF: type expected, found {found!r}")
@@ -327,7 +327,7 @@ class BlockCompiler:
                 raise ProgramAlarm(ALARM_SYNTAX, "DEF STRING[n]: n is a constant")
         declarations = []
         while True:
-            token = parser.peek()
+            token = _skip_attributes(parser)
             if token is None or token[0] != NAME or token[2] is not None:
                 raise ProgramAlarm(ALARM_SYNTAX, "DEF: name expected")
             name = token[1]
@@ -654,3 +654,29 @@ def _check_groups(items: list[tuple]) -> None:
                 names.append(item[1])
     if len(names) > 1:
         check_block(names)
+
+
+# Attributes a GUD declaration may carry before its type or name (access levels APR/APW.. n,
+# physical unit PHU n, limits LLI/ULI n; synchronisation and protection flags): accepted, not modelled.
+_VALUED_ATTRIBUTES = frozenset({"APR", "APW", "APRP", "APWP", "APRB", "APWB", "PHU", "LLI", "ULI"})
+_FLAG_ATTRIBUTES = frozenset({"SYNR", "SYNW", "SYNRW", "PRLOC"})
+
+
+def _skip_attributes(parser: Parser) -> tuple | None:
+    while True:
+        token = parser.peek()
+        if token is None or token[0] != NAME:
+            return token
+        if token[1] in _FLAG_ATTRIBUTES:
+            parser.pos += 1
+        elif token[1] in _VALUED_ATTRIBUTES and _number_follows(parser.tokens, parser.pos + 1):
+            parser.pos += 2 if parser.tokens[parser.pos + 1][0] == NUM else 3
+        else:
+            return token
+
+
+def _number_follows(tokens: list, at: int) -> bool:
+    if at < len(tokens) and tokens[at][0] == NUM:
+        return True
+    return (at + 1 < len(tokens) and tokens[at][0] == OP and tokens[at][1] in "+-"
+            and tokens[at + 1][0] == NUM)

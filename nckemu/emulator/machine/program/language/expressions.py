@@ -268,6 +268,9 @@ FUNCTIONS: dict[str, tuple[int, int, Any]] = {
     "SUBSTR": (2, 3, _substr),
     "INDEX": (2, 2, _index),
     "RINDEX": (2, 2, _rindex),
+    # axis names as values of type AXIS: AXNAME("X") is the axis X, AXSTRING(X) its name as text
+    "AXNAME": (1, 1, lambda s: _string_arg(s).upper()),
+    "AXSTRING": (1, 1, lambda s: to_text(s).upper()),
 }
 
 # Keywords that end an expression (they follow one in IF ... GOTOF, FOR ... TO, CASE ... OF)

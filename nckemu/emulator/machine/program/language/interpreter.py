@@ -49,6 +49,7 @@ from .alarms import (
     MAX_M_PER_BLOCK,
 )
 from .blocks import BlockCompiler, Compiled
+from .definitions import expand_macros
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
 from .gfunctions import BY_NUMBER, GROUP_TITLES, NOT_SUPPORTED
 from .lexer import strip_comment, tokenize
@@ -118,7 +119,10 @@ class Interpreter:
         self._sources: dict[str, ProgramSource] = {path: self._main}
         self._axes = tuple(axis.upper() for axis in env.axes)
         self._compiler = BlockCompiler(self._axes, self._resolve)
-        self._globals: dict[str, Variable] = {}
+        # GUD of the NCK's definition files (the same Variable objects: values outlive the run);
+        # DEF NCK/CHAN in a program adds to this run's copy of the table only.
+        self._globals: dict[str, Variable] = dict(env.global_variables())
+        self._macros: dict[str, str] = env.macros()
         self._settings: dict[tuple[str, str], Any] = {}
         self._logged: set[str] = set()
         self._stack: list[_Frame] = []
@@ -296,6 +300,8 @@ class Interpreter:
         text = strip_comment(raw).strip()
         if not text or text[0] == "%":
             return None
+        if self._macros:
+            text = expand_macros(text, self._macros)
         return self._compiler.compile_simple(text) or self._compiler.compile(text, tokenize(text))
 
     # --- names ------------------------------------------------------------------------------------
@@ -338,6 +344,8 @@ class Interpreter:
         if variable is None:
             variable = self._globals.get(name)
             if variable is None:
+                if name in self._axes and not indices:  # an axis as a value: _AX=(C), AXIS variables
+                    return name
                 raise undefined(name)
         if not indices:
             if variable.dims:
@@ -410,6 +418,8 @@ class Interpreter:
         if name in framing.FRAME_VARIABLES:
             return self._frame_variable(name, indices)
         if not indices:
+            if name in ("$P_AXN1", "$P_AXN2", "$P_AXN3"):  # the plane's abscissa, ordinate, applicate
+                return _PLANES[self.plane][int(name[-1]) - 1]
             if name == "$P_F":
                 return self.feed_mm
             if name == "$P_TOOLNO":

@@ -1,0 +1,223 @@
+"""Run the public SINUMERIK programs of bench/corpus/manifest.toml and say, per program, how far each got.
+
+    python bench/corpus_fetch.py ~/nckemu-corpus          # once (needs GitHub)
+    python bench/bench_corpus.py ~/nckemu-corpus [--machine M.toml] [--only NAME] [--json]
+
+Each main program runs offline (a simulated clock, as ``nckemu program run``) on its repository's
+machine file, with every subprogram and definition file its repository's globs name stored first
+(subprograms in /_N_SPF_DIR, definition files in /_N_DEF_DIR under their own names, the other main
+programs of its folder in /_N_MPF_DIR). One line per program:
+
+    ran      simulated time to M30/M2 (or the end of the file)
+    alarm    the NCK alarm that stopped it: number, text (the feature), program and line
+    crashed  an exception of ours (a traceback in the log, or one escaping the run)
+    timeout  still running after --max-time of simulated time or --wall seconds of real time
+
+then the tally, and the alarms ranked by the programs they stop. Each program runs in its own process,
+so a program that never ends costs --wall seconds and no more.
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import json
+import logging
+import multiprocessing
+import re
+import sys
+import time
+import traceback
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.corpus_fetch import load_manifest, repository_dir  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+_ALARM = re.compile(r"alarm (\d+): (.*?)(?: \((\S+) line (\d+): (.*)\))?$")
+
+
+def _stem(name: str) -> str:
+    stem = name.split(".", 1)[0].upper()
+    return re.sub(r"[^A-Z0-9_]", "_", stem)[:24] or "X"
+
+
+def _matching(tree: Path, patterns: list[str]) -> list[Path]:
+    found = []
+    uppers = [pattern.upper() for pattern in patterns]
+    for path in sorted(tree.rglob("*")):
+        if path.is_file() and ".git" not in path.parts:
+            relative = path.relative_to(tree).as_posix().upper()
+            if any(fnmatch.fnmatchcase(relative, pattern) for pattern in uppers):
+                found.append(path)
+    return found
+
+
+def _files(tree: Path, repository: dict, main: Path) -> list[tuple[str, bytes]]:
+    """(NC path, text) of everything stored before ``main``: definitions first, as a control has them."""
+    stored: list[tuple[str, bytes]] = []
+    for path in _matching(tree, repository.get("definitions", [])):
+        stored.append((f"/_N_DEF_DIR/_N_{_stem(path.name)}_DEF", path.read_bytes()))
+    for path in _matching(tree, repository.get("subprograms", [])):
+        stored.append((f"/_N_SPF_DIR/_N_{_stem(path.name)}_SPF", path.read_bytes()))
+    for path in sorted(main.parent.iterdir()):
+        if path != main and path.is_file() and path.suffix.upper() == ".MPF":
+            stored.append((f"/_N_MPF_DIR/_N_{_stem(path.name)}_MPF", path.read_bytes()))
+    return stored
+
+
+class _Faults(logging.Handler):
+    """Records logged with a traceback: a fault of ours, even when the channel turned it into an alarm."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.ERROR)
+        self.tracebacks: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.exc_info:
+            self.tracebacks.append("".join(traceback.format_exception(*record.exc_info)))
+
+
+def run_one(machine: str, main: str, stored: list[tuple[str, bytes]], max_time_s: float) -> dict[str, Any]:
+    """Run one program in this process; the outcome as a dict (never raises)."""
+    from nckemu.emulator.machine.clock import SimulatedClock
+    from nckemu.emulator.machine.core import Emulator
+    from nckemu.emulator.machine.program.offline import run_offline
+    from nckemu.errors import NckError
+
+    faults = _Faults()
+    logging.getLogger("nckemu").addHandler(faults)
+    try:
+        emulator = Emulator(str(ROOT / machine), clock=SimulatedClock())
+        refused = []
+        for path, text in stored:
+            try:
+                emulator.nck.programs.write(path, text)
+            except NckError as exc:
+                refused.append(f"{path}: {exc}")
+        target = f"/_N_MPF_DIR/_N_{_stem(Path(main).name)}_MPF"
+        emulator.nck.programs.write(target, Path(main).read_bytes())
+        result = run_offline(emulator, target, max_time_s=max_time_s)
+    except Exception:  # the outcome "crashed": what the runner exists to find
+        return {"outcome": "crashed", "detail": traceback.format_exc(limit=8)}
+    finally:
+        logging.getLogger("nckemu").removeHandler(faults)
+    outcome: dict[str, Any] = {"blocks": result.blocks, "refused": refused}
+    if faults.tracebacks:
+        outcome.update(outcome="crashed", detail=faults.tracebacks[0])
+    elif result.outcome == "ended":
+        outcome.update(outcome="ran", time_s=round(result.t_s, 3))
+    elif result.outcome == "alarm":
+        text = result.alarms[0] if result.alarms else ""
+        match = _ALARM.search(text)
+        outcome.update(outcome="alarm", detail=text)
+        if match:
+            outcome.update(number=int(match.group(1)), feature=match.group(2),
+                           program=match.group(3) or "", line=int(match.group(4) or 0),
+                           block=(match.group(5) or "").strip())
+    else:
+        outcome.update(outcome="timeout", detail=f"still running after {result.t_s:.0f} s simulated")
+    return outcome
+
+
+def _worker(queue: Any, args: tuple) -> None:
+    queue.put(run_one(*args))
+
+
+def run_isolated(args: tuple, wall_s: float) -> dict[str, Any]:
+    context = multiprocessing.get_context("fork" if sys.platform != "win32" else "spawn")
+    queue = context.Queue()
+    process = context.Process(target=_worker, args=(queue, args), daemon=True)
+    process.start()
+    try:
+        return queue.get(timeout=wall_s)
+    except Exception:
+        return {"outcome": "timeout", "detail": f"still running after {wall_s:.0f} s of real time"}
+    finally:
+        process.join(timeout=1)
+        if process.is_alive():
+            process.kill()
+            process.join()
+
+
+def programs(corpus: Path, manifest: dict, only: str = "", machine: str = "") -> list[tuple[dict, Path, Path]]:
+    """(repository entry, repository tree, main program) of every program fetched into ``corpus``."""
+    repositories = {entry["repo"]: entry for entry in manifest["repository"]}
+    found = []
+    for entry in manifest["program"]:
+        repository = dict(repositories[entry["repo"]])
+        if machine:
+            repository["machine"] = machine
+        tree = repository_dir(corpus, entry["repo"])
+        main = tree / entry["path"]
+        if only and only.upper() not in f"{entry['repo']}/{entry['path']}".upper():
+            continue
+        if main.is_file():
+            found.append((repository, tree, main))
+    return found
+
+
+def describe(outcome: dict[str, Any]) -> str:
+    kind = outcome["outcome"]
+    if kind == "ran":
+        return f"ran      {outcome['time_s']:.1f} s simulated, {outcome['blocks']} blocks"
+    if kind == "alarm":
+        if "number" in outcome:
+            where = outcome["program"].rsplit("/", 1)[-1]
+            return f"alarm    {outcome['number']} {outcome['feature']} ({where} line {outcome['line']}: {outcome['block'][:60]})"
+        return f"alarm    {outcome['detail']}"
+    if kind == "crashed":
+        return "crashed  " + outcome["detail"].strip().splitlines()[-1]
+    return f"timeout  {outcome['detail']}"
+
+
+def feature_key(outcome: dict[str, Any]) -> str:
+    """What blocks a program, grouped: the alarm number and the feature's words without numbers."""
+    if outcome["outcome"] != "alarm" or "number" not in outcome:
+        return outcome["outcome"]
+    feature = re.sub(r"[-\d.]+", "#", outcome["feature"])[:70]
+    return f"{outcome['number']} {feature}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("corpus", type=Path, help="the directory bench/corpus_fetch.py fetched into")
+    parser.add_argument("--machine", default="", help="run every program on this machine file instead")
+    parser.add_argument("--only", default="", help="only programs whose repo/path contains this")
+    parser.add_argument("--max-time", type=float, default=4 * 3600.0, help="simulated seconds per program")
+    parser.add_argument("--wall", type=float, default=60.0, help="real seconds per program")
+    parser.add_argument("--json", action="store_true", help="one JSON document instead of the text")
+    args = parser.parse_args(argv)
+    manifest = load_manifest()
+    found = programs(args.corpus, manifest, args.only, args.machine)
+    if not found:
+        print(f"no program of the manifest under {args.corpus} (run bench/corpus_fetch.py first)", file=sys.stderr)
+        return 1
+    results = []
+    started = time.monotonic()
+    for repository, tree, main_path in found:
+        stored = _files(tree, repository, main_path)
+        outcome = run_isolated((repository["machine"], str(main_path), stored, args.max_time), args.wall)
+        name = f"{repository['repo']}/{main_path.relative_to(tree).as_posix()}"
+        results.append({"program": name, **outcome})
+        if not args.json:
+            print(f"{name:70s} {describe(outcome)}", flush=True)
+    tally = Counter(result["outcome"] for result in results)
+    blockers = Counter(feature_key(result) for result in results if result["outcome"] != "ran")
+    if args.json:
+        print(json.dumps({"programs": results, "tally": dict(tally), "blockers": dict(blockers.most_common())},
+                         indent=1))
+        return 0
+    repositories = len({result["program"].split("/")[0] + "/" + result["program"].split("/")[1] for result in results})
+    print(f"\n{len(results)} programs from {repositories} repositories in {time.monotonic() - started:.0f} s: "
+          + ", ".join(f"{tally[kind]} {kind}" for kind in ("ran", "alarm", "crashed", "timeout")))
+    for key, count in blockers.most_common():
+        print(f"  {count:3d}  {key}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
