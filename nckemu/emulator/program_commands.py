@@ -17,6 +17,7 @@ from nckemu.catalogue.program_names import program_path
 from nckemu.cliutil import check_output, command_group
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.program.language.definitions import DefinitionRefused
 from nckemu.emulator.machine.program.offline import recording_columns, run_offline
 from nckemu.emulator.machine.program.run import BlockRecord, path_axis_names
 from nckemu.errors import NckConfigError, NckError
@@ -27,8 +28,9 @@ examples:
   nckemu program run fixtures/programs/SHORT.MPF --blocks /tmp/blocks.csv --out /tmp/sim.csv --json
 A main program calling a subprogram kept elsewhere (the SYIL 828D warm-up, for instance):
   program run DAILY.MPF --with ../subroutines/WARMUP_CYCLE.SPF --machine fixtures/machines/syil_x7.toml
-The program is stored under its name (DAILY.MPF -> /_N_MPF_DIR/_N_DAILY_MPF), with the .MPF/.SPF files
-next to it and every --with file; it runs on channel 1 until M2/M30, an alarm or --max-time.
+  program run MPF/GRIND.MPF --with DEF/MGUD.DEF     (GUD arrays the program uses: INI[53]=1500)
+The program is stored under its name (DAILY.MPF -> /_N_MPF_DIR/_N_DAILY_MPF), with the .MPF/.SPF/.DEF
+files next to it and every --with file (MGUD.DEF -> /_N_DEF_DIR/_N_MGUD_DEF, activated); it runs on channel 1 until M2/M30, an alarm or --max-time.
 --out writes what the run would have recorded (t_s, temp_<sensor>_C, spindle_rpm, pos_<axis>_mm: the
 columns `plc run --inputs` and `discover` read); --blocks the executed blocks.
 """
@@ -87,14 +89,19 @@ def store_programs(emulator: Emulator, files: list[str]) -> str:
 def _store(emulator: Emulator, main: Path, extra: list[str]) -> str:
     programs = emulator.nck.programs
     for sibling in sorted(main.parent.glob("*")) if main.parent.is_dir() else []:
-        if sibling != main and sibling.suffix.upper() in (".MPF", ".SPF") and sibling.is_file():
+        if sibling != main and sibling.suffix.upper() in (".MPF", ".SPF", ".DEF") and sibling.is_file():
             try:
                 programs.write(program_path(sibling.name), _read(sibling))
+            except DefinitionRefused as exc:  # MGUD.DEF beside the program: its error is the user's
+                raise NckConfigError(f"definition file refused: {exc}", path=str(sibling)) from None
             except NckError:
                 continue  # a file that is no NC program name next to it: not ours to refuse
     for name in extra:
         path = Path(name)
-        programs.write(_program_name(path), _read(path))
+        try:
+            programs.write(_program_name(path), _read(path))
+        except DefinitionRefused as exc:
+            raise NckConfigError(f"definition file refused: {exc}", path=str(path)) from None
     target = _program_name(main)
     programs.write(target, _read(main))
     return target

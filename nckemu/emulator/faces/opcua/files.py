@@ -8,6 +8,7 @@ whole through the store (``Programs.write``/``read``); the program a channel run
 
 from __future__ import annotations
 
+import logging
 import re
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
@@ -18,6 +19,8 @@ from nckemu.catalogue.program_names import program_path as nc_program_path
 from nckemu.emulator.faces.opcua import request
 from nckemu.emulator.faces.opcua.settings import may
 from nckemu.errors import NckNoSuchFile, NckPiBadArguments, NckPiStateError
+
+log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from nckemu.emulator.faces.opcua.parts import MethodHost
@@ -102,6 +105,9 @@ async def add_methods(face: MethodHost, server: Server) -> Any:
             programs.write(target, bytes(data))
         except NckPiStateError:  # the program a channel is running
             return _bad("BadInvalidState")
+        except NckPiBadArguments as exc:  # a definition file with an error: refused, the old one stays
+            log.info("CopyFileToServer %s refused: %s", target, exc)
+            return _bad("BadInvalidArgument")
         face.emulator.saves.request()  # the program store is retained data (serve --state)
         await face.emulator.saves.durable()
         return []

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from datetime import datetime
 from dataclasses import dataclass, field, replace
+from datetime import datetime
 from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.nck.geometric_axes import channel_axis_name
@@ -266,6 +266,8 @@ class NckEnvironment(ProgramEnvironment):
             spec = self._parts.store.spec(key[4:])
         except KeyError:
             raise UndefinedName(key) from None
+        if not spec.number.startswith(f"{key[1]}D"):  # $M.. is machine data (MD), $S.. setting data (SD)
+            raise UndefinedName(key)
         area = key[2]
         rest = list(indices)
         if area == "A":
@@ -566,7 +568,8 @@ class ProgramRun:
                 state = self.channel.state
                 raise ProgramAlarm(self.parts.machine.program.travel_alarm,
                                    f"axis {spec.name}: {value:.3f} mm beyond its travel {spec.travel_min_mm:g}.."
-                                   f"{spec.travel_max_mm:g} mm (software limit switch)",
+                                   f"{spec.travel_max_mm:g} mm (software limit switch; travel_mm of axis "
+                                   f"{spec.name} in the machine file moves it)",
                                    program=state.program, line=state.line_number, block=state.block_number)
             moving.append((name, number, positions[number], value))
         return moving

@@ -1,0 +1,136 @@
+"""Definition files (GUD arrays, DEFINE macros) and system variables as a shop's programs use them,
+offline on the emulated channel (the served path is in tests/interop/test_program_definitions_served.py)."""
+
+from __future__ import annotations
+
+import pytest
+
+from nckemu.emulator.machine.clock import SimulatedClock
+from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.program.environment import ProgramEnvironment
+from nckemu.emulator.machine.program.language import Interpreter
+from nckemu.emulator.machine.program.language.definitions import (
+    MAX_DEFINITION_BYTES,
+    DefinitionRefused,
+    expand_macros,
+    parse_definitions,
+)
+from nckemu.emulator.machine.program.motions import Move
+from nckemu.emulator.machine.program.offline import run_offline
+
+MGUD = "/_N_DEF_DIR/_N_MGUD_DEF"
+GUD_TEXT = b"""%_N_MGUD_DEF
+;$PATH=/_N_DEF_DIR
+DEF NCK REAL INI[100]          ; grinding parameters
+DEF NCK APWP 1 APRP 7 REAL PHU 4 LLI 0 SAFE_Z=50
+DEF CHAN STRING[1] AXIS_VER
+DEF NCK INT COUNTS[3]=SET(1,2,3)
+M30
+"""
+
+
+def _emulator() -> Emulator:
+    return Emulator(None, clock=SimulatedClock())
+
+
+def _run(emulator: Emulator, name: str, text: bytes) -> None:
+    path = f"/_N_MPF_DIR/_N_{name}_MPF"
+    emulator.nck.programs.write(path, text)
+    result = run_offline(emulator, path, max_time_s=600.0)
+    assert result.outcome == "ended", result.alarms
+
+
+def _gud(emulator: Emulator, name: str, *indices: int) -> object:
+    return emulator.nck.programs.definitions.variables()[name].get(indices)
+
+
+def test_a_gud_array_of_the_definition_file_is_what_programs_read_and_write() -> None:
+    emulator = _emulator()
+    emulator.nck.programs.write(MGUD, GUD_TEXT)
+    _run(emulator, "SETUP", b'INI[53]=1500\nAXIS_VER="X"\nR1=INI[53]+SAFE_Z+COUNTS[2]\nM30\n')
+    assert _gud(emulator, "INI", 53) == 1500.0 and _gud(emulator, "AXIS_VER") == "X"
+    assert emulator.nck.store.read_lines(emulator.nck.store.spec("R"), 1, 2, 1)[0] == 1553.0
+    # GUD outlive the run: the next program reads what the last one wrote
+    _run(emulator, "GRIND", b"IF INI[53]<>1500\n  SETAL(61000)\nENDIF\nG1 X=INI[53]/100 F1000\nM30\n")
+    assert emulator.nck.axes.positions_mm[1] == pytest.approx(15.0)
+
+
+def test_a_definition_file_with_an_error_is_refused_and_the_old_definitions_stay() -> None:
+    emulator = _emulator()
+    programs = emulator.nck.programs
+    programs.write(MGUD, GUD_TEXT)
+    programs.definitions.variables()["INI"].set((3,), 7.0)
+    with pytest.raises(DefinitionRefused) as refused:
+        programs.write(MGUD, b"DEF NCK REAL INI[100]\nDEF NCK REAL\nDEF NCK INT NEW_ONE\n")
+    alarm = refused.value.alarm
+    assert (alarm.number, alarm.program, alarm.line) == (12080, MGUD, 2)
+    assert programs.read(MGUD) == GUD_TEXT
+    assert "NEW_ONE" not in programs.definitions.variables() and _gud(emulator, "INI", 3) == 7.0
+    with pytest.raises(DefinitionRefused) as refused:
+        programs.write(MGUD, b"DEF NCK REAL A_1\nG1 X10 F100\n")
+    assert refused.value.alarm.line == 2 and "DEF and DEFINE" in str(refused.value)
+
+
+def test_a_10_mb_definition_file_is_refused_before_it_is_read() -> None:
+    emulator = _emulator()
+    huge = b"DEF NCK REAL BIG_%d\n" * 1 + b"; padding\n" * (10 * 1024 * 1024 // 10)
+    assert len(huge) > MAX_DEFINITION_BYTES
+    with pytest.raises(DefinitionRefused, match="at most"):
+        emulator.nck.programs.write("/_N_DEF_DIR/_N_UGUD_DEF", huge)
+    assert not emulator.nck.programs.exists("/_N_DEF_DIR/_N_UGUD_DEF")
+
+
+def test_macros_of_a_define_as_file_expand_in_every_program() -> None:
+    emulator = _emulator()
+    programs = emulator.nck.programs
+    programs.write("/_N_DEF_DIR/_N_UMAC_DEF", b"DEFINE M202 AS GAP_SET\nDEFINE LIFT AS G0 Z=-SAFE_HEIGHT\n"
+                                               b"DEFINE SAFE_HEIGHT AS 120\n")
+    programs.write("/_N_SPF_DIR/_N_GAP_SET_SPF", b"PROC GAP_SET(REAL _GAP)\nR2=_GAP*1000\nM17\n")
+    _run(emulator, "MAIN", b'M202(0.0059)\nLIFT\nMSG("LIFT stays text")\nM30\n')
+    assert emulator.nck.store.read_lines(emulator.nck.store.spec("R"), 1, 3, 1)[0] == pytest.approx(5.9)
+    assert emulator.nck.axes.positions_mm[4] == pytest.approx(-120.0)
+    assert expand_macros('LIFT MSG("LIFT") XLIFT', {"LIFT": "G0"}) == 'G0 MSG("LIFT") XLIFT'
+
+
+def test_definition_files_parse_attributes_initial_values_and_refuse_names_in_them() -> None:
+    parsed = parse_definitions(MGUD, GUD_TEXT)
+    assert set(parsed.variables) == {"INI", "SAFE_Z", "AXIS_VER", "COUNTS"}
+    assert parsed.variables["COUNTS"].value == [1, 2, 3] and parsed.variables["SAFE_Z"].value == 50.0
+    with pytest.raises(Exception) as refused:
+        parse_definitions(MGUD, "\ufeffDEF NCK REAL A_1=R1\n")
+    assert getattr(refused.value, "number", None) == 12550 and refused.value.line == 1
+
+
+def test_system_variables_a_cycle_reads() -> None:
+    emulator = _emulator()
+    program = (b"DEF AXIS _X, _Y, _Z, _AX\nG17\n_X=$P_AXN1 _Y=$P_AXN2 _Z=$P_AXN3\n"
+               b"R10=$MA_MAX_AX_VELO[X] R11=$MA_MAX_AX_VELO[AX2] R12=$MC_TOOL_TEMP_COMP_ON\n"
+               b"_AX=(Y)\nIF _AX<>\"Y\"\n SETAL(61001)\nENDIF\nIF AXNAME(\"Z\")<>_Z\n SETAL(61002)\nENDIF\n"
+               b"G18\nIF $P_AXN1<>\"Z\"\n SETAL(61003)\nENDIF\nR13=$A_YEAR\nM30\n")
+    _run(emulator, "CYCLE_VARS", program)
+    store = emulator.nck.store
+    r = store.read_lines(store.spec("R"), 1, 11, 4)
+    assert r[:2] == [store.active_value("MAX_AX_VELO", 1), store.active_value("MAX_AX_VELO", 2)]
+    assert r[3] >= 2024
+
+
+def test_writing_machine_data_is_the_controls_alarm_and_setting_data_are_written() -> None:
+    emulator = _emulator()
+    emulator.nck.programs.write("/_N_MPF_DIR/_N_MD_MPF", b"$SA_TEMP_COMP_ABS_VALUE[X]=0.25\n"
+                                                         b"$MA_MAX_AX_VELO[X]=1\nM30\n")
+    result = run_offline(emulator, "/_N_MPF_DIR/_N_MD_MPF", max_time_s=60.0)
+    assert result.outcome == "alarm" and "alarm 17070" in result.alarms[0] and "line 2" in result.alarms[0]
+    assert emulator.nck.store.active_value("MAX_AX_VELO", 1) != 1
+    assert emulator.nck.store.read_lines(emulator.nck.store.spec("TEMP_COMP_ABS_VALUE"), 1, 1, 1)[0] == 0.25
+
+
+def test_an_environment_without_definitions_and_one_with_them() -> None:
+    class WithGud(ProgramEnvironment):
+        def global_variables(self) -> dict:
+            return parse_definitions(MGUD, GUD_TEXT).variables
+
+        def macros(self) -> dict[str, str]:
+            return {"TO_SAFE": "G0 Z=SAFE_Z"}
+
+    events = list(Interpreter(WithGud(), "/_N_MPF_DIR/_N_A_MPF", "TO_SAFE\nM30").events())
+    assert [event.target_mm for event in events if isinstance(event, Move)] == [{"Z": 50.0}]
