@@ -563,12 +563,13 @@ class BlockCompiler:
                 raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} (G group {entry.group}, "
                                    f"{GROUP_TITLES[entry.group]}) is not supported by the emulator")
             if name in NO_OP_WORDS:
+                args = None
                 if parser.at_op("("):
-                    parser.arguments()
+                    args = parser.arguments()  # kept: FGROUP(X, Y) names the feed group's axes
                 elif parser.at_op("="):
                     parser.pos += 1
                     parser.expression()
-                items.append((I_NOOP, name, None, None))
+                items.append((I_NOOP, name, args, None))
                 continue
             if name in AXIS_SETTINGS and following is not None and following[1] == "[":
                 indices = parser.indices()

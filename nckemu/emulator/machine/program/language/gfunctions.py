@@ -67,7 +67,7 @@ class GFunction:
 _GROUPS: tuple[tuple[int, bool, str, str | None, dict[str, Emulation], frozenset[str]], ...] = (
     (1, True, "motion", "G1", {
         "G0": RUN, "G1": RUN, "G2": RUN, "G3": RUN, "CIP": NOT_SUPPORTED, "ASPLINE": RUN, "BSPLINE": RUN,
-        "CSPLINE": RUN, "POLY": RUN, "G33": NOT_SUPPORTED, "G331": NOT_SUPPORTED, "G332": NOT_SUPPORTED,
+        "CSPLINE": RUN, "POLY": RUN, "G33": RUN, "G331": RUN, "G332": RUN,
         "OEMIPO1": NOT_SUPPORTED, "OEMIPO2": NOT_SUPPORTED, "CT": NOT_SUPPORTED, "G34": NOT_SUPPORTED,
         "G35": NOT_SUPPORTED, "INVCW": NOT_SUPPORTED, "INVCCW": NOT_SUPPORTED, "G335": NOT_SUPPORTED,
         "G336": NOT_SUPPORTED}, frozenset({"G0", "G1"})),
@@ -101,7 +101,7 @@ _GROUPS: tuple[tuple[int, bool, str, str | None, dict[str, Emulation], frozenset
      frozenset({"G70", "G71", "G700", "G710"})),
     (14, True, "absolute/incremental", "G90", {"G90": RUN, "G91": RUN}, frozenset({"G90", "G91"})),
     (15, True, "feed type", "G94", {
-        "G93": RUN, "G94": RUN, "G95": RUN, "G96": NO_EFFECT, "G97": NO_EFFECT, "G931": NO_EFFECT,
+        "G93": RUN, "G94": RUN, "G95": RUN, "G96": RUN, "G97": RUN, "G931": NO_EFFECT,
         "G961": NO_EFFECT, "G971": NO_EFFECT, "G942": NO_EFFECT, "G952": NO_EFFECT, "G962": NO_EFFECT,
         "G972": NO_EFFECT, "G973": NO_EFFECT}, frozenset({"G94", "G95"})),
     (16, True, "feed override at curves", "CFC", {"CFC": NO_EFFECT, "CFTCP": NO_EFFECT, "CFIN": NO_EFFECT},
@@ -124,7 +124,7 @@ _GROUPS: tuple[tuple[int, bool, str, str | None, dict[str, Emulation], frozenset
     (28, True, "working area limitation", "WALIMON", {"WALIMON": NO_EFFECT, "WALIMOF": NO_EFFECT},
      frozenset()),
     (29, True, "radius/diameter programming", "DIAMOF", {
-        "DIAMOF": NO_EFFECT, "DIAMON": NO_EFFECT, "DIAM90": NO_EFFECT}, frozenset()),
+        "DIAMOF": RUN, "DIAMON": RUN, "DIAM90": RUN}, frozenset()),
     (30, True, "NC block compression", "COMPOF", {
         "COMPOF": NO_EFFECT, "COMPON": NO_EFFECT, "COMPCURV": NO_EFFECT, "COMPCAD": NO_EFFECT,
         "COMPSURF": NO_EFFECT}, frozenset()),
@@ -149,7 +149,7 @@ _GROUPS: tuple[tuple[int, bool, str, str | None, dict[str, Emulation], frozenset
      frozenset()),
     (56, True, "frame rotation to the tool", "TOROTOF", {"TOROTOF": NO_EFFECT, "TOROT": NO_EFFECT}, frozenset()),
     (57, True, "corner deceleration", "FENDNORM", {
-        "FENDNORM": NO_EFFECT, "G62": NOT_SUPPORTED, "G621": NOT_SUPPORTED}, frozenset()),
+        "FENDNORM": NO_EFFECT, "G62": NO_EFFECT, "G621": NO_EFFECT}, frozenset()),
     (58, True, "path dynamics", "DYNNORM", {
         "DYNNORM": NO_EFFECT, "DYNPOS": NO_EFFECT, "DYNROUGH": NO_EFFECT, "DYNSEMIFIN": NO_EFFECT,
         "DYNFINISH": NO_EFFECT, "DYNPREC": NO_EFFECT}, frozenset()),

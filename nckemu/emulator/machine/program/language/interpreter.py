@@ -12,6 +12,7 @@ import logging
 import math
 import re
 from collections.abc import Iterator
+from dataclasses import replace
 from types import FunctionType
 from typing import Any
 
@@ -51,6 +52,7 @@ from .alarms import (
 from .blocks import BlockCompiler, Compiled
 from .definitions import expand_macros
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
+from .feedrules import DIAMETER_WORDS, THREAD_MOTIONS, TRANSVERSE_AXIS, FeedRules
 from .gfunctions import BY_NUMBER, GROUP_TITLES, NOT_SUPPORTED
 from .lexer import strip_comment, tokenize
 from .source import ProgramSource, decode_program, normalized
@@ -140,6 +142,7 @@ class Interpreter:
         self.inch_geometry = bool(env.reset_inch)
         self.inch_feed = False
         self.feed_mode = "G94"
+        self.feed_rules = FeedRules()     # FGROUP, G96, DIAMON, thread pitch (feedrules.py)
         self.exact_stop = True
         self.feed_mm = 0.0
         self.spindle_speed: dict[int, float] = {}
@@ -160,7 +163,8 @@ class Interpreter:
                 self.work_pos[axis] = 0.0
         self._load_settable("G500")
 
-    _MODAL_FIELDS = ("motion", "plane", "absolute", "inch_geometry", "inch_feed", "feed_mode", "exact_stop",
+    _MODAL_FIELDS = ("motion", "plane", "absolute", "inch_geometry", "inch_feed", "feed_mode", "feed_rules",
+                     "exact_stop",
                      "frame_name", "settable", "pframe", "chain", "shift")
 
     def _snapshot_modal(self) -> dict[str, Any]:
@@ -545,7 +549,8 @@ class Interpreter:
         if not axis_words:
             return None
         motion = self.motion
-        if self.inch_geometry or not self.absolute or motion > 1 or self.chain is not None:
+        if self.inch_geometry or not self.absolute or motion > 1 or self.chain is not None \
+                or not self.feed_rules.plain:
             events: list[Event] = [self._motion([(axis, value, None) for axis, value in axis_words], {}, {})]
         else:
             shift = self.shift
@@ -803,7 +808,7 @@ class Interpreter:
 
     # --- the words of a block ---------------------------------------------------------------------
     def _g(self, code: int, flags: dict) -> None:
-        if code <= 3:
+        if code <= 3 or code in THREAD_MOTIONS:
             self.motion = code
         elif code == 4:
             flags["dwell"] = True
@@ -817,6 +822,11 @@ class Interpreter:
                 self._update_shift()
         elif code in (94, 95, 93):
             self.feed_mode = f"G{code}"
+            self.feed_rules = self.feed_rules.g(code)
+        elif code in (96, 97):  # constant cutting speed on/off: both feed per revolution (group 15)
+            self.feed_mode = "G95"
+            self.feed_rules = self.feed_rules.g(code)
+            flags["css"] = code == 96
         elif code in (70, 71):
             self.inch_geometry = code == 70
             self.inch_feed = False
@@ -915,7 +925,9 @@ class Interpreter:
             elif code == b.I_SETAL:
                 self._setal(evaluate(item[1], self))
             elif code == b.I_NOOP:
-                if item[1] != "N":
+                if item[1] in DIAMETER_WORDS or item[1] == "FGROUP":
+                    self.feed_rules = self.feed_rules.word(item[1], item[2], self._fgroup_axes)
+                elif item[1] != "N":
                     self._log_once(item[1], f"{item[1]} accepted, not modelled")
         events: list[Event] = []
         if message is not None:
@@ -1012,7 +1024,17 @@ class Interpreter:
                     speed = float(number(value))
                     speeds[int(key[1:])] = speed
                     self.spindle_speed[int(key[1:])] = speed
+        rules = self.feed_rules
+        if "LIMS" in address or rules.constant_speed:
+            self.feed_rules = rules.spindle_words(speeds.get(1), address.get("LIMS"))
+        # under G96 S is the cutting speed: the master spindle's speed follows X (from the block's G96 on)
+        css = self.feed_rules.css(self.shift.get(TRANSVERSE_AXIS, 0.0))
+        if css is not None and (flags.get("css") or self.feed_rules != rules):
+            directions.setdefault(1, None)  # type: ignore[arg-type]
         for spindle in sorted(set(directions) | set(speeds)):
+            if spindle == 1 and css is not None:
+                events.append(SpindleCommand(spindle=1, direction=directions.get(1), css=css))  # type: ignore[arg-type]
+                continue
             events.append(SpindleCommand(spindle=spindle, speed_rpm=speeds.get(spindle),
                                          direction=directions.get(spindle)))  # type: ignore[arg-type]
 
@@ -1056,16 +1078,20 @@ class Interpreter:
                 arc = self._arc(work_targets, programmed, plane_start, address, {}, exact_stop)
             finally:
                 self.shift = saved_shift
-            return framing.framed_arc(arc, chain, tool)
+            return self._with_feed_rules(framing.framed_arc(arc, chain, tool))
         targets = chain.apply(work_targets)
         for axis, length in tool.items():
             if axis in targets:
                 targets[axis] += length
         if self.motion == 0:
             return Move(targets, None, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
+        if self.motion in THREAD_MOTIONS:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"G{self.motion} in a rotated, scaled or mirrored frame "
+                                                       "is not supported by the emulator")
         if self.feed_mm <= 0:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-        return Move(targets, self.feed_mm, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
+        return self._with_feed_rules(Move(targets, self.feed_mm, self.feed_mode, exact_stop,  # type: ignore[arg-type]
+                                          programmed))
 
     def _motion(self, axis_words: list, address: dict, flags: dict) -> Event:
         suppress = bool(flags.get("supa"))
@@ -1079,30 +1105,65 @@ class Interpreter:
         programmed: dict[str, float] = {}
         start_machine = {axis: work_pos[axis] + shift.get(axis, 0.0) for axis in _PLANES[self.plane][:2]
                          if axis in work_pos}
+        rules = self.feed_rules
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
             unit = INCH_MM if inch and not self._is_rotary(axis) else 1.0
             incremental = mode == "IC" or (mode is None and not absolute)
+            value = rules.radius_of(axis, value, incremental)
             offset = shift.get(axis, 0.0)
             if suppress:
                 machine = (work_pos[axis] + offset + value * unit) if incremental else value * unit
                 work = machine - offset
-                programmed[axis] = machine / unit
+                programmed[axis] = rules.programmed_of(axis, machine / unit)
             else:
                 work = (work_pos[axis] + value * unit) if incremental else value * unit
                 machine = work + offset
-                programmed[axis] = work / unit
+                programmed[axis] = rules.programmed_of(axis, work / unit)
             work_pos[axis] = work
             targets[axis] = machine
         exact_stop = self.exact_stop or bool(flags.get("g9"))
         motion = self.motion
         if motion == 0:
             return Move(targets, None, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
+        if motion in THREAD_MOTIONS:
+            return self._thread(targets, programmed, address, exact_stop)
         if self.feed_mm <= 0:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
         if motion == 1:
-            return Move(targets, self.feed_mm, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
-        return self._arc(targets, programmed, start_machine, address, flags, exact_stop)
+            return self._with_feed_rules(Move(targets, self.feed_mm, self.feed_mode, exact_stop,  # type: ignore[arg-type]
+                                              programmed))
+        return self._with_feed_rules(self._arc(targets, programmed, start_machine, address, flags, exact_stop))
+
+    def _with_feed_rules(self, motion: Move | Arc) -> Move | Arc:
+        """The feed group and G96 on a motion at feed (nothing to add in the common case)."""
+        rules = self.feed_rules
+        if rules.fgroup is None and not rules.constant_speed:
+            return motion
+        return replace(motion, fgroup=rules.fgroup,
+                       css=rules.css(self.shift.get(TRANSVERSE_AXIS, 0.0)) if motion.feed_mode == "G95" else None)
+
+    def _thread(self, targets: dict, programmed: dict, address: dict, exact_stop: bool) -> Move:
+        """G33: feed per revolution at the pitch; G331/G332 (tapping): the pitch at the programmed S.
+        The feed override does not act on either (Move.thread)."""
+        self.feed_rules = self.feed_rules.with_pitch(address, INCH_MM if self.inch_geometry else 1.0)
+        pitch = self.feed_rules.pitch_mm
+        if self.motion == 33:
+            return Move(targets, pitch, "G95", exact_stop, programmed, thread=True)
+        speed = abs(self.spindle_speed.get(1, 0.0))
+        if speed <= 0.0:
+            raise ProgramAlarm(ALARM_FEED_ZERO, f"G{self.motion}: tapping without a spindle speed (S)")
+        return Move(targets, pitch * speed, "G94", exact_stop, programmed, thread=True)
+
+    def _fgroup_axes(self, args: list) -> list[str]:
+        """FGROUP's arguments as channel axis names (each written as a bare axis name)."""
+        names = []
+        for arg in args:
+            lvalue = getattr(arg, "lvalue", None)
+            if arg is None or lvalue is None or lvalue[0] != "VAR" or lvalue[2]:
+                raise ProgramAlarm(ALARM_SYNTAX, "FGROUP takes channel axis names: FGROUP(X, Y, C)")
+            names.append(self._axis_name(lvalue[1]))
+        return names
 
     def _arc(self, targets: dict, programmed: dict, start: dict, address: dict, flags: dict,
              exact_stop: bool) -> Arc:
