@@ -110,7 +110,8 @@ def _store(emulator: Emulator, main: Path, extra: list[str]) -> str:
 def _block_row(record: BlockRecord, axes: list[str]) -> list[Any]:
     return [f"{record.start_s:.3f}", f"{record.end_s:.3f}", record.program, record.line, record.number,
             record.text, *(f"{record.positions_mm.get(axis, 0.0):.4f}" for axis in axes),
-            f"{record.feed_mm_min:g}", f"{record.spindle_rpm:.1f}", " ".join(f"M{m}" for m in record.m_codes)]
+            f"{record.feed_mm_min:g}", f"{record.spindle_rpm:.1f}", " ".join(f"M{m}" for m in record.m_codes),
+            record.note]
 
 
 def run_program_command(args: argparse.Namespace) -> int:
@@ -127,7 +128,7 @@ def run_program_command(args: argparse.Namespace) -> int:
     block_file: TextIO | None = open(args.blocks, "w", newline="", encoding="utf-8") if args.blocks else None  # noqa: SIM115
     out_file: TextIO | None = open(args.out, "w", newline="", encoding="utf-8") if args.out else None  # noqa: SIM115
     header = ["t_s", "end_s", "program", "line", "N", "block", *(f"{axis}_mm" for axis in axes), "feed",
-              "spindle_rpm", "M"]
+              "spindle_rpm", "M", "note"]
     blocks_out = csv.writer(block_file) if block_file is not None else None
     stdout_blocks = block_file is None and not args.json
     if blocks_out is not None:
@@ -165,12 +166,14 @@ def run_program_command(args: argparse.Namespace) -> int:
             print(file=sys.stderr)
     summary = {"program": target, "outcome": result.outcome, "simulated_s": round(result.t_s, 3),
                "net_time_s": round(result.net_time_s, 3), "blocks": result.blocks, "parts": result.parts,
-               "alarms": result.alarms, "wall_s": round(time.monotonic() - started, 3)}
+               "alarms": result.alarms, "not_simulated": result.not_simulated,
+               "wall_s": round(time.monotonic() - started, 3)}
     if args.json:
         print(json.dumps(summary))
     else:
         print(f"{target}: {result.outcome} after {result.net_time_s:.1f} s simulated ({result.blocks} blocks, "
-              f"{result.parts:g} parts)" + "".join(f"\n  alarm: {text}" for text in result.alarms))
+              f"{result.parts:g} parts)" + "".join(f"\n  {line}" for line in result.not_simulated_lines())
+              + "".join(f"\n  alarm: {text}" for text in result.alarms))
     return 0 if result.outcome == "ended" else 1
 
 

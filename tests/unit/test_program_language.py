@@ -328,9 +328,9 @@ def test_alarm_in_a_subprogram_names_the_subprogram() -> None:
     assert [block.depth for block in result.blocks] == [0, 1]
 
 
-def test_standard_cycles_are_accepted_without_motion() -> None:
-    result = run("G0 X0\nCYCLE832(0.01, 0, 1)\nMCALL CYCLE81(10, 0, 1, -5)\nX10\nMCALL\nM30")
-    assert result.alarm is None and len(result.moves) == 2
+def test_standard_cycles_run_as_motions() -> None:
+    result = run("G0 X0 Z20 F100\nCYCLE832(0.01, 0, 1)\nMCALL CYCLE81(10, 0, 1, -5)\nX10\nMCALL\nM30")
+    assert result.alarm is None and len(result.moves) == 5   # tests/unit/test_program_cycles.py
 
 
 def test_settings_without_a_model_are_accepted() -> None:

@@ -122,7 +122,17 @@ class ProgramEnd:
     code: int
 
 
-Event = Block | Move | Arc | Dwell | SpindleCommand | MFunction | ToolSelect | Message | ProgramEnd
+@dataclass(frozen=True, slots=True)
+class CycleCall:
+    """A standard cycle the block calls: ``simulated`` False for one the emulator has no motion for (it
+    takes 0 s and is counted apart); ``note`` what it set (CYCLE832's tolerance) for the block table."""
+
+    name: str
+    simulated: bool = True
+    note: str = ""
+
+
+Event = Block | Move | Arc | Dwell | SpindleCommand | MFunction | ToolSelect | Message | ProgramEnd | CycleCall
 
 
 # Alarm numbers the interpreter raises (programs.md §8; texts are ours).

@@ -38,6 +38,13 @@ class OfflineResult:
     blocks: int
     parts: float
     alarms: list[str] = field(default_factory=list)
+    # standard cycles the run called without a motion model: name -> calls (0 s counted for each)
+    not_simulated: dict[str, int] = field(default_factory=dict)
+
+    def not_simulated_lines(self) -> list[str]:
+        """"CYCLE62 not simulated: 0 s counted, 3 calls" for each such cycle, by name."""
+        return [f"{name} not simulated: 0 s counted, {calls} call{'s' if calls != 1 else ''}"
+                for name, calls in sorted(self.not_simulated.items())]
 
 
 def _has_spindle(machine: Machine) -> bool:
@@ -100,6 +107,7 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
     sample = sampler(emulator)
     channel.select(path)
     channel.start()
+    cycles = channel.run.not_simulated if channel.run is not None else {}  # the run fills it as it goes
     if on_sample is not None:
         on_sample(sample(start_s))
     next_sample_s = start_s + sample_s
@@ -135,4 +143,5 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
     alarms = [alarm.text for alarm in emulator.nck.alarm_list.pending]
     net_s = channel.state.old_net_time_s if outcome == "ended" else channel.net_time_s
     blocks = channel.run.blocks if channel.run is not None else channel.last_run_blocks
-    return OfflineResult(outcome, clock.now_s() - start_s, net_s, blocks, channel.state.actual_parts, alarms)
+    return OfflineResult(outcome, clock.now_s() - start_s, net_s, blocks, channel.state.actual_parts, alarms,
+                         dict(cycles))

@@ -25,6 +25,7 @@ from nckemu.emulator.machine.program.motions import (
     ALARM_NAME_NOT_DEFINED,
     Arc,
     Block,
+    CycleCall,
     Dwell,
     Event,
     Message,
@@ -129,6 +130,7 @@ class BlockRecord:
     spindle_rpm: float = 0.0
     m_codes: list[int] = field(default_factory=list)
     alarm: str = ""
+    note: str = ""                # a standard cycle's word: "CYCLE62 not simulated", CYCLE832's tolerance
 
 
 @dataclass(slots=True)
@@ -357,6 +359,8 @@ class ProgramRun:
         self._paused_at: float | None = None
         self._spindle_ready_s = self.t_s
         self.blocks = 0
+        # standard cycles without a motion model: name -> calls (each counted 0 s)
+        self.not_simulated: dict[str, int] = {}
         self.record: BlockRecord | None = None
         self.ended = False
 
@@ -442,12 +446,20 @@ class ProgramRun:
                     return "stopped"
             elif isinstance(event, ToolSelect):
                 self._tool(event)
+            elif kind is CycleCall:
+                self._cycle(event)  # type: ignore[arg-type]
             elif isinstance(event, Message):
                 state.message = event.text
             elif isinstance(event, ProgramEnd):
                 if self.record is not None and event.code and event.code not in self.record.m_codes:
                     self.record.m_codes.append(event.code)
                 return self._end()
+
+    def _cycle(self, call: CycleCall) -> None:
+        if not call.simulated:
+            self.not_simulated[call.name] = self.not_simulated.get(call.name, 0) + 1
+        if self.record is not None and call.note:
+            self.record.note = f"{self.record.note}; {call.note}" if self.record.note else call.note
 
     def _drop_programmable_frame(self) -> None:
         """Reset and program end delete the programmable frame (MD20110 RESET_MODE as delivered,

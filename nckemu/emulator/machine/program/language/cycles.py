@@ -203,6 +203,7 @@ def _deep_hole(args: Sequence[float | None], at: Context) -> list[Step]:
     retract = abs(p[14]) or 1.0
     distance = abs(p[16]) or anticipation_mm(safety - depth)
     steps: list[Step] = [Rapid({z: safety})]
+    previous = safety
     for index, reached in enumerate(_strokes(safety, first, depth, abs(p[7]))):
         feed = at.feed_mm_min * factor if index == 0 else None
         if index and p[11] == 1:  # chip removal: back in at rapid to just above the last depth

@@ -50,6 +50,7 @@ from .alarms import (
     MAX_M_PER_BLOCK,
 )
 from .blocks import BlockCompiler, Compiled
+from .cycle_runner import CycleRunner, is_standard_cycle
 from .definitions import expand_macros
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
 from .feedrules import DIAMETER_WORDS, THREAD_MOTIONS, TRANSVERSE_AXIS, FeedRules
@@ -131,6 +132,7 @@ class Interpreter:
         self._frame: _Frame | None = None
         self._modal_call: tuple[Any, Any] | None = None
         self._r_count = int(env.r_count)
+        self._cycles = CycleRunner(self)
         self._reset_modal()
 
     # --- modal state ------------------------------------------------------------------------------
@@ -150,6 +152,7 @@ class Interpreter:
         self.settable: dict[str, float] = {}
         self.pframe: Frame = IDENTITY_FRAME   # the programmable frame (TRANS, ROT, SCALE, MIRROR)
         self.chain: Frame | None = None       # settable + programmable frame when more than a translation
+        self.swivel: Frame = IDENTITY_FRAME   # CYCLE800's frame, under the programmable frame
         self.tool: int | str | None = None
         self.edge: int | None = None
         self.preselected: int | str | None = None
@@ -174,7 +177,7 @@ class Interpreter:
     def _restore_modal(self, saved: dict[str, Any]) -> None:
         for name, value in saved.items():
             setattr(self, name, value)
-        self.env.set_programmable_frame(self.pframe)
+        self.env.set_programmable_frame(self._programmable())
 
     def _load_settable(self, name: str) -> None:
         self.frame_name = name
@@ -189,8 +192,18 @@ class Interpreter:
         self.settable = settable
         self._update_shift()
 
+    def _programmable(self) -> Frame:
+        """The frames a program has put on the settable frame: CYCLE800's swivel, then TRANS/ROT/..."""
+        return self.pframe if self.swivel is IDENTITY_FRAME else self.swivel.after(self.pframe)
+
+    def set_swivel_frame(self, frame: Frame) -> None:
+        """CYCLE800 sets (identity: deselects) the swivel frame."""
+        self.swivel = frame
+        self._update_shift()
+        self.env.set_programmable_frame(self._programmable())
+
     def _update_shift(self) -> None:
-        chain = framing.chain(self.settable, self.pframe)
+        chain = framing.chain(self.settable, self._programmable())
         self.chain = None if chain.is_translation else chain
         shift = dict(chain.translation)
         if self.tool_length_mm:
@@ -459,7 +472,7 @@ class Interpreter:
                 return float(self.env.work_offset_mm(frame_name, self._axis_name(indices[1])))
             return framing.read_component(IDENTITY_FRAME, indices[1:], name)
         frame = {"$P_PFRAME": self.pframe, "$P_IFRAME": Frame(dict(self.settable)),
-                 "$P_BFRAME": IDENTITY_FRAME}.get(name) or framing.chain(self.settable, self.pframe)
+                 "$P_BFRAME": IDENTITY_FRAME}.get(name) or framing.chain(self.settable, self._programmable())
         return framing.read_component(frame, indices, name)
 
     def _read_setting(self, name: str, indices: tuple) -> Any:
@@ -481,7 +494,7 @@ class Interpreter:
             if name == "$P_PFRAME":
                 self.pframe = framing.with_component(self.pframe, evaluated, name, float(number(value)))
                 self._update_shift()
-                self.env.set_programmable_frame(self.pframe)
+                self.env.set_programmable_frame(self._programmable())
                 return
             try:
                 self.env.set_system_variable(name, evaluated, value)
@@ -567,7 +580,7 @@ class Interpreter:
                 events = [Move(targets, self.feed_mm, self.feed_mode, self.exact_stop,  # type: ignore[arg-type]
                                dict(axis_words))]
         if self._modal_call is not None:
-            self._call(self._modal_call[0], self._modal_call[1], None, frame)
+            events += self._call(self._modal_call[0], self._modal_call[1], None, frame) or ()
         return events
 
     def _execute(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
@@ -720,9 +733,10 @@ class Interpreter:
         except Exception:
             found = None
         if found is None:
+            if is_standard_cycle(name):
+                return self._cycles.call(name, args)
             if _STANDARD_CYCLE.fullmatch(name):
-                self._log_once(name, f"{name}: a standard cycle, not emulated (no motion)")
-                return None
+                raise ProgramAlarm(ALARM_PROGRAM_NOT_FOUND, f"{name}: no standard cycle and no program of that name")
             if args is None:
                 raise undefined(name)
             raise ProgramAlarm(ALARM_PROGRAM_NOT_FOUND, f"program {name} not existing")
@@ -968,7 +982,7 @@ class Interpreter:
             self._return()
             return events
         if call is not None:
-            self._call(call[0], call[1], call[2], frame)
+            events += self._call(call[0], call[1], call[2], frame) or ()
         if jump is not None:
             self._jump(frame, jump[0], jump[1], pos)
         return events
@@ -1047,7 +1061,7 @@ class Interpreter:
             values.append((axis, value))
         self.pframe = framing.programmed_frame(self.pframe, word, values, self.plane)
         self._update_shift()
-        self.env.set_programmable_frame(self.pframe)
+        self.env.set_programmable_frame(self._programmable())
 
     def _framed_motion(self, axis_words: list, address: dict, flags: dict, chain: Frame) -> Event:
         """A move or circle through a frame that rotates, scales or mirrors: the end point (and centre)
