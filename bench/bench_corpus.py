@@ -182,6 +182,21 @@ def feature_key(outcome: dict[str, Any]) -> str:
     return f"{outcome['number']} {feature}"
 
 
+def run_corpus(corpus: Path, *, only: str = "", machine: str = "", max_time_s: float = 4 * 3600.0,
+               wall_s: float = 60.0, on_result: Any = None) -> list[dict[str, Any]]:
+    """Every fetched program of the manifest, run; one result dict each."""
+    results = []
+    for repository, tree, main_path in programs(corpus, load_manifest(), only, machine):
+        stored = _files(tree, repository, main_path)
+        outcome = run_isolated((repository["machine"], str(main_path), stored, max_time_s), wall_s)
+        result = {"repo": repository["repo"], "program": f"{repository['repo']}/{main_path.relative_to(tree).as_posix()}",
+                  **outcome}
+        results.append(result)
+        if on_result is not None:
+            on_result(result)
+    return results
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("corpus", type=Path, help="the directory bench/corpus_fetch.py fetched into")
@@ -191,27 +206,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--wall", type=float, default=60.0, help="real seconds per program")
     parser.add_argument("--json", action="store_true", help="one JSON document instead of the text")
     args = parser.parse_args(argv)
-    manifest = load_manifest()
-    found = programs(args.corpus, manifest, args.only, args.machine)
-    if not found:
+    if not programs(args.corpus, load_manifest(), args.only, args.machine):
         print(f"no program of the manifest under {args.corpus} (run bench/corpus_fetch.py first)", file=sys.stderr)
         return 1
-    results = []
     started = time.monotonic()
-    for repository, tree, main_path in found:
-        stored = _files(tree, repository, main_path)
-        outcome = run_isolated((repository["machine"], str(main_path), stored, args.max_time), args.wall)
-        name = f"{repository['repo']}/{main_path.relative_to(tree).as_posix()}"
-        results.append({"program": name, **outcome})
+
+    def show(result: dict[str, Any]) -> None:
         if not args.json:
-            print(f"{name:70s} {describe(outcome)}", flush=True)
+            print(f"{result['program']:70s} {describe(result)}", flush=True)
+
+    results = run_corpus(args.corpus, only=args.only, machine=args.machine, max_time_s=args.max_time,
+                         wall_s=args.wall, on_result=show)
     tally = Counter(result["outcome"] for result in results)
     blockers = Counter(feature_key(result) for result in results if result["outcome"] != "ran")
     if args.json:
         print(json.dumps({"programs": results, "tally": dict(tally), "blockers": dict(blockers.most_common())},
                          indent=1))
         return 0
-    repositories = len({result["program"].split("/")[0] + "/" + result["program"].split("/")[1] for result in results})
+    repositories = len({result["repo"] for result in results})
     print(f"\n{len(results)} programs from {repositories} repositories in {time.monotonic() - started:.0f} s: "
           + ", ".join(f"{tally[kind]} {kind}" for kind in ("ran", "alarm", "crashed", "timeout")))
     for key, count in blockers.most_common():

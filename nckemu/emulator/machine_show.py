@@ -9,10 +9,12 @@ from typing import Any
 from nckemu.catalogue.edges import EDGE_PARAMETER_NAMES, parameter_unit
 from nckemu.catalogue.table import load_table
 from nckemu.emulator.faces.opcua.settings import OpcUaSettings
-from nckemu.emulator.machine.machine_file import Machine, Settings
+from nckemu.emulator.machine.machine_file import AXIS_DYNAMICS, Machine, Settings, axis_dynamics
 from nckemu.emulator.machine.plc.memory import AREA_BYTES
 from nckemu.emulator.machine_check import opcua_document
 from nckemu.protocol.db41 import CHANNEL_DB
+
+DYNAMICS_NAMES = dict(AXIS_DYNAMICS)
 
 
 def _edge(values: tuple[float, ...]) -> dict[str, float]:
@@ -30,7 +32,10 @@ def machine_document(machine: Machine, opcua: OpcUaSettings) -> dict[str, Any]:
         "name": machine.name, "source": machine.source, "channels": machine.channels,
         "ipo_cycle_s": machine.ipo_cycle_s, "pdu_size_max": machine.pdu_size_max, "max_amq": machine.max_amq,
         "axes": [{"number": a.number, "name": a.name, "travel_mm": [a.travel_min_mm, a.travel_max_mm],
-                  "rotary": a.rotary, "spindle": a.spindle, "referenced": a.referenced} for a in machine.axes],
+                  "rotary": a.rotary, "spindle": a.spindle, "referenced": a.referenced,
+                  **({} if a.spindle else {number: {"value": value, "unit": unit} for number, (value, unit)
+                                           in axis_dynamics(machine, a.number).items()})}
+                 for a in machine.axes],
         "sensors": [{"name": s.name, "plc_input": s.plc_input, "temperature_C": s.temperature_C}
                     for s in machine.sensors],
         "drives": [asdict(drive) for drive in machine.drives],
@@ -71,7 +76,11 @@ def print_machine(doc: dict[str, Any]) -> None:
     for axis in doc["axes"]:
         low, high = axis["travel_mm"]
         kind = "spindle" if axis["spindle"] else "rotary" if axis["rotary"] else f"travel {low:g}..{high:g} mm"
-        print(f"  axis {axis['number']} {axis['name']}: {kind}{'' if axis['referenced'] else ', not referenced'}")
+        # how fast its moves are: the machine data the planner takes (a rotary axis: degrees for mm)
+        dynamics = "".join(f", {number} {DYNAMICS_NAMES[number]} {axis[number]['value']:g} {axis[number]['unit']}"
+                           for number in DYNAMICS_NAMES if number in axis)
+        print(f"  axis {axis['number']} {axis['name']}: {kind}{dynamics}"
+              f"{'' if axis['referenced'] else ', not referenced'}")
     for sensor in doc["sensors"]:
         print(f"  sensor {sensor['name']}: {sensor['plc_input'] or 'no PLC input'}, {sensor['temperature_C']:g} degC")
     for drive in doc["drives"]:

@@ -3,6 +3,8 @@ offline on the emulated channel (the served path is in tests/interop/test_progra
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from nckemu.emulator.machine.clock import SimulatedClock
@@ -134,3 +136,28 @@ def test_an_environment_without_definitions_and_one_with_them() -> None:
 
     events = list(Interpreter(WithGud(), "/_N_MPF_DIR/_N_A_MPF", "TO_SAFE\nM30").events())
     assert [event.target_mm for event in events if isinstance(event, Move)] == [{"Z": 50.0}]
+
+
+@pytest.mark.parametrize("machine", ["mill_5axis", "boring_mill", "lathe", "corpus_nine_axes"])
+def test_machine_show_lists_the_dynamics_and_travel_of_every_axis(machine: str, fixtures_dir, capsys) -> None:
+    from nckemu.cli import main
+
+    path = str(fixtures_dir / "machines" / f"{machine}.toml")
+    assert main(["machine", "show", "--machine", path]) == 0
+    axis_lines = [line for line in capsys.readouterr().out.splitlines()
+                  if line.startswith("  axis ") and "spindle" not in line]
+    assert axis_lines and all("MD32000 MAX_AX_VELO" in line and "MD32300 MAX_AX_ACCEL" in line for line in axis_lines)
+    assert main(["machine", "show", "--machine", path, "--json"]) == 0
+    axes = json.loads(capsys.readouterr().out)["axes"]
+    x = next(axis for axis in axes if axis["name"] == "X1")
+    assert x["MD32000"]["unit"] == "mm/min" and x["MD32000"]["value"] > 10000 and x["travel_mm"][1] > x["travel_mm"][0]
+    emulator = Emulator(path, clock=SimulatedClock())
+    assert emulator.nck.store.active_value("MAX_AX_VELO", 1) == x["MD32000"]["value"]
+    assert emulator.nck.store.spec("R").lines == 1000  # R0..R999, as the shop's programs use them
+
+
+def test_a_move_beyond_the_travel_says_which_setting_moves_the_limit() -> None:
+    emulator = _emulator()
+    emulator.nck.programs.write("/_N_MPF_DIR/_N_FAR_MPF", b"G0 X2000\nM30\n")
+    result = run_offline(emulator, "/_N_MPF_DIR/_N_FAR_MPF", max_time_s=60.0)
+    assert "alarm 10720" in result.alarms[0] and "travel_mm of axis X1 in the machine file" in result.alarms[0]

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from nckemu.catalogue.edges import STANDARD_EDGE_PARAMS
-from nckemu.catalogue.table import VariableSpec, machine_table, row_lines
+from nckemu.catalogue.table import VariableSpec, load_table, machine_table, row_lines
 from nckemu.emulator.machine.plc.memory import AREA_BYTES
 from nckemu.errors import NckConfigError
 from nckemu.textfile import read_text
@@ -696,3 +696,19 @@ def load_machine(path: str | Path | None = None) -> Machine:
         text = resources.files("nckemu.emulator.machine").joinpath("machines/default.toml").read_text("utf-8")
         return parse_machine(text, "default.toml (built in)")
     return parse_machine(read_text(path, "a machine is TOML text"), str(path))
+
+
+# The axis machine data that say how fast a program's moves are, as `machine show` lists them.
+AXIS_DYNAMICS = (("MD32000", "MAX_AX_VELO"), ("MD32300", "MAX_AX_ACCEL"))
+
+
+def axis_dynamics(machine: Machine, axis: int) -> dict[str, tuple[float, str]]:
+    """MD32000 and MD32300 of ``axis`` at power-on: the file's [initial] value (by number or name),
+    else the catalogue's default; each with its unit."""
+    specs = {spec.name: spec for spec in (machine.variables or load_table())}
+    found: dict[str, tuple[float, str]] = {}
+    for number, name in AXIS_DYNAMICS:
+        spec = specs[name]
+        per_unit = machine.initial.get(number) or machine.initial.get(name) or {}
+        found[number] = (float(per_unit.get(axis, spec.default)), spec.unit)  # type: ignore[arg-type]
+    return found

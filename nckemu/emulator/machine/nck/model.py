@@ -37,6 +37,7 @@ from nckemu.emulator.machine.nck.sensors import Sensors
 from nckemu.emulator.machine.nck.sources import SOURCES
 from nckemu.emulator.machine.nck.store import VariableStore
 from nckemu.emulator.machine.nck.tools import Tools
+from nckemu.emulator.machine.program.motions import ProgramAlarm
 from nckemu.errors import NckAccessDenied, NckConfigError, NckTypeInconsistent
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType
 
@@ -84,6 +85,7 @@ class NckModel:
         self.compensation = Compensation(machine, clock, self.store, self.axes)
         self.programs = Programs()
         self.alarm_list = Alarms(clock)
+        self.programs.definitions.on_checked = self._definition_checked
         spindles = sum(axis.spindle for axis in machine.axes)
         # The channels run programs with the NCK's parts (programs, axes, alarms, tools, frames, store),
         # read when a program runs: the tools and frames below come before any.
@@ -97,6 +99,15 @@ class NckModel:
         # Told of every accepted write (after it landed): one write can move other variables (a
         # compensation value moves the axis' positions), so listeners get the address only as a hint.
         self.write_listeners: list[Callable[[NckAddress], None]] = []
+
+    def _definition_checked(self, path: str, alarm: ProgramAlarm | None) -> None:
+        """A definition file refused stays on the alarm list (with its file and line) until a good
+        version of that file is activated, as the control reports a failed activation."""
+        prefix = f"definition file {path} refused: "
+        for text in [text for text in self.alarm_list.active if text.startswith(prefix)]:
+            self.alarm_list.clear(text)
+        if alarm is not None:
+            self.alarm_list.raise_alarm(prefix + str(alarm), alarm.number, (alarm.program, str(alarm.line)))
 
     @staticmethod
     def _finder(specs: Sequence[VariableSpec]) -> Callable[[str], VariableSpec | None]:

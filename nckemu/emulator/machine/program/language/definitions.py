@@ -15,6 +15,7 @@ GUD on a control.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -170,6 +171,9 @@ class GlobalDefinitions:
         self.files: dict[str, DefinitionFile] = {}
         self._variables: dict[str, Variable] = {}
         self._macros: dict[str, str] = {}
+        # Told of each check of a written file: (path, None) when it is in force, (path, alarm) when
+        # it was refused (the NCK keeps the alarm on its list).
+        self.on_checked: Callable[[str, ProgramAlarm | None], None] | None = None
 
     def activate(self, path: str, text: bytes) -> None:
         """Parse ``text`` and put it in force for ``path`` (raises DefinitionRefused; then what
@@ -177,7 +181,11 @@ class GlobalDefinitions:
         try:
             parsed = parse_definitions(path, text)
         except ProgramAlarm as alarm:
+            if self.on_checked is not None:
+                self.on_checked(path, alarm)
             raise DefinitionRefused(alarm) from None
+        if self.on_checked is not None:
+            self.on_checked(path, None)
         old = self.files.get(path)
         if old is not None:
             # a file written again keeps the values of the variables it still defines alike

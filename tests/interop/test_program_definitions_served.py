@@ -1,0 +1,61 @@
+"""Definition files sent to the real server as a DNC tool sends programs (`nckemu program put` over S7,
+OPC UA CopyFileToServer is in test_opcua_programs' family): a GUD array the next program uses, and a
+file with an error refused with its line while the old definitions stay."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from nckemu.cli import main
+from nckemu.emulator.runner import EmulatorThread
+
+
+@pytest.fixture
+def emu() -> EmulatorThread:
+    with EmulatorThread() as emulator:
+        yield emulator
+
+
+def _wait_ended(emu: EmulatorThread, timeout_s: float = 20.0) -> None:
+    channel = emu.call(lambda: emu.nck.channels[1])
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if emu.call(lambda: channel.run is None and channel.state.actual_parts >= 1):
+            return
+        alarms = emu.call(lambda: channel.alarms)
+        assert not alarms, alarms
+        time.sleep(0.05)
+    raise AssertionError("the program did not end")
+
+
+def test_a_gud_file_put_over_s7_is_used_by_the_program_put_after_it(emu: EmulatorThread, tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    port = ["--port", str(emu.port)]
+    gud = tmp_path / "MGUD.DEF"
+    gud.write_bytes(b"DEF NCK REAL INI[100]\nDEF NCK INT RUNS\n")
+    main_program = tmp_path / "GRIND.MPF"
+    main_program.write_bytes(b"INI[53]=1500\nRUNS=RUNS+1\nR7=INI[53]\nM30\n")
+    assert main(["program", "put", str(gud), *port]) == 0
+    assert "/_N_DEF_DIR/_N_MGUD_DEF" in capsys.readouterr().out
+    assert main(["program", "put", str(main_program), *port]) == 0
+    assert main(["program", "select", "GRIND.MPF", *port]) == 0
+    assert main(["program", "start", *port]) == 0
+    _wait_ended(emu)
+    variables = emu.call(lambda: emu.nck.programs.definitions.variables())
+    assert variables["INI"].get((53,)) == 1500.0 and variables["RUNS"].value == 1
+    assert main(["get", "R7", *port]) == 0 and "1500" in capsys.readouterr().out
+
+    gud.write_bytes(b"DEF NCK REAL INI[100]\nDEF NCK INT RUNS\nDEF NCK REAL = 5\n")
+    assert main(["program", "put", str(gud), *port]) == 1
+    assert emu.call(lambda: emu.nck.programs.definitions.variables()["INI"].get((53,))) == 1500.0
+    assert emu.call(lambda: emu.nck.programs.read("/_N_DEF_DIR/_N_MGUD_DEF")).count(b"\n") == 2
+    # the refusal is on the NCK's alarm list with the file and the line, until a good version comes
+    alarms = emu.call(lambda: emu.nck.alarm_list.active)
+    assert any("/_N_DEF_DIR/_N_MGUD_DEF line 3" in text and "12080" in text for text in alarms), alarms
+    gud.write_bytes(b"DEF NCK REAL INI[100]\nDEF NCK INT RUNS\nDEF NCK REAL NEW_ONE = 5\n")
+    assert main(["program", "put", str(gud), *port]) == 0
+    assert not any("MGUD" in text for text in emu.call(lambda: emu.nck.alarm_list.active))
+    assert emu.call(lambda: emu.nck.programs.definitions.variables()["INI"].get((53,))) == 1500.0

@@ -1,0 +1,38 @@
+"""The public programs of bench/corpus/manifest.toml, run as bench/bench_corpus.py runs them: none may
+crash (a traceback of ours); every program that does not run to its end stops with an NCK alarm naming
+program, line and feature, or is still running (a program waiting for its PLC). The programs are not in
+the repository: set NCKEMU_CORPUS to the directory bench/corpus_fetch.py fetched them into."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from bench.bench_corpus import run_corpus
+from bench.corpus_fetch import load_manifest
+
+CORPUS = Path(os.environ.get("NCKEMU_CORPUS", "/nonexistent-nckemu-corpus"))
+
+
+def test_the_manifest_names_40_programs_of_8_repositories_each_at_a_commit() -> None:
+    manifest = load_manifest()
+    repositories = {entry["repo"]: entry for entry in manifest["repository"]}
+    assert len(manifest["program"]) >= 40 and len({entry["repo"] for entry in manifest["program"]}) >= 8
+    for entry in manifest["program"]:
+        assert len(entry["commit"]) == 40 and repositories[entry["repo"]]["commit"] == entry["commit"]
+        assert (Path(__file__).parents[2] / repositories[entry["repo"]]["machine"]).is_file()
+
+
+@pytest.mark.slow
+def test_no_program_of_the_corpus_crashes() -> None:
+    if not CORPUS.is_dir():
+        pytest.skip("NCKEMU_CORPUS is not a directory: fetch the corpus with bench/corpus_fetch.py (needs GitHub)")
+    results = run_corpus(CORPUS, wall_s=30.0)
+    if not results:
+        pytest.skip(f"no program of the manifest under {CORPUS}")
+    assert not [result["program"] for result in results if result["outcome"] == "crashed"]
+    for result in results:
+        if result["outcome"] == "alarm":
+            assert result.get("number") and result.get("line"), result
