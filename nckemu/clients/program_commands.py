@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import sys
 from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import TypeVar
@@ -121,12 +122,26 @@ def run_get(args: argparse.Namespace) -> int:
             raise NckConfigError(f"{args.out}: cannot write ({exc.strerror or exc})") from None
     if args.json:
         print(json.dumps({"path": path, "name": user_name(path), "bytes": len(text),
-                          **({} if args.out else {"text": text.decode("latin-1")})}))
+                          **({} if args.out else {"text": _as_text(text)})}))
     elif args.out:
         print(f"{user_name(path)}: {len(text)} bytes written to {args.out}")
     else:
-        print(text.decode("latin-1"), end="" if text.endswith(b"\n") else "\n")
+        # The stored bytes as they are (``program get NAME > NAME.MPF`` is the file that was sent, in
+        # whatever encoding it had); a terminal gets a line end after a text without one.
+        sys.stdout.flush()
+        sys.stdout.buffer.write(text)
+        if sys.stdout.isatty() and text and not text.endswith(b"\n"):
+            sys.stdout.buffer.write(b"\n")
+        sys.stdout.buffer.flush()
     return 0
+
+
+def _as_text(data: bytes) -> str:
+    """A program's bytes as text for JSON: UTF-8 where they are, else Latin-1 (as the control reads it)."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
 
 
 def run_list(args: argparse.Namespace) -> int:

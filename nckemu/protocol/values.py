@@ -66,7 +66,11 @@ _REAL8_LE = struct.Struct("<d")
 
 
 def encode_nck_values(nck_type: NckType, values: Sequence[object], *, area: int,
-                      string_length: int | None = None) -> bytes:
+                      string_length: int | None = None, answer: bool = False) -> bytes:
+    """The item's bytes. ``answer``: the controller's read answer, where text is shown as the
+    control shows it, never refused: a character outside its code page (Latin-1) becomes '?', text
+    longer than the field is cut at the field's end. A client's write (``answer`` False) refuses both,
+    so a value is never sent other than it was given."""
     if nck_type == NckType.REAL8 and len(values) == 1 and area not in BIG_ENDIAN_AREAS:
         value = values[0]
         if isinstance(value, float):  # the hot path: one REAL8 in an N/B/C/A/T/M area
@@ -76,9 +80,18 @@ def encode_nck_values(nck_type: NckType, values: Sequence[object], *, area: int,
         size = value_size(nck_type, string_length)
         parts = []
         for value in values:
-            raw = value.encode("latin-1") if isinstance(value, str) else bytes(value)  # type: ignore[arg-type]
+            if isinstance(value, str):
+                try:
+                    raw = value.encode("latin-1", errors="replace" if answer else "strict")
+                except UnicodeEncodeError as exc:
+                    raise NckTypeInconsistent(f"{value!r}: {exc.object[exc.start:exc.end]!r} is not in the "
+                                              "control's character set (Latin-1)") from None
+            else:
+                raw = bytes(value)  # type: ignore[arg-type]
             if len(raw) > size:
-                raise NckTypeInconsistent(f"string of {len(raw)} bytes in a field of {size}")
+                if not answer:
+                    raise NckTypeInconsistent(f"string of {len(raw)} bytes in a field of {size}")
+                raw = raw[:size]
             parts.append(raw.ljust(size, b"\x00"))
         return b"".join(parts)
     codec = _codec(nck_type, area in BIG_ENDIAN_AREAS, len(values))

@@ -13,6 +13,7 @@ from typing import Any, Protocol
 
 from nckemu.emulator.machine.clock import LiveClock
 from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.nck.channel_states import PROG_ABORTED
 from nckemu.errors import NckError
 from nckemu.protocol.addresses import S7Area
 
@@ -71,7 +72,8 @@ def machine_status(emulator: Emulator, server: ClientList | None = None) -> dict
         mode_value = state.mode
         channel_state = {"mode": _OP_MODES.get(mode_value, str(mode_value)),
                          "status": _CHANNEL_STATUS.get(state.status, str(state.status)),
-                         "program": _PROGRAM_STATUS.get(state.program_status, str(state.program_status)),
+                         "program": ("ended" if state.program_status == PROG_ABORTED and channel.ended_normally
+                                     else _PROGRAM_STATUS.get(state.program_status, str(state.program_status))),
                          "actual_parts": state.actual_parts, "total_parts": state.total_parts,
                          "net_time_s": channel.net_time_s,
                          # the part program (issue 41): selected, the block running and its line

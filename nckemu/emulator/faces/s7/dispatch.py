@@ -410,7 +410,7 @@ class Dispatcher:
         if address.syntax_id not in NCK_SYNTAX_IDS:
             raise NckObjectDoesNotExist(f"syntax ID 0x{address.syntax_id:02X}")
         nck_type, string_length, values = self.nck.read_typed(address, ctx)
-        data = encode_nck_values(nck_type, values, area=address.area, string_length=string_length)
+        data = encode_nck_values(nck_type, values, area=address.area, string_length=string_length, answer=True)
         return s7.DataItem(RC_SUCCESS, self._answer_ts_by_area[address.area], data)
 
     def _write_nck(self, address: NckAddress, value: s7.DataItem, ctx: AccessContext) -> bool:

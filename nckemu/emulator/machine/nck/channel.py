@@ -117,6 +117,9 @@ class Channel:
         self.recorded_program = ""
         self.run: ProgramRun | None = None
         self.last_run_blocks = 0          # blocks the last run executed (program run offline)
+        # progStatus 5 says "aborted" after a reset and after the program's end alike (BTSS has no
+        # "ended"): True when the last run reached its end, for the faces that can say so (live page).
+        self.ended_normally = False
         # The net time of the last complete run (ended by M2/M30 or its last block, not by reset) of each
         # program: path -> (hash of its text, seconds), what time_left_s counts down from. A changed text
         # is another program (its old time says nothing about it) and replaces the entry.
@@ -194,9 +197,11 @@ class Channel:
         self._run_key = (self.selected, hash(text))
         if self.number == 1:
             self.parts.programs.running = self.selected
+            self.parts.programs.called = self.run.interpreter.programs_in_use
         self._net_s = 0.0
         self._begin_timing(now)
         self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
+        self.ended_normally = False
         self.state.message = ""
         self.state.start_counter += 1
         self._tell("started")
@@ -219,6 +224,8 @@ class Channel:
         self._clear_alarms(self._notices)
         self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
         self.state.reset_counter += 1
+        if not was_reset:
+            self.ended_normally = False
         if not was_reset:
             self._tell("aborted")
         self._tell_state()
@@ -267,13 +274,15 @@ class Channel:
         self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
         self._tell_state()
 
-    def end_program(self, at_s: float | None = None) -> None:
+    def end_program(self, at_s: float | None = None, *, part_done: bool = True) -> None:
         """M30: the run ends, its net time becomes the last program's, a part is counted. ``at_s``: the
-        simulated time the program reached its end (within the cycle that found it)."""
+        simulated time the program reached its end (within the cycle that found it). ``part_done``
+        False: a program with no block to execute (empty, only comments) ends without a part."""
         self._hold(at_s)
         self.state.old_net_time_s = self._net_s
-        self.state.actual_parts += 1.0
-        self.state.total_parts += 1.0
+        if part_done:
+            self.state.actual_parts += 1.0
+            self.state.total_parts += 1.0
         self.state.end_counter += 1
         had_run = self.run is not None
         if had_run and self._run_key is not None:
@@ -281,6 +290,7 @@ class Channel:
             self.completed_runs_s[path] = (text_hash, self.state.old_net_time_s)
         self._finish_run()
         self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
+        self.ended_normally = True
         if had_run:
             self._tell("ended")
         self._tell_state()
@@ -308,7 +318,7 @@ class Channel:
             self.state.program_status = PROG_WAITING if waiting else PROG_RUNNING
             self._tell_state()
         if outcome == "ended":
-            self.end_program(run.t_s)
+            self.end_program(run.t_s, part_done=run.blocks > 0)
         elif outcome == "stopped":  # M0 / M1
             self._interrupt(PROG_STOPPED, run.t_s)
 
@@ -350,6 +360,7 @@ class Channel:
             self.last_run_blocks = run.blocks
         if self.parts.programs.running and self.number == 1:
             self.parts.programs.running = ""
+            self.parts.programs.called = tuple
 
     def _clear_alarms(self, texts: list[str]) -> None:
         for text in texts:

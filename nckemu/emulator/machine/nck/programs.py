@@ -2,13 +2,14 @@
 
 Paths are the control's (``/_N_MPF_DIR/_N_TEST_MPF``); :func:`nckemu.catalogue.program_names.program_path` also takes the names
 users write (``TEST.MPF``, ``WARMUP_CYCLE.SPF``, ``/MPF_DIR/TEST.MPF``). A program's text is replaced
-whole or not at all (a transfer writes it only when it has ended); the program a channel is running
-cannot be replaced or deleted.
+whole or not at all (a transfer writes it only when it has ended); the program a channel is running,
+and the subprograms it is in, cannot be replaced or deleted.
 """
 
 from __future__ import annotations
 
 import base64
+from collections.abc import Callable, Collection
 from typing import Any
 
 from nckemu.catalogue.program_names import DIRECTORIES, directory_path, program_path
@@ -32,6 +33,8 @@ class Programs:
         self.selected = ""
         # The program a channel is executing (set by the channel): it cannot be replaced or deleted.
         self.running = ""
+        # The subprograms it has called and not returned from (the channel sets the run's), likewise.
+        self.called: Callable[[], Collection[str]] = tuple
         # Program texts by path; a path without a text is an empty program.
         self.texts: dict[str, bytes] = {}
         # The 16-character time stamps transfers carried (``yyMMddHHmmss`` + 4 spaces), by path.
@@ -56,13 +59,18 @@ class Programs:
 
     def write(self, path: str, text: bytes) -> None:
         """Store ``text`` as the program at ``path``, whole (refused while it runs)."""
-        if path == self.running:
-            raise NckPiStateError(f"{path} is running")
+        self._refuse_in_use(path)
         if is_definition_file(path):
             self.definitions.activate(path, bytes(text))  # raises DefinitionRefused
         self.texts[path] = bytes(text)
         self.paths.add(path)
         self.stamps.pop(path, None)
+
+    def _refuse_in_use(self, path: str) -> None:
+        if path == self.running:
+            raise NckPiStateError(f"{path} is running")
+        if path in self.called():
+            raise NckPiStateError(f"{path} is in use by the running program")
 
     def stored_bytes(self) -> int:
         """The bytes the program texts take (what the store's capacity limits)."""
@@ -131,8 +139,9 @@ class Programs:
     def delete(self, path: str) -> None:
         if path not in self.paths:
             raise NckNoSuchFile(f"no file {path}")
-        if path in (self.selected, self.running):
-            raise NckPiStateError(f"{path} is {'running' if path == self.running else 'selected'}")
+        if path == self.selected:
+            raise NckPiStateError(f"{path} is selected")
+        self._refuse_in_use(path)
         self.paths.discard(path)
         self.texts.pop(path, None)
         self.stamps.pop(path, None)

@@ -353,7 +353,8 @@ class ProgramRun:
                         for name, number in self.axes.items()}
         self._numbers = sorted(set(self.axes.values()))
         self.env = NckEnvironment(channel, parts, self)
-        self._events: Iterator[Event] = Interpreter(self.env, path, text).events()
+        self.interpreter = Interpreter(self.env, path, text)
+        self._events: Iterator[Event] = self.interpreter.events()
         self._pending: Event | None = None   # a move held by an override of 0, dispatched again next cycle
         self._motion: _Motion | None = None
         self._paused_at: float | None = None

@@ -228,6 +228,11 @@ class Interpreter:
             return axis in ("A", "B", "C")
 
     # --- running ----------------------------------------------------------------------------------
+    def programs_in_use(self) -> frozenset[str]:
+        """The NC paths of the programs being executed: the main program and each subprogram called
+        and not yet returned from (a control refuses to replace them)."""
+        return frozenset(frame.source.path for frame in self._stack)
+
     def events(self) -> Iterator[Event]:
         """The program's events in execution order (a Block before each executed block)."""
         try:
