@@ -116,7 +116,7 @@ def run_one(machine: str, main: str, stored: list[tuple[str, bytes]], max_time_s
         outcome.update(outcome="alarm", detail=text)
         if match:
             outcome.update(number=int(match.group(1)), feature=match.group(2),
-                           program=match.group(3) or "", line=int(match.group(4) or 0),
+                           alarm_program=match.group(3) or "", line=int(match.group(4) or 0),
                            block=(match.group(5) or "").strip())
     else:
         outcome.update(outcome="timeout", detail=f"still running after {result.t_s:.0f} s simulated")
@@ -166,7 +166,7 @@ def describe(outcome: dict[str, Any]) -> str:
         return f"ran      {outcome['time_s']:.1f} s simulated, {outcome['blocks']} blocks"
     if kind == "alarm":
         if "number" in outcome:
-            where = outcome["program"].rsplit("/", 1)[-1]
+            where = outcome["alarm_program"].rsplit("/", 1)[-1]
             return f"alarm    {outcome['number']} {outcome['feature']} ({where} line {outcome['line']}: {outcome['block'][:60]})"
         return f"alarm    {outcome['detail']}"
     if kind == "crashed":

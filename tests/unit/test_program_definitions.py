@@ -161,3 +161,17 @@ def test_a_move_beyond_the_travel_says_which_setting_moves_the_limit() -> None:
     emulator.nck.programs.write("/_N_MPF_DIR/_N_FAR_MPF", b"G0 X2000\nM30\n")
     result = run_offline(emulator, "/_N_MPF_DIR/_N_FAR_MPF", max_time_s=60.0)
     assert "alarm 10720" in result.alarms[0] and "travel_mm of axis X1 in the machine file" in result.alarms[0]
+
+
+def test_the_nck_io_and_the_plc_nck_data_area_a_grinder_program_reads() -> None:
+    emulator = _emulator()
+    emulator.nck.nck_io.write("$A_DBB", 24, 1)  # as the PLC would set it
+    emulator.nck.nck_io.digital_in[0] = True
+    _run(emulator, "IO", b"WHILE $A_DBB[24]==0\nENDWHILE\n$A_DBW[2]=-5\nR20=$A_DBW[2]\nR21=$A_IN[1]\n"
+                          b"$A_OUT[3]=1\n$A_DBR[8]=0.5\nR22=$A_DBR[8]\nM30\n")
+    store = emulator.nck.store
+    assert store.read_lines(store.spec("R"), 1, 21, 3) == [-5.0, 1.0, 0.5]
+    assert emulator.nck.nck_io.digital_out[2] is True
+    emulator.nck.programs.write("/_N_MPF_DIR/_N_IO2_MPF", b"R1=$A_DBB[5000]\nM30\n")
+    result = run_offline(emulator, "/_N_MPF_DIR/_N_IO2_MPF", max_time_s=60.0)
+    assert "alarm 12550" in result.alarms[0] and "byte offsets" in result.alarms[0]

@@ -32,6 +32,7 @@ from nckemu.emulator.machine.nck.compensation import (  # noqa: F401 (old import
 )
 from nckemu.emulator.machine.nck.drives import Drives
 from nckemu.emulator.machine.nck.frames import Frames
+from nckemu.emulator.machine.nck.nck_io import NckIo
 from nckemu.emulator.machine.nck.programs import Programs
 from nckemu.emulator.machine.nck.sensors import Sensors
 from nckemu.emulator.machine.nck.sources import SOURCES
@@ -85,6 +86,7 @@ class NckModel:
         self.compensation = Compensation(machine, clock, self.store, self.axes)
         self.programs = Programs()
         self.alarm_list = Alarms(clock)
+        self.nck_io = NckIo()  # $A_IN/$A_OUT and the PLC-NCK data area ($A_DBB ...) programs use
         self.programs.definitions.on_checked = self._definition_checked
         spindles = sum(axis.spindle for axis in machine.axes)
         # The channels run programs with the NCK's parts (programs, axes, alarms, tools, frames, store),

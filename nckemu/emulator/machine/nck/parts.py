@@ -17,6 +17,7 @@ from nckemu.emulator.machine.nck.channel import Channel
 from nckemu.emulator.machine.nck.compensation import Compensation
 from nckemu.emulator.machine.nck.drives import Drives
 from nckemu.emulator.machine.nck.frames import Frames
+from nckemu.emulator.machine.nck.nck_io import NckIo
 from nckemu.emulator.machine.nck.programs import Programs
 from nckemu.emulator.machine.nck.sensors import Sensors
 from nckemu.emulator.machine.nck.store import VariableStore
@@ -38,6 +39,7 @@ class NckParts(Protocol):
     tools: Tools
     frames: Frames
     drives: Drives
+    nck_io: NckIo
 
     def actual_position_mm(self, axis: int) -> float: ...
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 from datetime import datetime
 from typing import TYPE_CHECKING
 
+from nckemu.emulator.machine.nck import nck_io
 from nckemu.emulator.machine.nck.geometric_axes import channel_axis_name
 from nckemu.emulator.machine.nck.programs import program_text
 from nckemu.emulator.machine.program.environment import ProgramEnvironment, UndefinedName
@@ -243,7 +244,14 @@ class NckEnvironment(ProgramEnvironment):
             return self._parts.store.active_value(spec.name, unit, line)
         if key in CLOCK_VARIABLES:
             return _clock_value(key, self._parts.clock.now_s())
+        if key in nck_io.READABLE:
+            return self._parts.nck_io.read(key, self._io_index(key, indices))
         raise UndefinedName(name)
+
+    def _io_index(self, key: str, indices: tuple[object, ...]) -> int:
+        if len(indices) != 1 or not isinstance(indices[0], int | float):
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{key}[n]: one number as the index")
+        return int(indices[0])
 
     def set_system_variable(self, name: str, indices: tuple[object, ...], value: object) -> None:
         key = name.upper()
@@ -254,6 +262,9 @@ class NckEnvironment(ProgramEnvironment):
                                                           "for a part program (the machine file sets it)")
             store = self._parts.store
             store.write_lines(spec, unit, line, [store.checked_value(spec, value)])
+            return
+        if key in nck_io.WRITABLE:
+            self._parts.nck_io.write(key, self._io_index(key, indices), float(value))  # type: ignore[arg-type]
             return
         attribute = PART_COUNTERS.get(key)
         if attribute is None:
