@@ -1,6 +1,7 @@
 """A program's frames on the faces: after ``TRANS``, ``AROT Z90`` and ``ASCALE`` a served channel reports the work
 positions through the frame, the same over S7 (workPosition, /Channel/GeometricAxis) and OPC UA, while
-the machine positions are where the axes are; reset deletes the programmable frame."""
+the machine positions are where the axes are; reset deletes the programmable frame; a $P_UIFR write
+is the NCK's stored settable frame."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from nckemu.emulator.machine.nck.channel import CHAN_INTERRUPTED
 from .opcua_tools import NS_URI, connect, two_faces
 
 PROGRAM = "/_N_MPF_DIR/_N_FRAMED_MPF"
-TEXT = b"G500 G0 X10 Y5 Z0\nTRANS X100 Y100\nAROT Z90\nASCALE X2\nG0 X3 Y4\nM0\nM30\n"
+TEXT = b"$P_UIFR[1,X,TR]=12.5\nG500 G0 X10 Y5 Z0\nTRANS X100 Y100\nAROT Z90\nASCALE X2\nG0 X3 Y4\nM0\nM30\n"
 
 
 def test_work_positions_follow_the_programmed_frame_on_every_face() -> None:
@@ -44,9 +45,11 @@ def test_work_positions_follow_the_programmed_frame_on_every_face() -> None:
             work = s7.get("workPosition[u1,1]", "workPosition[u1,2]")
             wcs = s7.get("/Channel/GeometricAxis/actToolBasePos[u1,1]", "/Channel/GeometricAxis/actToolBasePos[u1,2]")
             over_ua = asyncio.run(read_ua())
+            stored = s7.get("linShift[4,C1]")        # settable frame 1 (G54), machine axis 1 (4 axes)
             # X3 Y4 through ASCALE X2 (6, 4), AROT Z90 (-4, 6) and TRANS: the machine; the work system 3, 4
             assert machine == pytest.approx([96.0, 106.0])
             assert work == pytest.approx([3.0, 4.0]) and wcs == pytest.approx([3.0, 4.0])
             assert over_ua == pytest.approx([3.0, 4.0])
+            assert stored == [12.5]                   # the program's $P_UIFR write, stored in the NCK
             emulator.call(channel.reset)
             assert s7.get("workPosition[u1,1]", "workPosition[u1,2]") == pytest.approx([96.0, 106.0])

@@ -46,6 +46,9 @@ class DictEnvironment(ProgramEnvironment):
     def work_offset_mm(self, frame: str, axis: str) -> float:
         return self.offsets.get(frame, {}).get(axis, 0.0)
 
+    def set_work_offset_mm(self, frame: str, axis: str, value_mm: float) -> None:
+        self.offsets.setdefault(frame, {})[axis] = value_mm
+
     def tool_length_mm(self, tool: int | str | None, edge: int | None) -> float:
         return self.tool_lengths.get((tool, edge or 0), 0.0)
 

@@ -126,3 +126,16 @@ def test_moves_without_a_frame_stay_on_the_fast_path() -> None:
     result = run("ROT Z45\nROT\nG0 X1\nG1 Y2 F100\nM30")
     assert [move.target_mm for move in result.moves] == [{"X": 1.0}, {"Y": 2.0}]
     assert all(isinstance(move, Move) for move in result.moves)
+
+
+def test_a_program_writes_settable_frames_through_p_uifr_and_p_iframe() -> None:
+    env = DictEnvironment(offsets={"G54": {"X": 100.0}})
+    text = ("G54\n$P_UIFR[1,X,TR]=200\nG0 X1\nG54 G0 X1\n$P_UIFR[5,Y,TR]=7\nR1=$P_UIFR[5,Y,TR]\n$P_IFRAME[Y,TR]=30\n"
+            "G0 Y1\nM30")
+    result = run(text, env)
+    assert result.alarm is None, result.alarm
+    # $P_UIFR of the active frame counts from its next selection; $P_IFRAME at once
+    assert [move.target_mm for move in result.moves] == [{"X": 101.0}, {"X": 201.0}, {"Y": 31.0}]
+    assert env.r_parameter(1) == 7.0 and env.offsets["G54"] == {"X": 200.0, "Y": 30.0}
+    bad = run("$P_UIFR[1,X,RT]=30\nM30")
+    assert bad.alarm is not None and bad.alarm.number == 12550 and bad.alarm.line == 1

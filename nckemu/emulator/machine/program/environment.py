@@ -28,6 +28,7 @@ class ProgramEnvironment:
         self.r_count = r_parameters
         self._r: dict[int, float] = {}
         self._position_mm: dict[str, float] = {axis: 0.0 for axis in self.axes}
+        self._offsets_mm: dict[str, dict[str, float]] = {}
 
     # R parameters: the same R the NCK serves (nckemu get R1 reads what R1=... wrote)
     def r_parameter(self, index: int) -> float:
@@ -43,7 +44,11 @@ class ProgramEnvironment:
 
     def work_offset_mm(self, frame: str, axis: str) -> float:
         """The settable frame ``frame`` (G54...G57, G505...) of ``axis``; 0 where none is set."""
-        return 0.0
+        return self._offsets_mm.get(frame, {}).get(axis, 0.0)
+
+    def set_work_offset_mm(self, frame: str, axis: str, value_mm: float) -> None:
+        """A program wrote settable frame ``frame`` ($P_UIFR[n,X,TR]=...): the NCK stores it."""
+        self._offsets_mm.setdefault(frame, {})[axis] = float(value_mm)
 
     def axis_is_rotary(self, axis: str) -> bool:
         """Rotary axes take degrees and are not converted by G70/G700 (A, B, C unless told otherwise)."""

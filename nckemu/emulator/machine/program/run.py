@@ -192,6 +192,16 @@ class NckEnvironment(ProgramEnvironment):
             return 0.0
         return frames.shifts_mm[self._channel.number][index].get(number, 0.0)
 
+    def set_work_offset_mm(self, frame: str, axis: str, value_mm: float) -> None:
+        from nckemu.emulator.machine.machine_file import SETTABLE_FRAMES
+
+        number = self._axes.get(axis.upper())
+        index = SETTABLE_FRAMES.get(frame.upper())
+        frames = self._parts.frames
+        if number is None or index is None or index >= frames.count:
+            raise UndefinedName(frame)
+        frames.shifts_mm[self._channel.number][index][number] = float(value_mm)
+
     def select_settable_frame(self, frame: str) -> None:
         from nckemu.emulator.machine.machine_file import SETTABLE_FRAMES
 

@@ -28,6 +28,14 @@ COMPONENTS = frozenset({"TR", "FI", "RT", "SC", "MI"})
 FRAME_VARIABLES = frozenset({"$P_PFRAME", "$P_UIFR", "$P_IFRAME", "$P_ACTFRAME", "$P_BFRAME"})
 
 
+def settable_name(index: Any) -> str:
+    """The G function of settable frame ``index`` ($P_UIFR[index]): 0 G500, 1..4 G54..G57, 5.. G505..."""
+    position = int(index) if isinstance(index, int | float) and not isinstance(index, bool) else -1
+    if not 0 <= position <= 99:
+        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"$P_UIFR[{index}]: no settable frame of that index (0..99)")
+    return "G500" if position == 0 else (f"G{53 + position}" if position <= 4 else f"G{500 + position}")
+
+
 def programmed_frame(current: Frame, word: str, values: list[tuple[str, float]], plane: str) -> Frame:
     """The programmable frame after ``word`` (TRANS, AROT, ...) with its values (axis or RPL, value)."""
     additive = word[0] == "A"

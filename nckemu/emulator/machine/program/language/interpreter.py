@@ -471,14 +471,38 @@ class Interpreter:
         if name == "$P_UIFR":
             if len(indices) != 3:
                 raise ProgramAlarm(ALARM_SYNTAX, "$P_UIFR[frame, axis, component]")
-            index = int(number(indices[0]))
-            frame_name = "G500" if index == 0 else (f"G{53 + index}" if index <= 4 else f"G{500 + index}")
+            frame_name = framing.settable_name(indices[0])
             if str(indices[2]).upper() == "TR":
                 return float(self.env.work_offset_mm(frame_name, self._axis_name(indices[1])))
             return framing.read_component(IDENTITY_FRAME, indices[1:], name)
         frame = {"$P_PFRAME": self.pframe, "$P_IFRAME": Frame(dict(self.settable)),
                  "$P_BFRAME": IDENTITY_FRAME}.get(name) or framing.chain(self.settable, self._programmable())
         return framing.read_component(frame, indices, name)
+
+    def _write_frame_variable(self, name: str, indices: tuple, value: float) -> None:
+        """$P_PFRAME[X,RT]=.. changes the programmable frame; $P_UIFR[n,X,TR]=.. the stored settable
+        frame n (active with its next selection, as on the control); $P_IFRAME[X,TR]=.. the active
+        settable frame at once (and its stored data, which is what the NCK's faces read)."""
+        if name == "$P_PFRAME":
+            self.pframe = framing.with_component(self.pframe, indices, name, value)
+        elif name in ("$P_UIFR", "$P_IFRAME") and len(indices) == (3 if name == "$P_UIFR" else 2):
+            frame_name = framing.settable_name(indices[0]) if name == "$P_UIFR" else self.frame_name
+            axis, kind = self._axis_name(indices[-2]), str(indices[-1]).upper()
+            if kind != "TR":
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}[..,{kind}]: the NCK's settable frames are "
+                                                           "translations; other components are not supported "
+                                                           "by the emulator")
+            try:
+                self.env.set_work_offset_mm(frame_name, axis, value)
+            except UndefinedName:
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}: no settable frame {frame_name}") from None
+            if name == "$P_UIFR":
+                return
+            self.settable = {**self.settable, axis: value}
+        else:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} cannot be written with these indices")
+        self._update_shift()
+        self.env.set_programmable_frame(self._programmable())
 
     def _read_setting(self, name: str, indices: tuple) -> Any:
         if len(indices) != 1:
@@ -496,10 +520,8 @@ class Interpreter:
             if name == "$R" and len(evaluated) == 1:
                 self.env.set_r_parameter(self._r_index(evaluated[0]), float(number(value)))
                 return
-            if name == "$P_PFRAME":
-                self.pframe = framing.with_component(self.pframe, evaluated, name, float(number(value)))
-                self._update_shift()
-                self.env.set_programmable_frame(self._programmable())
+            if name in framing.FRAME_VARIABLES:
+                self._write_frame_variable(name, evaluated, float(number(value)))
                 return
             try:
                 self.env.set_system_variable(name, evaluated, value)
