@@ -17,6 +17,7 @@ from nckemu.emulator.machine.program.language.gfunctions import (
     STRAIGHT_G,
     markdown_table,
 )
+from nckemu.emulator.machine.program.language.modal import ModalState
 from nckemu.emulator.machine.program.motions import (
     ALARM_JUMP_TARGET,
     ALARM_NAME_NOT_DEFINED,
@@ -24,7 +25,7 @@ from nckemu.emulator.machine.program.motions import (
     Message,
 )
 
-from .program_language_support import run
+from .program_language_support import DictEnvironment, run
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "programs-language.md"
 
@@ -138,3 +139,20 @@ def test_a_main_program_may_start_with_proc() -> None:
     result = run("PROC MAIN(REAL _A, _B)\nM30")
     assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_SYNTAX, 1)
     assert result.blocks[0].text.startswith("PROC MAIN")
+
+
+# --- the modal state as one record ------------------------------------------------------------------
+def test_save_puts_the_callers_modal_record_back_and_a_copy_is_independent() -> None:
+    env = DictEnvironment(programs={"SUB.SPF": "PROC SUB SAVE\nG91 G70 G64 TRANS X100\nG1 X1 F10\nRET",
+                                    "NOSAVE.SPF": "PROC NOSAVE\nG91\nRET"})
+    result = run("G0 X1\nSUB\nX2\nNOSAVE\nX2\nM30", env)
+    assert result.alarm is None
+    targets = [move.target_mm["X"] for move in result.moves]
+    assert targets == [1.0, 1.0 + 25.4 + 2540.0, 2.0, 4.0]   # back: G90, mm, no TRANS; G91 stays after NOSAVE
+    assert [move.feed for move in result.moves][2] is None and result.moves[1].exact_stop is False
+    assert result.moves[2].exact_stop is True
+    state = ModalState(settable={"X": 1.0}, shift={"X": 1.0})
+    copied = state.copy()
+    copied.settable["X"] = 5.0
+    copied.motion = 2
+    assert state.settable == {"X": 1.0} and state.motion == 0

@@ -53,7 +53,7 @@ class CycleRunner:
             tolerance = float(values[0]) if values and isinstance(values[0], int | float) else 0.0
             self.tolerance_mm = tolerance
             if tolerance > 0:  # the cycle switches on continuous-path mode G642 with that tolerance
-                self.interpreter.exact_stop = False
+                self.interpreter.modal.exact_stop = False
             return [CycleCall(name, note=f"CYCLE832 tolerance {tolerance:g} mm")]
         if name in cycles.MOTIONLESS:
             return [CycleCall(name)]
@@ -89,8 +89,8 @@ class CycleRunner:
 
     def _context(self) -> cycles.Context:
         it = self.interpreter
-        first, second, infeed = _PLANES[it.plane]
-        unit = 25.4 if it.inch_geometry else 1.0
+        first, second, infeed = _PLANES[it.modal.plane]
+        unit = 25.4 if it.modal.inch_geometry else 1.0
         position = {axis: value / unit for axis, value in it.work_pos.items()}
         spindle = next((s for s in (1,) if s in it.spindle_speed), None)
         return cycles.Context(first, second, infeed, position, it.feed_mm,
@@ -101,12 +101,12 @@ class CycleRunner:
     def _run(self, steps: list[cycles.Step]) -> list[Event]:
         it = self.interpreter
         events: list[Event] = []
-        saved = (it.motion, it.feed_mm)
+        saved = (it.modal.motion, it.feed_mm)
         try:
             for step in steps:
                 kind = step.__class__
                 if kind is cycles.Rapid or kind is cycles.Feed:
-                    it.motion = 0 if kind is cycles.Rapid else 1
+                    it.modal.motion = 0 if kind is cycles.Rapid else 1
                     if kind is cycles.Feed:
                         it.feed_mm = step.feed_mm_min or saved[1]  # type: ignore[union-attr]
                     words = [(axis, float(value), "AC") for axis, value in step.target.items()  # type: ignore[union-attr]
@@ -120,12 +120,12 @@ class CycleRunner:
                 else:
                     events.append(MFunction(0))
         finally:
-            it.motion, it.feed_mm = saved
+            it.modal.motion, it.feed_mm = saved
         return events
 
     def _pattern(self, name: str, values: list[float | None]) -> list[Event]:
         it = self.interpreter
-        first, second, _ = _PLANES[it.plane]
+        first, second, _ = _PLANES[it.modal.plane]
         modal = it._modal_call
         cycle = None
         if modal is not None:

@@ -53,9 +53,10 @@ from .blocks import BlockCompiler, Compiled
 from .cycle_runner import CycleRunner, is_standard_cycle
 from .definitions import expand_macros
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
-from .feedrules import DIAMETER_WORDS, THREAD_MOTIONS, TRANSVERSE_AXIS, FeedRules
+from .feedrules import DIAMETER_WORDS, THREAD_MOTIONS, TRANSVERSE_AXIS
 from .gfunctions import BY_NUMBER, GROUP_TITLES, NOT_SUPPORTED
 from .lexer import strip_comment, tokenize
+from .modal import ModalState
 from .source import ProgramSource, decode_program, normalized
 from .variables import Variable
 
@@ -91,7 +92,7 @@ class _Frame:
         self.vars: dict[str, Variable] = {}
         self.for_state: dict[int, tuple[Any, Any]] = {}
         self.back_refs: list[tuple[Any, str]] = []
-        self.saved_modal: dict[str, Any] | None = None
+        self.saved_modal: ModalState | None = None   # PROC ... SAVE: the caller's, put back on return
         self.repeat_left = 0
         self.call_args: tuple[Any, ...] = ()
         # program section repetitions under way (REPEAT LABEL P=n), innermost last
@@ -138,26 +139,16 @@ class Interpreter:
     # --- modal state ------------------------------------------------------------------------------
     def _reset_modal(self) -> None:
         env = self.env
-        self.motion = 1 if env.reset_motion == 1 else 0
-        self.plane = env.reset_plane if env.reset_plane in _PLANES else "G17"
-        self.absolute = True
-        self.inch_geometry = bool(env.reset_inch)
-        self.inch_feed = False
-        self.feed_mode = "G94"
-        self.feed_rules = FeedRules()     # FGROUP, G96, DIAMON, thread pitch (feedrules.py)
-        self.exact_stop = True
+        self.modal = ModalState(motion=1 if env.reset_motion == 1 else 0,
+                                plane=env.reset_plane if env.reset_plane in _PLANES else "G17",
+                                inch_geometry=bool(env.reset_inch))
         self.feed_mm = 0.0
         self.spindle_speed: dict[int, float] = {}
-        self.frame_name = "G500"
-        self.settable: dict[str, float] = {}
-        self.pframe: Frame = IDENTITY_FRAME   # the programmable frame (TRANS, ROT, SCALE, MIRROR)
-        self.chain: Frame | None = None       # settable + programmable frame when more than a translation
         self.swivel: Frame = IDENTITY_FRAME   # CYCLE800's frame, under the programmable frame
         self.tool: int | str | None = None
         self.edge: int | None = None
         self.preselected: int | str | None = None
         self.tool_length_mm = 0.0
-        self.shift: dict[str, float] = {}
         self.work_pos: dict[str, float] = {}
         for axis in self._axes:
             try:
@@ -166,21 +157,8 @@ class Interpreter:
                 self.work_pos[axis] = 0.0
         self._load_settable("G500")
 
-    _MODAL_FIELDS = ("motion", "plane", "absolute", "inch_geometry", "inch_feed", "feed_mode", "feed_rules",
-                     "exact_stop",
-                     "frame_name", "settable", "pframe", "chain", "shift")
-
-    def _snapshot_modal(self) -> dict[str, Any]:
-        return {name: (dict(value) if isinstance(value, dict) else value)
-                for name in self._MODAL_FIELDS for value in (getattr(self, name),)}
-
-    def _restore_modal(self, saved: dict[str, Any]) -> None:
-        for name, value in saved.items():
-            setattr(self, name, value)
-        self.env.set_programmable_frame(self._programmable())
-
     def _load_settable(self, name: str) -> None:
-        self.frame_name = name
+        self.modal.frame_name = name
         settable: dict[str, float] = {}
         for axis in self._axes:
             try:
@@ -189,12 +167,12 @@ class Interpreter:
                 offset = 0.0
             if offset:
                 settable[axis] = offset
-        self.settable = settable
+        self.modal.settable = settable
         self._update_shift()
 
     def _programmable(self) -> Frame:
         """The frames a program has put on the settable frame: CYCLE800's swivel, then TRANS/ROT/..."""
-        return self.pframe if self.swivel is IDENTITY_FRAME else self.swivel.after(self.pframe)
+        return self.modal.pframe if self.swivel is IDENTITY_FRAME else self.swivel.after(self.modal.pframe)
 
     def set_swivel_frame(self, frame: Frame) -> None:
         """CYCLE800 sets (identity: deselects) the swivel frame."""
@@ -203,13 +181,13 @@ class Interpreter:
         self.env.set_programmable_frame(self._programmable())
 
     def _update_shift(self) -> None:
-        chain = framing.chain(self.settable, self._programmable())
-        self.chain = None if chain.is_translation else chain
+        chain = framing.chain(self.modal.settable, self._programmable())
+        self.modal.chain = None if chain.is_translation else chain
         shift = dict(chain.translation)
         if self.tool_length_mm:
-            infeed = _PLANES[self.plane][2]
+            infeed = _PLANES[self.modal.plane][2]
             shift[infeed] = shift.get(infeed, 0.0) + self.tool_length_mm
-        self.shift = shift
+        self.modal.shift = shift
 
     def _update_tool_length(self) -> None:
         length = 0.0
@@ -434,14 +412,14 @@ class Interpreter:
             machine = float(self.env.machine_position_mm(axis))
             if name != "$AA_IW":
                 return machine
-            if self.chain is None:
-                return machine - self.shift.get(axis, 0.0)
+            if self.modal.chain is None:
+                return machine - self.modal.shift.get(axis, 0.0)
             return self._work_position(axis)
         if name in framing.FRAME_VARIABLES:
             return self._frame_variable(name, indices)
         if not indices:
             if name in ("$P_AXN1", "$P_AXN2", "$P_AXN3"):  # the plane's abscissa, ordinate, applicate
-                return _PLANES[self.plane][int(name[-1]) - 1]
+                return _PLANES[self.modal.plane][int(name[-1]) - 1]
             if name == "$P_F":
                 return self.feed_mm
             if name == "$P_TOOLNO":
@@ -454,8 +432,8 @@ class Interpreter:
 
     def _work_position(self, axis: str) -> float:
         """Where ``axis`` is now in the work system, back through the frame chain (and the tool)."""
-        chain = self.chain or Frame(self.shift)
-        infeed = _PLANES[self.plane][2]
+        chain = self.modal.chain or Frame(self.modal.shift)
+        infeed = _PLANES[self.modal.plane][2]
         point = {}
         for name in self._axes:
             try:
@@ -475,8 +453,8 @@ class Interpreter:
             if str(indices[2]).upper() == "TR":
                 return float(self.env.work_offset_mm(frame_name, self._axis_name(indices[1])))
             return framing.read_component(IDENTITY_FRAME, indices[1:], name)
-        frame = {"$P_PFRAME": self.pframe, "$P_IFRAME": Frame(dict(self.settable)),
-                 "$P_BFRAME": IDENTITY_FRAME}.get(name) or framing.chain(self.settable, self._programmable())
+        frame = {"$P_PFRAME": self.modal.pframe, "$P_IFRAME": Frame(dict(self.modal.settable)),
+                 "$P_BFRAME": IDENTITY_FRAME}.get(name) or framing.chain(self.modal.settable, self._programmable())
         return framing.read_component(frame, indices, name)
 
     def _write_frame_variable(self, name: str, indices: tuple, value: float) -> None:
@@ -484,9 +462,9 @@ class Interpreter:
         frame n (active with its next selection, as on the control); $P_IFRAME[X,TR]=.. the active
         settable frame at once (and its stored data, which is what the NCK's faces read)."""
         if name == "$P_PFRAME":
-            self.pframe = framing.with_component(self.pframe, indices, name, value)
+            self.modal.pframe = framing.with_component(self.modal.pframe, indices, name, value)
         elif name in ("$P_UIFR", "$P_IFRAME") and len(indices) == (3 if name == "$P_UIFR" else 2):
-            frame_name = framing.settable_name(indices[0]) if name == "$P_UIFR" else self.frame_name
+            frame_name = framing.settable_name(indices[0]) if name == "$P_UIFR" else self.modal.frame_name
             axis, kind = self._axis_name(indices[-2]), str(indices[-1]).upper()
             if kind != "TR":
                 raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}[..,{kind}]: the NCK's settable frames are "
@@ -498,7 +476,7 @@ class Interpreter:
                 raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}: no settable frame {frame_name}") from None
             if name == "$P_UIFR":
                 return
-            self.settable = {**self.settable, axis: value}
+            self.modal.settable = {**self.modal.settable, axis: value}
         else:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} cannot be written with these indices")
         self._update_shift()
@@ -581,30 +559,30 @@ class Interpreter:
         g_codes, axis_words, feed = compiled.items
         for code in g_codes:
             if code <= 1:
-                self.motion = code
+                self.modal.motion = code
             else:
                 self._g(code, {})
         if feed is not None:
-            self.feed_mm = feed * INCH_MM if (self.inch_feed and self.feed_mode != "G93") else feed
+            self.feed_mm = feed * INCH_MM if (self.modal.inch_feed and self.modal.feed_mode != "G93") else feed
         if not axis_words:
             return None
-        motion = self.motion
-        if self.inch_geometry or not self.absolute or motion > 1 or self.chain is not None \
-                or not self.feed_rules.plain:
+        motion = self.modal.motion
+        if self.modal.inch_geometry or not self.modal.absolute or motion > 1 or self.modal.chain is not None \
+                or not self.modal.feed_rules.plain:
             events: list[Event] = [self._motion([(axis, value, None) for axis, value in axis_words], {}, {})]
         else:
-            shift = self.shift
+            shift = self.modal.shift
             work_pos = self.work_pos
             targets = {}
             for axis, value in axis_words:
                 work_pos[axis] = value
                 targets[axis] = value + shift[axis] if axis in shift else value
             if motion == 0:
-                events = [Move(targets, None, self.feed_mode, self.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
+                events = [Move(targets, None, self.modal.feed_mode, self.modal.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
             else:
                 if self.feed_mm <= 0:
                     raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-                events = [Move(targets, self.feed_mm, self.feed_mode, self.exact_stop,  # type: ignore[arg-type]
+                events = [Move(targets, self.feed_mm, self.modal.feed_mode, self.modal.exact_stop,  # type: ignore[arg-type]
                                dict(axis_words))]
         if self._modal_call is not None:
             events += self._call(self._modal_call[0], self._modal_call[1], None, frame) or ()
@@ -798,7 +776,7 @@ class Interpreter:
             frame.vars[param] = variable
             if by_reference and index < len(refs) and refs[index] is not None:
                 frame.back_refs.append((refs[index], param))
-        frame.saved_modal = self._snapshot_modal() if save else None
+        frame.saved_modal = self.modal.copy() if save else None
         frame.repeat_left = repeat_left
         frame.call_args = (values, refs)
         self._stack.append(frame)
@@ -842,7 +820,8 @@ class Interpreter:
         for ref, param in frame.back_refs:
             self._assign(ref, frame.vars[param].get(()))
         if frame.saved_modal is not None:
-            self._restore_modal(frame.saved_modal)
+            self.modal = frame.saved_modal
+            self.env.set_programmable_frame(self._programmable())
         if frame.repeat_left > 0 and frame.source.has_blocks:  # repeating an empty one would never yield
             values, refs = frame.call_args
             self._enter(frame.source, values, refs, frame.repeat_left - 1)
@@ -850,33 +829,33 @@ class Interpreter:
     # --- the words of a block ---------------------------------------------------------------------
     def _g(self, code: int, flags: dict) -> None:
         if code <= 3 or code in THREAD_MOTIONS:
-            self.motion = code
+            self.modal.motion = code
         elif code == 4:
             flags["dwell"] = True
         elif code == 9:
             flags["g9"] = True
         elif code in (90, 91):
-            self.absolute = code == 90
+            self.modal.absolute = code == 90
         elif code in (17, 18, 19):
-            self.plane = f"G{code}"
+            self.modal.plane = f"G{code}"
             if self.tool_length_mm:
                 self._update_shift()
         elif code in (94, 95, 93):
-            self.feed_mode = f"G{code}"
-            self.feed_rules = self.feed_rules.g(code)
+            self.modal.feed_mode = f"G{code}"
+            self.modal.feed_rules = self.modal.feed_rules.g(code)
         elif code in (96, 97):  # constant cutting speed on/off: both feed per revolution (group 15)
-            self.feed_mode = "G95"
-            self.feed_rules = self.feed_rules.g(code)
+            self.modal.feed_mode = "G95"
+            self.modal.feed_rules = self.modal.feed_rules.g(code)
             flags["css"] = code == 96
         elif code in (70, 71):
-            self.inch_geometry = code == 70
-            self.inch_feed = False
+            self.modal.inch_geometry = code == 70
+            self.modal.inch_feed = False
         elif code in (700, 710):
-            self.inch_geometry = self.inch_feed = code == 700
+            self.modal.inch_geometry = self.modal.inch_feed = code == 700
         elif code == 60:
-            self.exact_stop = True
+            self.modal.exact_stop = True
         elif code == 64 or 641 <= code <= 645:
-            self.exact_stop = False
+            self.modal.exact_stop = False
         elif code in (53, 153):
             flags["supa"] = True
         elif code == 500 or 54 <= code <= 57 or 505 <= code <= 599:
@@ -967,7 +946,7 @@ class Interpreter:
                 self._setal(evaluate(item[1], self))
             elif code == b.I_NOOP:
                 if item[1] in DIAMETER_WORDS or item[1] == "FGROUP":
-                    self.feed_rules = self.feed_rules.word(item[1], item[2], self._fgroup_axes)
+                    self.modal.feed_rules = self.modal.feed_rules.word(item[1], item[2], self._fgroup_axes)
                 elif item[1] != "N":
                     self._log_once(item[1], f"{item[1]} accepted, not modelled")
         events: list[Event] = []
@@ -977,7 +956,7 @@ class Interpreter:
         self._spindle_words(address, m_codes, spos, flags, events)
         if "F" in address and not flags.get("dwell"):
             feed = float(number(address["F"]))
-            self.feed_mm = feed * INCH_MM if (self.inch_feed and self.feed_mode != "G93") else feed
+            self.feed_mm = feed * INCH_MM if (self.modal.inch_feed and self.modal.feed_mode != "G93") else feed
         for extension, m_code in m_codes:
             if m_code not in (3, 4, 5) and m_code not in _END_CODES:
                 events.append(MFunction(m_code, extension))
@@ -1065,12 +1044,12 @@ class Interpreter:
                     speed = float(number(value))
                     speeds[int(key[1:])] = speed
                     self.spindle_speed[int(key[1:])] = speed
-        rules = self.feed_rules
+        rules = self.modal.feed_rules
         if "LIMS" in address or rules.constant_speed:
-            self.feed_rules = rules.spindle_words(speeds.get(1), address.get("LIMS"))
+            self.modal.feed_rules = rules.spindle_words(speeds.get(1), address.get("LIMS"))
         # under G96 S is the cutting speed: the master spindle's speed follows X (from the block's G96 on)
-        css = self.feed_rules.css(self.shift.get(TRANSVERSE_AXIS, 0.0))
-        if css is not None and (flags.get("css") or self.feed_rules != rules):
+        css = self.modal.feed_rules.css(self.modal.shift.get(TRANSVERSE_AXIS, 0.0))
+        if css is not None and (flags.get("css") or self.modal.feed_rules != rules):
             directions.setdefault(1, None)  # type: ignore[arg-type]
         for spindle in sorted(set(directions) | set(speeds)):
             if spindle == 1 and css is not None:
@@ -1083,10 +1062,10 @@ class Interpreter:
         values: list[tuple[str, float]] = []
         for axis, raw in pairs:
             value = float(number(evaluate(raw, self)))
-            if word.endswith("TRANS") and not self._is_rotary(axis) and self.inch_geometry:
+            if word.endswith("TRANS") and not self._is_rotary(axis) and self.modal.inch_geometry:
                 value *= INCH_MM
             values.append((axis, value))
-        self.pframe = framing.programmed_frame(self.pframe, word, values, self.plane)
+        self.modal.pframe = framing.programmed_frame(self.modal.pframe, word, values, self.modal.plane)
         self._update_shift()
         self.env.set_programmable_frame(self._programmable())
 
@@ -1094,59 +1073,59 @@ class Interpreter:
         """A move or circle through a frame that rotates, scales or mirrors: the end point (and centre)
         worked out in the work system, then taken through the frame chain and the tool length."""
         work_pos = self.work_pos
-        unit_mm = INCH_MM if self.inch_geometry else 1.0
+        unit_mm = INCH_MM if self.modal.inch_geometry else 1.0
         start = dict(work_pos)
         programmed: dict[str, float] = {}
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
             unit = unit_mm if not self._is_rotary(axis) else 1.0
-            incremental = mode == "IC" or (mode is None and not self.absolute)
+            incremental = mode == "IC" or (mode is None and not self.modal.absolute)
             work = (work_pos[axis] + value * unit) if incremental else value * unit
             programmed[axis] = work / unit
             work_pos[axis] = work
         moving = chain.coupled(set(programmed)) & set(work_pos)
         work_targets = {axis: work_pos[axis] for axis in moving}
-        tool = {_PLANES[self.plane][2]: self.tool_length_mm} if self.tool_length_mm else {}
-        exact_stop = self.exact_stop or bool(flags.get("g9"))
-        if self.motion > 1:
+        tool = {_PLANES[self.modal.plane][2]: self.tool_length_mm} if self.tool_length_mm else {}
+        exact_stop = self.modal.exact_stop or bool(flags.get("g9"))
+        if self.modal.motion > 1:
             if self.feed_mm <= 0:
                 raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-            saved_shift, self.shift = self.shift, {}
+            saved_shift, self.modal.shift = self.modal.shift, {}
             try:
-                first, second, _ = _PLANES[self.plane]
+                first, second, _ = _PLANES[self.modal.plane]
                 # a circle starts where the tool is: that point in the work system of this frame
                 plane_start = {axis: self._work_position(axis) for axis in (first, second) if axis in start}
                 arc = self._arc(work_targets, programmed, plane_start, address, {}, exact_stop)
             finally:
-                self.shift = saved_shift
+                self.modal.shift = saved_shift
             return self._with_feed_rules(framing.framed_arc(arc, chain, tool))
         targets = chain.apply(work_targets)
         for axis, length in tool.items():
             if axis in targets:
                 targets[axis] += length
-        if self.motion == 0:
-            return Move(targets, None, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
-        if self.motion in THREAD_MOTIONS:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"G{self.motion} in a rotated, scaled or mirrored frame "
+        if self.modal.motion == 0:
+            return Move(targets, None, self.modal.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
+        if self.modal.motion in THREAD_MOTIONS:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"G{self.modal.motion} in a rotated, scaled or mirrored frame "
                                                        "is not supported by the emulator")
         if self.feed_mm <= 0:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-        return self._with_feed_rules(Move(targets, self.feed_mm, self.feed_mode, exact_stop,  # type: ignore[arg-type]
+        return self._with_feed_rules(Move(targets, self.feed_mm, self.modal.feed_mode, exact_stop,  # type: ignore[arg-type]
                                           programmed))
 
     def _motion(self, axis_words: list, address: dict, flags: dict) -> Event:
         suppress = bool(flags.get("supa"))
-        if self.chain is not None and not suppress:
-            return self._framed_motion(axis_words, address, flags, self.chain)
-        shift = self.shift
+        if self.modal.chain is not None and not suppress:
+            return self._framed_motion(axis_words, address, flags, self.modal.chain)
+        shift = self.modal.shift
         work_pos = self.work_pos
-        inch = self.inch_geometry
-        absolute = self.absolute
+        inch = self.modal.inch_geometry
+        absolute = self.modal.absolute
         targets: dict[str, float] = {}
         programmed: dict[str, float] = {}
-        start_machine = {axis: work_pos[axis] + shift.get(axis, 0.0) for axis in _PLANES[self.plane][:2]
+        start_machine = {axis: work_pos[axis] + shift.get(axis, 0.0) for axis in _PLANES[self.modal.plane][:2]
                          if axis in work_pos}
-        rules = self.feed_rules
+        rules = self.modal.feed_rules
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
             unit = INCH_MM if inch and not self._is_rotary(axis) else 1.0
@@ -1163,37 +1142,37 @@ class Interpreter:
                 programmed[axis] = rules.programmed_of(axis, work / unit)
             work_pos[axis] = work
             targets[axis] = machine
-        exact_stop = self.exact_stop or bool(flags.get("g9"))
-        motion = self.motion
+        exact_stop = self.modal.exact_stop or bool(flags.get("g9"))
+        motion = self.modal.motion
         if motion == 0:
-            return Move(targets, None, self.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
+            return Move(targets, None, self.modal.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
         if motion in THREAD_MOTIONS:
             return self._thread(targets, programmed, address, exact_stop)
         if self.feed_mm <= 0:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
         if motion == 1:
-            return self._with_feed_rules(Move(targets, self.feed_mm, self.feed_mode, exact_stop,  # type: ignore[arg-type]
+            return self._with_feed_rules(Move(targets, self.feed_mm, self.modal.feed_mode, exact_stop,  # type: ignore[arg-type]
                                               programmed))
         return self._with_feed_rules(self._arc(targets, programmed, start_machine, address, flags, exact_stop))
 
     def _with_feed_rules(self, motion: Move | Arc) -> Move | Arc:
         """The feed group and G96 on a motion at feed (nothing to add in the common case)."""
-        rules = self.feed_rules
+        rules = self.modal.feed_rules
         if rules.fgroup is None and not rules.constant_speed:
             return motion
         return replace(motion, fgroup=rules.fgroup,
-                       css=rules.css(self.shift.get(TRANSVERSE_AXIS, 0.0)) if motion.feed_mode == "G95" else None)
+                       css=rules.css(self.modal.shift.get(TRANSVERSE_AXIS, 0.0)) if motion.feed_mode == "G95" else None)
 
     def _thread(self, targets: dict, programmed: dict, address: dict, exact_stop: bool) -> Move:
         """G33: feed per revolution at the pitch; G331/G332 (tapping): the pitch at the programmed S.
         The feed override does not act on either (Move.thread)."""
-        self.feed_rules = self.feed_rules.with_pitch(address, INCH_MM if self.inch_geometry else 1.0)
-        pitch = self.feed_rules.pitch_mm
-        if self.motion == 33:
+        self.modal.feed_rules = self.modal.feed_rules.with_pitch(address, INCH_MM if self.modal.inch_geometry else 1.0)
+        pitch = self.modal.feed_rules.pitch_mm
+        if self.modal.motion == 33:
             return Move(targets, pitch, "G95", exact_stop, programmed, thread=True)
         speed = abs(self.spindle_speed.get(1, 0.0))
         if speed <= 0.0:
-            raise ProgramAlarm(ALARM_FEED_ZERO, f"G{self.motion}: tapping without a spindle speed (S)")
+            raise ProgramAlarm(ALARM_FEED_ZERO, f"G{self.modal.motion}: tapping without a spindle speed (S)")
         return Move(targets, pitch * speed, "G94", exact_stop, programmed, thread=True)
 
     def _fgroup_axes(self, args: list) -> list[str]:
@@ -1210,13 +1189,13 @@ class Interpreter:
              exact_stop: bool) -> Arc:
         if "AR" in address or "AP" in address or "RP" in address:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "AR/AP/RP circles are not supported by the emulator")
-        first, second, _ = _PLANES[self.plane]
+        first, second, _ = _PLANES[self.modal.plane]
         if first not in start or second not in start:
-            raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"{self.plane}: the plane's axes are not in this channel")
-        unit = INCH_MM if self.inch_geometry else 1.0
+            raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"{self.modal.plane}: the plane's axes are not in this channel")
+        unit = INCH_MM if self.modal.inch_geometry else 1.0
         start_first, start_second = start[first], start[second]
         end_first, end_second = targets.get(first, start_first), targets.get(second, start_second)
-        clockwise = self.motion == 2
+        clockwise = self.modal.motion == 2
         if "CR" in address:
             radius = float(number(address["CR"])) * unit
             centre = _centre_from_radius(start_first, start_second, end_first, end_second, radius, clockwise)
@@ -1235,8 +1214,8 @@ class Interpreter:
                 raise ProgramAlarm(ALARM_CIRCLE_END_POINT,
                                    f"error in end point of circle (radii {radius_start:.4f} and {radius_end:.4f} mm)")
         turns = int(number(address["TURN"])) if "TURN" in address else 0
-        return Arc(targets, {first: centre[0], second: centre[1]}, clockwise, self.plane,  # type: ignore[arg-type]
-                   self.feed_mm, self.feed_mode, turns, exact_stop, programmed)  # type: ignore[arg-type]
+        return Arc(targets, {first: centre[0], second: centre[1]}, clockwise, self.modal.plane,  # type: ignore[arg-type]
+                   self.feed_mm, self.modal.feed_mode, turns, exact_stop, programmed)  # type: ignore[arg-type]
 
     def _centre(self, word: tuple | None, axis: str, start: float, unit: float, supa: bool) -> float:
         """One centre coordinate (machine mm) from I/J/K: incremental from the start, or =AC(...)."""
@@ -1245,7 +1224,7 @@ class Interpreter:
         value, mode = word
         offset = (value if value.__class__ is float else float(number(value))) * unit
         if mode == "AC":
-            return offset + (0.0 if supa else self.shift.get(axis, 0.0))
+            return offset + (0.0 if supa else self.modal.shift.get(axis, 0.0))
         return start + offset
 
 
