@@ -78,7 +78,8 @@ def test_named_functions_we_do_not_run_are_not_supported(word: str) -> None:
 @pytest.mark.parametrize("number", sorted(n for n, entry in BY_NUMBER.items() if entry.emulation is not NOT_SUPPORTED))
 def test_every_g_function_we_run_or_accept_is_known(number: int) -> None:
     result = run(f"G{number}\nM30")
-    assert result.alarm is None or result.alarm.number not in (ALARM_UNKNOWN_G, ALARM_NAME_NOT_DEFINED), result.alarm
+    assert result.alarm is None or (result.alarm.number not in (ALARM_UNKNOWN_G, ALARM_NAME_NOT_DEFINED)
+                                    and "cannot interpret" not in str(result.alarm)), result.alarm
 
 
 def test_the_table_gives_the_fast_path_and_the_docs_list() -> None:

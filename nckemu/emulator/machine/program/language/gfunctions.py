@@ -76,9 +76,10 @@ _GROUPS: tuple[tuple[int, bool, str, str | None, dict[str, Emulation], frozenset
         "REPOSQ": NOT_SUPPORTED, "REPOSH": NOT_SUPPORTED, "REPOSA": NOT_SUPPORTED, "REPOSQA": NOT_SUPPORTED,
         "REPOSHA": NOT_SUPPORTED, "G147": NO_EFFECT, "G247": NO_EFFECT, "G347": NO_EFFECT, "G148": NO_EFFECT,
         "G248": NO_EFFECT, "G348": NO_EFFECT, "G5": NOT_SUPPORTED, "G7": NOT_SUPPORTED}, frozenset()),
+    # G25/G26 S..: the block's S is a spindle speed limit, not a speed (the limit is not applied)
     (3, False, "programmable frame, working area limit, pole", None, {
         "TRANS": RUN, "ATRANS": RUN, "ROT": RUN, "AROT": RUN, "SCALE": RUN, "ASCALE": RUN, "MIRROR": RUN,
-        "AMIRROR": RUN, "G25": NO_EFFECT, "G26": NO_EFFECT, "G110": NOT_SUPPORTED, "G111": NOT_SUPPORTED,
+        "AMIRROR": RUN, "G25": RUN, "G26": RUN, "G110": NOT_SUPPORTED, "G111": NOT_SUPPORTED,
         "G112": NOT_SUPPORTED, "G58": NOT_SUPPORTED, "G59": NOT_SUPPORTED, "ROTS": NOT_SUPPORTED,
         "AROTS": NOT_SUPPORTED}, frozenset()),
     (4, True, "FIFO", "STARTFIFO", {"STARTFIFO": NO_EFFECT, "STOPFIFO": NO_EFFECT, "FIFOCTRL": NO_EFFECT},

@@ -54,7 +54,7 @@ from .cycle_runner import CycleRunner, is_standard_cycle
 from .definitions import expand_macros
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
 from .feedrules import DIAMETER_WORDS, THREAD_MOTIONS, TRANSVERSE_AXIS
-from .gfunctions import BY_NUMBER, GROUP_TITLES, NOT_SUPPORTED
+from .gfunctions import BY_NUMBER, GROUP_TITLES, NOT_SUPPORTED, RUN
 from .lexer import strip_comment, tokenize
 from .modal import ModalState
 from .source import ProgramSource, decode_program, normalized
@@ -828,53 +828,51 @@ class Interpreter:
 
     # --- the words of a block ---------------------------------------------------------------------
     def _g(self, code: int, flags: dict) -> None:
-        if code <= 3 or code in THREAD_MOTIONS:
-            self.modal.motion = code
-        elif code == 4:
-            flags["dwell"] = True
-        elif code == 9:
-            flags["g9"] = True
-        elif code in (90, 91):
-            self.modal.absolute = code == 90
-        elif code in (17, 18, 19):
-            self.modal.plane = f"G{code}"
-            if self.tool_length_mm:
-                self._update_shift()
-        elif code in (94, 95, 93):
-            self.modal.feed_mode = f"G{code}"
-            self.modal.feed_rules = self.modal.feed_rules.g(code)
-        elif code in (96, 97):  # constant cutting speed on/off: both feed per revolution (group 15)
-            self.modal.feed_mode = "G95"
-            self.modal.feed_rules = self.modal.feed_rules.g(code)
-            flags["css"] = code == 96
-        elif code in (70, 71):
-            self.modal.inch_geometry = code == 70
-            self.modal.inch_feed = False
-        elif code in (700, 710):
-            self.modal.inch_geometry = self.modal.inch_feed = code == 700
-        elif code == 60:
-            self.modal.exact_stop = True
-        elif code == 64 or 641 <= code <= 645:
-            self.modal.exact_stop = False
-        elif code in (53, 153):
-            flags["supa"] = True
-        elif code == 500 or 54 <= code <= 57 or 505 <= code <= 599:
-            self._load_settable(f"G{code}")
-            self.env.select_settable_frame(f"G{code}")
-        elif code in (25, 26):
-            flags["limit"] = True
-        else:
-            self._g_not_run(code)
-
-    def _g_not_run(self, code: int) -> None:
-        """A G function the interpreter does not act on: as the table (gfunctions.py) says it is."""
+        """A G function as its entry in the table (gfunctions.py) says: run by its group's handler,
+        accepted without effect, refused as not supported (12550), or unknown (12470)."""
         entry = BY_NUMBER.get(code)
         if entry is None:
             raise ProgramAlarm(ALARM_UNKNOWN_G, f"G function G{code} unknown (no SINUMERIK G function)")
-        if entry.emulation is NOT_SUPPORTED:
+        if entry.emulation is RUN:
+            _G_GROUP_HANDLERS[entry.group](self, code, flags)
+        elif entry.emulation is NOT_SUPPORTED:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"G{code} (G group {entry.group}, "
                                f"{GROUP_TITLES[entry.group]}) is not supported by the emulator")
-        self._log_once(f"G{code}", f"G{code} accepted, not modelled")
+        else:
+            self._log_once(f"G{code}", f"G{code} accepted, not modelled")
+
+    # one handler per G group the interpreter runs (the groups of the table's RUN entries)
+    def _g_motion(self, code: int, flags: dict) -> None:           # group 1
+        self.modal.motion = code
+
+    def _g_non_modal(self, code: int, flags: dict) -> None:        # group 2 (G4), 3 (G25/G26), 9, 11
+        flags[_G_FLAGS[code]] = True
+
+    def _g_plane(self, code: int, flags: dict) -> None:            # group 6
+        self.modal.plane = f"G{code}"
+        if self.tool_length_mm:
+            self._update_shift()
+
+    def _g_settable_frame(self, code: int, flags: dict) -> None:   # group 8
+        self._load_settable(f"G{code}")
+        self.env.select_settable_frame(f"G{code}")
+
+    def _g_path_mode(self, code: int, flags: dict) -> None:        # group 10
+        self.modal.exact_stop = code == 60
+
+    def _g_units(self, code: int, flags: dict) -> None:            # group 13
+        self.modal.inch_geometry = code in (70, 700)
+        self.modal.inch_feed = code == 700
+
+    def _g_dimensions(self, code: int, flags: dict) -> None:       # group 14
+        self.modal.absolute = code == 90
+
+    def _g_feed_type(self, code: int, flags: dict) -> None:        # group 15
+        # G96/G97 (constant cutting speed on/off) are both feed per revolution
+        self.modal.feed_mode = f"G{code}" if code in (93, 94, 95) else "G95"
+        self.modal.feed_rules = self.modal.feed_rules.g(code)
+        if code in (96, 97):
+            flags["css"] = code == 96
 
     def _words(self, items: list, frame: _Frame, pos: int) -> list[Event] | None:
         flags: dict[str, Any] = {}
@@ -1226,6 +1224,17 @@ class Interpreter:
         if mode == "AC":
             return offset + (0.0 if supa else self.modal.shift.get(axis, 0.0))
         return start + offset
+
+
+_G_GROUP_HANDLERS: dict[int, Any] = {
+    1: Interpreter._g_motion, 2: Interpreter._g_non_modal, 3: Interpreter._g_non_modal, 6: Interpreter._g_plane,
+    8: Interpreter._g_settable_frame, 9: Interpreter._g_non_modal, 10: Interpreter._g_path_mode,
+    11: Interpreter._g_non_modal, 13: Interpreter._g_units, 14: Interpreter._g_dimensions,
+    15: Interpreter._g_feed_type,
+}
+# the block flag a non-modal G function sets: G4 a dwell, G25/G26 S as a speed limit (not applied),
+# G53/G153 frames suppressed, G9 exact stop in this block
+_G_FLAGS = {4: "dwell", 25: "limit", 26: "limit", 53: "supa", 153: "supa", 9: "g9"}
 
 
 def _centre_from_radius(start_first: float, start_second: float, end_first: float, end_second: float,
