@@ -139,3 +139,26 @@ def test_a_program_writes_settable_frames_through_p_uifr_and_p_iframe() -> None:
     assert env.r_parameter(1) == 7.0 and env.offsets["G54"] == {"X": 200.0, "Y": 30.0}
     bad = run("$P_UIFR[1,X,RT]=30\nM30")
     assert bad.alarm is not None and bad.alarm.number == 12550 and bad.alarm.line == 1
+
+
+def test_a_circle_in_a_tilted_plane_runs_as_chords_on_the_circle() -> None:
+    result = run("G0 X0 Y0 Z0\nROT Y-45\nG0 X10 Y0\nG2 X10 Y0 I-10 J0 F500\nG1 X0\nM30")
+    assert result.alarm is None, result.alarm
+    chords = result.moves[2:-1]
+    # chords within 0.01 mm of a 10 mm circle: 2 acos(1 - 0.001) = 0.089 rad each
+    assert len(chords) == math.ceil(2 * math.pi / (2 * math.acos(1 - 0.01 / 10))) and all(isinstance(chord, Move) and chord.feed == 500.0 for chord in chords)
+    assert [chord.exact_stop for chord in chords[-2:]] == [False, True]
+    tilt = math.radians(45)
+    for chord in chords:   # the work circle about (0, 0), radius 10, taken through ROT Y-45
+        x, y, z = chord.target_mm["X"], chord.target_mm["Y"], chord.target_mm["Z"]
+        assert math.hypot(x, y, z) == pytest.approx(10.0)
+        assert z == pytest.approx(x * math.tan(tilt))       # the plane turned about Y
+    assert chords[-1].target_mm == pytest.approx(result.moves[1].target_mm)
+
+
+def test_a_circle_under_an_uneven_scale_is_an_ellipse_of_chords() -> None:
+    result = run("G0 X10 Y0\nSCALE X2\nG0 X10 Y0\nG3 X-10 Y0 I-10 J0 F500\nM30")
+    assert result.alarm is None, result.alarm
+    points = [(move.target_mm["X"], move.target_mm["Y"]) for move in result.moves[2:]]
+    assert all((x / 20) ** 2 + (y / 10) ** 2 == pytest.approx(1.0) for x, y in points)
+    assert points[-1] == pytest.approx((-20.0, 0.0)) and max(y for _, y in points) == pytest.approx(10.0, abs=0.01)

@@ -11,11 +11,12 @@ the system the frame has made so far (an ATRANS after a ROT goes along the rotat
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from nckemu.emulator.machine.nck.frame_math import GEOMETRY, IDENTITY_FRAME, Frame, rotation_rpy
 
-from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, Arc, ProgramAlarm
+from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, Arc, Move, ProgramAlarm
 from .alarms import ALARM_FRAME
 
 # The axis a plane rotation (RPL=) turns about: the plane's infeed axis.
@@ -80,22 +81,19 @@ def chain(settable: dict[str, float], programmable: Frame) -> Frame:
     return Frame(dict(settable)).after(programmable)
 
 
-def framed_arc(arc: Arc, frame: Frame, tool: dict[str, float]) -> Arc:
-    """A circle computed in the work system (targets and centre there) brought below ``frame`` and the
-    tool length ``tool`` (machine axis -> mm). The circle's plane must come out as a machine plane and
-    its two axes scaled alike; otherwise the emulator has no model for it (an ellipse, an oblique
-    plane) and says so."""
+def framed_arc(arc: Arc, start: dict[str, float], frame: Frame, tool: dict[str, float]) -> Arc | list[Move]:
+    """A circle computed in the work system (targets and centre there, ``start`` its start point) brought
+    below ``frame`` and the tool length ``tool`` (machine axis -> mm). Where the circle's plane comes
+    out as a machine plane with its two axes scaled alike it stays a circle; otherwise (a plane the
+    frame tilts, CYCLE800's swivel; an ellipse of an uneven scale) it becomes straight chords at
+    continuous path within ``CHORD_TOLERANCE_MM``, points of the circle taken through the frame."""
     first, second = _PLANE_AXES[arc.plane]
     normal = PLANE_NORMAL[arc.plane]
     factors = (frame.scale.get(first, 1.0), frame.scale.get(second, 1.0))
-    if abs(abs(factors[0]) - abs(factors[1])) > 1e-12:
-        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"a circle in {arc.plane} with its axes scaled differently "
-                                                   "(an ellipse) is not supported by the emulator")
     turned = Frame(rotation=frame.rotation).vector({normal: 1.0})
     axis = max(turned, key=lambda name: abs(turned[name]))
-    if abs(abs(turned[axis]) - 1.0) > 1e-9:
-        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "a circle in a plane the frame turns away from the machine's "
-                                                   "planes is not supported by the emulator")
+    if abs(abs(factors[0]) - abs(factors[1])) > 1e-12 or abs(abs(turned[axis]) - 1.0) > 1e-9:
+        return _chords(arc, start, frame, tool)
     plane = _PLANE_OF_NORMAL[axis]
     # The sense of turning: flipped when the normal comes out reversed, and once more per mirrored
     # (or negatively scaled) axis of the plane.
@@ -115,6 +113,49 @@ def framed_arc(arc: Arc, frame: Frame, tool: dict[str, float]) -> Arc:
     return Arc(targets, {machine_first: centre.get(machine_first, 0.0), machine_second: centre.get(machine_second, 0.0)},
                clockwise, plane, arc.feed, arc.feed_mode, arc.turns, arc.exact_stop,  # type: ignore[arg-type]
                arc.programmed)
+
+
+# The largest distance between a chord and its circle where a frame leaves no machine plane for it.
+CHORD_TOLERANCE_MM = 0.01
+MAX_CHORDS = 3600
+
+
+def _chords(arc: Arc, start: dict[str, float], frame: Frame, tool: dict[str, float]) -> list[Move]:
+    first, second = _PLANE_AXES[arc.plane]
+    centre = (arc.centre_mm[first], arc.centre_mm[second])
+    begin = (start.get(first, centre[0]) - centre[0], start.get(second, centre[1]) - centre[1])
+    end = (arc.target_mm.get(first, start.get(first, 0.0)) - centre[0],
+           arc.target_mm.get(second, start.get(second, 0.0)) - centre[1])
+    radius = math.hypot(*begin)
+    angle_from = math.atan2(begin[1], begin[0])
+    sweep = math.atan2(end[1], end[0]) - angle_from
+    if arc.clockwise:
+        sweep = sweep - 2 * math.pi if sweep >= 0 else sweep
+    else:
+        sweep = sweep + 2 * math.pi if sweep <= 0 else sweep
+    sweep += (-2 * math.pi if arc.clockwise else 2 * math.pi) * arc.turns
+    scale = max(abs(frame.scale.get(first, 1.0)), abs(frame.scale.get(second, 1.0)))
+    size = radius * scale
+    step = 2 * math.acos(max(-1.0, 1 - CHORD_TOLERANCE_MM / size)) if size > CHORD_TOLERANCE_MM else math.pi
+    count = min(MAX_CHORDS, max(1, math.ceil(abs(sweep) / step)))
+    others = {axis: (start.get(axis, value), value) for axis, value in arc.target_mm.items() if axis not in (first, second)}
+    moves: list[Move] = []
+    for index in range(1, count + 1):
+        share = index / count
+        angle = angle_from + sweep * share
+        point = {first: centre[0] + radius * math.cos(angle), second: centre[1] + radius * math.sin(angle)}
+        point.update({axis: begin_value + (end_value - begin_value) * share
+                      for axis, (begin_value, end_value) in others.items()})
+        if index == count:
+            point.update(arc.target_mm)
+        target = frame.apply(point)
+        for name, length in tool.items():
+            if name in target:
+                target[name] += length
+        last = index == count
+        moves.append(Move(target, arc.feed, arc.feed_mode, arc.exact_stop if last else False,
+                          arc.programmed if last else {}))
+    return moves
 
 
 def read_component(frame: Frame, indices: tuple[Any, ...], name: str) -> float:

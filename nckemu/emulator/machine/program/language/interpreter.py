@@ -569,7 +569,8 @@ class Interpreter:
         motion = self.modal.motion
         if self.modal.inch_geometry or not self.modal.absolute or motion > 1 or self.modal.chain is not None \
                 or not self.modal.feed_rules.plain:
-            events: list[Event] = [self._motion([(axis, value, None) for axis, value in axis_words], {}, {})]
+            moved = self._motion([(axis, value, None) for axis, value in axis_words], {}, {})
+            events: list[Event] = moved if moved.__class__ is list else [moved]  # type: ignore[assignment,list-item]
         else:
             shift = self.modal.shift
             work_pos = self.work_pos
@@ -969,7 +970,11 @@ class Interpreter:
             else:
                 raise ProgramAlarm(ALARM_SYNTAX, "G4 needs F (seconds) or S (revolutions)")
         elif axis_words or "I" in address or "J" in address or "K" in address or "CR" in address:
-            events.append(self._motion(axis_words, address, flags))
+            motion = self._motion(axis_words, address, flags)
+            if motion.__class__ is list:  # a circle as chords (framing.framed_arc)
+                events += motion  # type: ignore[arg-type]
+            else:
+                events.append(motion)  # type: ignore[arg-type]
             moved = True
         end_code = None
         for extension, m_code in m_codes:
@@ -1067,7 +1072,7 @@ class Interpreter:
         self._update_shift()
         self.env.set_programmable_frame(self._programmable())
 
-    def _framed_motion(self, axis_words: list, address: dict, flags: dict, chain: Frame) -> Event:
+    def _framed_motion(self, axis_words: list, address: dict, flags: dict, chain: Frame) -> Event | list[Event]:
         """A move or circle through a frame that rotates, scales or mirrors: the end point (and centre)
         worked out in the work system, then taken through the frame chain and the tool length."""
         work_pos = self.work_pos
@@ -1096,7 +1101,10 @@ class Interpreter:
                 arc = self._arc(work_targets, programmed, plane_start, address, {}, exact_stop)
             finally:
                 self.modal.shift = saved_shift
-            return self._with_feed_rules(framing.framed_arc(arc, chain, tool))
+            framed = framing.framed_arc(arc, {**start, **plane_start}, chain, tool)
+            if framed.__class__ is list:  # chords of a circle the frame tilts out of the machine's planes
+                return [self._with_feed_rules(chord) for chord in framed]  # type: ignore[union-attr]
+            return self._with_feed_rules(framed)  # type: ignore[arg-type]
         targets = chain.apply(work_targets)
         for axis, length in tool.items():
             if axis in targets:
@@ -1111,7 +1119,7 @@ class Interpreter:
         return self._with_feed_rules(Move(targets, self.feed_mm, self.modal.feed_mode, exact_stop,  # type: ignore[arg-type]
                                           programmed))
 
-    def _motion(self, axis_words: list, address: dict, flags: dict) -> Event:
+    def _motion(self, axis_words: list, address: dict, flags: dict) -> Event | list[Event]:
         suppress = bool(flags.get("supa"))
         if self.modal.chain is not None and not suppress:
             return self._framed_motion(axis_words, address, flags, self.modal.chain)
