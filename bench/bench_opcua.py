@@ -117,7 +117,7 @@ async def read(url: str, kind: str, seconds: float) -> None:
     async with Client(url, timeout=30) as client:
         ids = [ua.NodeId(i, 2) for i in _ids(kind)[:10]]
         params = ua.ReadParameters()
-        params.NodesToRead = [ua.ReadValueId(NodeId_=i, AttributeId=ua.AttributeIds.Value) for i in ids]
+        params.NodesToRead = [ua.ReadValueId(i, ua.AttributeIds.Value) for i in ids]
         values = 0
         end = time.monotonic() + seconds
         while time.monotonic() < end:

@@ -47,6 +47,11 @@ class Answer:
         return struct_from_binary(cls, Buffer(self.body))
 
 
+def _value_of(node: ua.NodeId) -> ua.ReadValueId:
+    """The value attribute of ``node`` (by position: asyncua 1.1 named the field NodeId_, 2.x NodeId)."""
+    return ua.ReadValueId(node, ua.AttributeIds.Value)
+
+
 def _typeid(cls: Any) -> int:
     return int(cls().TypeId.Identifier)
 
@@ -94,10 +99,10 @@ class Wire:
 
     def create_session(self, timeout_ms: float = 60_000.0) -> bytes:
         request = ua.CreateSessionRequest()
+        client = ua.ApplicationDescription(ApplicationUri="urn:fuzz", ApplicationName=ua.LocalizedText("fuzz"))
+        client.ApplicationType = ua.ApplicationType.Client  # set by name: asyncua 1.1's field was ApplicationType_
         request.Parameters = ua.CreateSessionParameters(
-            ClientDescription=ua.ApplicationDescription(ApplicationUri="urn:fuzz", ApplicationName=ua.LocalizedText("fuzz"),
-                                                        ApplicationType_=ua.ApplicationType.Client),
-            EndpointUrl=self.url, SessionName="fuzz", ClientNonce=b"\x00" * 32, RequestedSessionTimeout=timeout_ms,
+            ClientDescription=client, EndpointUrl=self.url, SessionName="fuzz", ClientNonce=b"\x00" * 32, RequestedSessionTimeout=timeout_ms,
             MaxResponseMessageSize=0)
         return self.secure(request)
 
@@ -116,21 +121,19 @@ class Wire:
     def read(self, *nodes: ua.NodeId) -> bytes:
         request = ua.ReadRequest()
         request.Parameters = ua.ReadParameters(NodesToRead=[
-            ua.ReadValueId(NodeId_=node, AttributeId=ua.AttributeIds.Value) for node in (nodes or (READ_NODE,))])
+            _value_of(node) for node in (nodes or (READ_NODE,))])
         return self.secure(request)
 
     def write(self, value: float = 1.5) -> bytes:
         request = ua.WriteRequest()
         request.Parameters = ua.WriteParameters(NodesToWrite=[ua.WriteValue(
-            NodeId_=WRITE_NODE, AttributeId=ua.AttributeIds.Value,
-            Value=ua.DataValue(ua.Variant(value, ua.VariantType.Double)))])
+            WRITE_NODE, ua.AttributeIds.Value, Value=ua.DataValue(ua.Variant(value, ua.VariantType.Double)))])
         return self.secure(request)
 
     def browse(self) -> bytes:
         request = ua.BrowseRequest()
         request.Parameters = ua.BrowseParameters(RequestedMaxReferencesPerNode=20, NodesToBrowse=[ua.BrowseDescription(
-            NodeId_=ua.NodeId("/Channel", NS), BrowseDirection_=ua.BrowseDirection.Forward,
-            ReferenceTypeId=ua.NodeId(ua.ObjectIds.HierarchicalReferences), IncludeSubtypes=True, ResultMask=63)])
+            ua.NodeId("/Channel", NS), ua.BrowseDirection.Forward, ReferenceTypeId=ua.NodeId(ua.ObjectIds.HierarchicalReferences), IncludeSubtypes=True, ResultMask=63)])
         return self.secure(request)
 
     def call(self, copy: bool = False) -> bytes:
@@ -154,12 +157,9 @@ class Wire:
     def monitor(self, count: int = 1, node: ua.NodeId = READ_NODE) -> bytes:
         request = ua.CreateMonitoredItemsRequest()
         items = [ua.MonitoredItemCreateRequest(
-            ItemToMonitor=ua.ReadValueId(NodeId_=node, AttributeId=ua.AttributeIds.Value),
-            MonitoringMode_=ua.MonitoringMode.Reporting,
-            RequestedParameters=ua.MonitoringParameters(ClientHandle=i + 1, SamplingInterval=100, QueueSize=1,
+            _value_of(node), ua.MonitoringMode.Reporting, RequestedParameters=ua.MonitoringParameters(ClientHandle=i + 1, SamplingInterval=100, QueueSize=1,
                                                         DiscardOldest=True)) for i in range(count)]
-        request.Parameters = ua.CreateMonitoredItemsParameters(SubscriptionId=self.subscription,
-                                                               TimestampsToReturn_=ua.TimestampsToReturn.Both,
+        request.Parameters = ua.CreateMonitoredItemsParameters(self.subscription, ua.TimestampsToReturn.Both,
                                                                ItemsToCreate=items)
         return self.secure(request)
 

@@ -424,7 +424,7 @@ def test_the_readme_node_ids_read_over_opcua(site: Site) -> None:
             found = {}
             for node_id in ids:
                 value = await client.get_node(ua.NodeId(node_id, ns)).read_data_value(raise_on_bad_status=False)
-                found[node_id] = value.StatusCode_.name
+                found[node_id] = value.StatusCode.name
             return found
 
     statuses = asyncio.run(read_all())

@@ -135,8 +135,7 @@ def test_malformed_event_filters_are_answered_and_the_server_serves_on() -> None
                                [ua.SimpleAttributeOperand(BrowsePath=[ua.QualifiedName("Message", 0)] * 40,
                                                           AttributeId=ua.AttributeIds.Value)], []):
                     params = ua.MonitoredItemCreateRequest()
-                    params.ItemToMonitor = ua.ReadValueId(NodeId_=ua.NodeId(ua.ObjectIds.Server),
-                                                          AttributeId=ua.AttributeIds.EventNotifier)
+                    params.ItemToMonitor = ua.ReadValueId(ua.NodeId(ua.ObjectIds.Server), ua.AttributeIds.EventNotifier)
                     params.MonitoringMode = ua.MonitoringMode.Reporting
                     params.RequestedParameters = ua.MonitoringParameters(
                         ClientHandle=1, QueueSize=10, Filter=ua.EventFilter(SelectClauses=select))

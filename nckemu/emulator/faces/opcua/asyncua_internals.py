@@ -24,7 +24,8 @@ asyncua object:
   them;
 - ``SubscriptionService.create_monitored_items``: the samples-per-second cap;
 - ``MonitoredItemService._monitored_datachange``: how many items a subscription holds (the cap);
-- ``BinaryServer._server``: the listening socket, for the port bound when asked for port 0;
+- ``BinaryServer._server``: the listening socket, for the port bound when asked for port 0 on a host
+  that binds several sockets (for one socket asyncua's public ``BinaryServer.port`` says it);
 - ``asyncua.server.server.BinaryServer``, ``UaProcessor._process_message``, ``_publish_requests``,
   ``_session_watchdog_task``, ``_connection._incoming_parts``, ``OPCUAProtocol._buffer``,
   ``_process_one_msg``, ``BinaryServer._make_protocol``, ``BinaryServer._policies``: the connection
@@ -102,7 +103,7 @@ def problems() -> list[str]:
     missing("SubscriptionService.__init__", _assigns(SubscriptionService.__init__, "subscriptions"))
     missing("InternalSubscription.__init__", _assigns(InternalSubscription.__init__, "monitored_item_srv"))
     missing("MonitoredItemService.__init__", _assigns(MonitoredItemService.__init__, "_monitored_datachange"))
-    missing("BinaryServer.start", _assigns(BinaryServer.start, "_server"))
+    missing("BinaryServer.start", _assigns(BinaryServer.start, "_server", "port"))
     missing("BinaryServer.__init__", _assigns(BinaryServer.__init__, "_policies", "iserver", "clients",
                                               "closing_tasks", "limits"))
     if not isinstance(getattr(_server_module, "BinaryServer", None), type) \
@@ -215,8 +216,12 @@ def datachange_items(subscription: InternalSubscription) -> int:
 
 
 def bound_port(server: asyncua.Server) -> int:
-    sockets = server.bserver._server.sockets  # type: ignore[union-attr]
-    return int(sockets[0].getsockname()[1])
+    """The port bound when asked for port 0: asyncua's socket server notes it (``BinaryServer.port``)
+    when it bound one socket; a host name that binds several (IPv4 and IPv6) leaves it 0."""
+    port = int(server.bserver.port)  # type: ignore[union-attr]
+    if port:
+        return port
+    return int(server.bserver._server.sockets[0].getsockname()[1])  # type: ignore[union-attr]
 
 
 # ---------------------------------------------------------------------- connections (transport.py)
@@ -257,11 +262,13 @@ class Protocol(OPCUAProtocol):
     def buffered(self, data: bytes) -> None:
         self._buffer = data
 
-    async def _process_one_msg(self, header: Any, buf: Any) -> None:
-        await self.process_one_message(header, buf)
+    async def _process_one_msg(self, header: Any, buf: Any) -> bool:
+        return await self.process_one_message(header, buf)
 
-    async def process_one_message(self, header: Any, buf: Any) -> None:
-        await OPCUAProtocol._process_one_msg(self, header, buf)
+    async def process_one_message(self, header: Any, buf: Any) -> bool:
+        """asyncua's handling of one whole message; False: the connection is closed, read no more
+        (asyncua 2.x stops its message loop on False; 1.1 answered None and read on)."""
+        return await OPCUAProtocol._process_one_msg(self, header, buf) is not False
 
 
 class SocketServer(BinaryServer):

@@ -22,6 +22,8 @@ from typing import Any, Protocol
 from asyncua import ua
 from asyncua.server.address_space import AttributeValue, NodeData
 
+from nckemu.emulator.faces.opcua.structures import reference as described
+
 
 class NodeStore(Protocol):
     """Nodes by id, as asyncua's ``AddressSpace`` offers them (``aspace[nodeid]``)."""
@@ -273,8 +275,8 @@ class Instantiator:
         attributes.setdefault(_A.DisplayName, AttributeValue(ua.DataValue(ua.Variant(ua.LocalizedText(browse.Name)))))
         if type_id is not None:
             type_class = self.types.node_class(type_id)
-            node.references.append(ua.ReferenceDescription(
-                ReferenceTypeId=HAS_TYPE_DEFINITION, IsForward=True, NodeId=type_id, NodeClass_=type_class,
+            node.references.append(described(
+                type_class, ReferenceTypeId=HAS_TYPE_DEFINITION, IsForward=True, NodeId=type_id,
                 BrowseName=self.types.browse_name(type_id),
                 DisplayName=ua.LocalizedText(self.types.browse_name(type_id).Name)))
         self.nodes[nodeid] = node
@@ -285,11 +287,11 @@ class Instantiator:
               node_class: ua.NodeClass, type_id: ua.NodeId | None) -> None:
         parent_node = self.nodes[parent]
         display = node.attributes[_A.DisplayName].value.Value.Value  # type: ignore[union-attr]
-        parent_node.references.append(ua.ReferenceDescription(
-            ReferenceTypeId=reference, IsForward=True, NodeId=node.nodeid, NodeClass_=node_class,
-            BrowseName=browse, DisplayName=display, TypeDefinition=type_id or ua.NodeId()))
+        parent_node.references.append(described(
+            node_class, ReferenceTypeId=reference, IsForward=True, NodeId=node.nodeid, BrowseName=browse,
+            DisplayName=display, TypeDefinition=type_id or ua.NodeId()))
         parent_browse = parent_node.attributes[_A.BrowseName].value.Value.Value  # type: ignore[union-attr]
         parent_class = parent_node.attributes[_A.NodeClass].value.Value.Value  # type: ignore[union-attr]
-        node.references.append(ua.ReferenceDescription(
-            ReferenceTypeId=reference, IsForward=False, NodeId=parent, NodeClass_=ua.NodeClass(parent_class),
+        node.references.append(described(
+            ua.NodeClass(parent_class), ReferenceTypeId=reference, IsForward=False, NodeId=parent,
             BrowseName=parent_browse, DisplayName=ua.LocalizedText(parent_browse.Name)))

@@ -29,6 +29,7 @@ from nckemu.emulator.faces.opcua.feeds import FedMonitored, Feed
 from nckemu.emulator.faces.opcua.instances import Instantiator, Types
 from nckemu.emulator.faces.opcua.production import ProgramTracker
 from nckemu.emulator.faces.opcua.settings import may
+from nckemu.emulator.faces.opcua.structures import status_value
 from nckemu.emulator.faces.opcua.values import UaStatus
 
 if TYPE_CHECKING:
@@ -173,11 +174,11 @@ class Models:
 
         def read(_nodeid: ua.NodeId, _attr: ua.AttributeIds) -> ua.DataValue:
             if realm is not None and not may(request.rights(), realm, write=False):
-                return ua.DataValue(StatusCode_=ua.StatusCode(ua.StatusCodes.BadUserAccessDenied))
+                return status_value(ua.StatusCode(ua.StatusCodes.BadUserAccessDenied))
             try:
                 variant = feed.variant(feed.reader())
             except UaStatus as status:
-                return ua.DataValue(StatusCode_=status.code)
+                return status_value(status.code)
             now = datetime.now(UTC)
             return ua.DataValue(variant, SourceTimestamp=now, ServerTimestamp=now)
         return read

@@ -28,6 +28,7 @@ from asyncua.crypto.permission_rules import User as UaUser
 from nckemu.emulator.faces.opcua import asyncua_internals, request
 from nckemu.emulator.faces.opcua.alarms import ALARM_RIGHTS
 from nckemu.emulator.faces.opcua.settings import ALLOWED_INTERVALS_MS, may
+from nckemu.emulator.faces.opcua.structures import refused_item
 from nckemu.errors import NckNodeIdError
 
 if TYPE_CHECKING:
@@ -70,6 +71,9 @@ class Sessions:
     def install(self, server: Server) -> None:
         """Wrap ``server``'s sessions (initialised, not yet started)."""
         iserver = server.iserver
+        # asyncua 2.x raises a shorter session timeout than the client asked for to 5 s; the controller
+        # keeps a shorter one (only longer ones are revised down, in create_session_capped below).
+        iserver.min_session_timeout_ms = 0.0
         server.subscribe_server_callback(CallbackType.PreRead, self._before_read)
         asyncua_internals.on_new_session(iserver, self._made)
         self._cap_samples(iserver.subscription_service)
@@ -200,7 +204,7 @@ async def create_refusing(params: ua.CreateMonitoredItemsParameters, refused: se
     taken = [item for position, item in enumerate(params.ItemsToCreate) if position not in refused]
     created = iter(await create(dataclasses.replace(params, ItemsToCreate=taken)) if taken else [])
     refusal = ua.StatusCode(status)
-    return [ua.MonitoredItemCreateResult(StatusCode_=refusal) if position in refused else next(created)
+    return [refused_item(refusal) if position in refused else next(created)
             for position in range(len(params.ItemsToCreate))]
 
 

@@ -22,7 +22,7 @@ from asyncua.crypto.permission_rules import UserRole
 from asyncua.server.address_space import AttributeService, AttributeValue, NodeData
 
 from nckemu.catalogue.node_ids import NcNodeName, NodeName, node_paths, parse_node_id
-from nckemu.emulator.faces.opcua import asyncua_internals, request
+from nckemu.emulator.faces.opcua import asyncua_internals, request, structures
 from nckemu.emulator.faces.opcua.settings import ALLOWED_INTERVALS_MS, may
 from nckemu.emulator.faces.opcua.values import UaStatus, read_value, variant_type, write_value
 from nckemu.emulator.machine.core import Emulator
@@ -32,7 +32,7 @@ _ACCESS_RW = ua.AccessLevel.CurrentRead.mask | ua.AccessLevel.CurrentWrite.mask
 
 
 def status_value(name: str) -> ua.DataValue:
-    return ua.DataValue(StatusCode_=ua.StatusCode(getattr(ua.StatusCodes, name)))
+    return structures.status_value(ua.StatusCode(getattr(ua.StatusCodes, name)))
 
 
 def data_value(variant: ua.Variant) -> ua.DataValue:
@@ -114,7 +114,7 @@ class SinumerikNodes:
             try:
                 return data_value(read_value(self.emulator, name))
             except UaStatus as status:
-                return ua.DataValue(StatusCode_=status.code)
+                return structures.status_value(status.code)
         return read
 
     async def build_browse_tree(self, server: Server) -> None:
@@ -141,18 +141,17 @@ class SinumerikNodes:
                 continue
             del name  # parsed only to know the node can be made
             node = aspace[nodeid]  # made by _LazyNodes
-            node.references.append(ua.ReferenceDescription(
-                ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasComponent), IsForward=False, NodeId=parent.nodeid,
-                BrowseName=ua.QualifiedName(segments[-2] if len(segments) > 1 else "Sinumerik", ns),
-                NodeClass_=ua.NodeClass.Object, TypeDefinition=ua.NodeId(ua.ObjectIds.FolderType)))
-            node.references.append(ua.ReferenceDescription(
-                ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasTypeDefinition), IsForward=True,
-                NodeId=ua.NodeId(ua.ObjectIds.BaseDataVariableType), NodeClass_=ua.NodeClass.VariableType,
-                BrowseName=ua.QualifiedName("BaseDataVariableType", 0)))
-            aspace[parent.nodeid].references.append(ua.ReferenceDescription(
-                ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasComponent), IsForward=True, NodeId=nodeid,
-                BrowseName=ua.QualifiedName(segments[-1], ns), DisplayName=ua.LocalizedText(segments[-1]),
-                NodeClass_=ua.NodeClass.Variable, TypeDefinition=ua.NodeId(ua.ObjectIds.BaseDataVariableType)))
+            node.references.append(structures.reference(
+                ua.NodeClass.Object, ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasComponent), IsForward=False,
+                NodeId=parent.nodeid, BrowseName=ua.QualifiedName(segments[-2] if len(segments) > 1 else "Sinumerik", ns),
+                TypeDefinition=ua.NodeId(ua.ObjectIds.FolderType)))
+            node.references.append(structures.reference(
+                ua.NodeClass.VariableType, ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasTypeDefinition), IsForward=True,
+                NodeId=ua.NodeId(ua.ObjectIds.BaseDataVariableType), BrowseName=ua.QualifiedName("BaseDataVariableType", 0)))
+            aspace[parent.nodeid].references.append(structures.reference(
+                ua.NodeClass.Variable, ReferenceTypeId=ua.NodeId(ua.ObjectIds.HasComponent), IsForward=True,
+                NodeId=nodeid, BrowseName=ua.QualifiedName(segments[-1], ns),
+                DisplayName=ua.LocalizedText(segments[-1]), TypeDefinition=ua.NodeId(ua.ObjectIds.BaseDataVariableType)))
 
 
 class _LazyNodes(dict):  # type: ignore[type-arg]

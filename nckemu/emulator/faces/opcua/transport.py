@@ -221,6 +221,8 @@ class _Protocol(Protocol):
 
     def connection_made(self, transport: Any) -> None:
         super().connection_made(transport)
+        if self.transport is None:  # asyncua 2.x refused it (its max_connections) and closed it
+            return
         processor = _Processor(self.iserver, self.transport, self.limits, limits=self.guard)
         processor.set_policies(self.policies)
         self.processor = processor
@@ -287,18 +289,19 @@ class _Protocol(Protocol):
         else:
             self._disarm()
 
-    async def process_one_message(self, header: Any, buf: Any) -> None:
+    async def process_one_message(self, header: Any, buf: Any) -> bool:
         if self._failed:
-            return
+            return False
         try:
-            await super().process_one_message(header, buf)
+            going_on = await super().process_one_message(header, buf)
         except Exception as exc:  # asyncua would log a traceback and leave the connection open
             status = _status_of(exc)
             log.debug("OPC UA %s: %s (%s: %s)", self.peer_name, ua.StatusCode(status).name, type(exc).__name__, exc)
             self.fail(status)
-            return
+            return False
         if not self._failed:
             self._rearm()
+        return going_on and not self._failed
 
 
 class _BinaryServer(SocketServer):
