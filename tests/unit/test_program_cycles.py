@@ -4,10 +4,14 @@ counted apart, never silently 0 s; an unknown cycle is an alarm; a program's own
 
 from __future__ import annotations
 
+import csv
+import json
 import math
+from pathlib import Path
 
 import pytest
 
+from nckemu.cli import main
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.machine_file import parse_machine
@@ -168,3 +172,19 @@ def test_a_cycle_without_a_motion_model_is_counted_apart() -> None:
     assert [block.note for block in noted] == ["CYCLE62 not simulated"] * 2 + ["POCKET3 not simulated",
                                                                               "CYCLE62 not simulated"]
     assert all(block.end_s == block.start_s for block in noted)
+
+
+def test_program_run_names_the_cycles_it_did_not_simulate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The run summary and the block table of ``nckemu program run`` (default machine: Z travel -1000..0)."""
+    program = tmp_path / "CAM.MPF"
+    program.write_text("G54 G0 X10 Y10 Z-50 F200\nTRANS Z-100\nCYCLE62(, 1, , )\nCYCLE62(, 1, , )\nSLOT1(1)\n"
+                       "CYCLE62(, 1, , )\nM30\n")
+    blocks = tmp_path / "blocks.csv"
+    assert main(["program", "run", str(program), "--blocks", str(blocks)]) == 0
+    out = capsys.readouterr().out
+    assert "CYCLE62 not simulated: 0 s counted, 3 calls" in out and "SLOT1 not simulated: 0 s counted, 1 call" in out
+    rows = list(csv.DictReader(blocks.open()))
+    assert [row["note"] for row in rows if row["note"]] == ["CYCLE62 not simulated"] * 2 + [
+        "SLOT1 not simulated", "CYCLE62 not simulated"]
+    assert main(["program", "run", str(program), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["not_simulated"] == {"CYCLE62": 3, "SLOT1": 1}
