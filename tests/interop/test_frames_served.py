@@ -46,10 +46,13 @@ def test_work_positions_follow_the_programmed_frame_on_every_face() -> None:
             wcs = s7.get("/Channel/GeometricAxis/actToolBasePos[u1,1]", "/Channel/GeometricAxis/actToolBasePos[u1,2]")
             over_ua = asyncio.run(read_ua())
             stored = s7.get("linShift[4,C1]")        # settable frame 1 (G54), machine axis 1 (4 axes)
+            # the active frames' translations (FA): line = frame index x 4 axes + axis; PFRAME is 2
+            programmed, active = s7.get("actFrameLinShift[8,C1]", "actFrameLinShift[0,C1]")
             # X3 Y4 through ASCALE X2 (6, 4), AROT Z90 (-4, 6) and TRANS: the machine; the work system 3, 4
             assert machine == pytest.approx([96.0, 106.0])
             assert work == pytest.approx([3.0, 4.0]) and wcs == pytest.approx([3.0, 4.0])
             assert over_ua == pytest.approx([3.0, 4.0])
             assert stored == [12.5]                   # the program's $P_UIFR write, stored in the NCK
+            assert programmed == 100.0 and active == 100.0 + emulator.call(lambda: nck.frames.active_shift_mm(1, 1))
             emulator.call(channel.reset)
             assert s7.get("workPosition[u1,1]", "workPosition[u1,2]") == pytest.approx([96.0, 106.0])

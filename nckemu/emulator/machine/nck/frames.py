@@ -7,8 +7,9 @@ FA (active frames, 0x13) address one axis of one frame in column 1, linShift: li
 numMachAxes + axis (A2 for the 802D sl; IOT's 828D read FU column 1, lines 4..6 = frame 1 of three
 axes). The active frames of FA are indexed 0 ACTFRAME (resulting), 1 IFRAME (settable), 2 PFRAME
 (programmable), 3 EXTFRAME (external), 4 TOTFRAME (= ACTFRAME + EXTFRAME), 5 ACTBFRAME (basic frames),
-6..12 system frames (A2). Only the settable frame is emulated: IFRAME, ACTFRAME and TOTFRAME carry its
-translation, the others are zero.
+6..12 system frames (A2). IFRAME carries the settable frame's translation, PFRAME the translation a
+running program has programmed (TRANS, ATRANS, CYCLE800's), ACTFRAME and TOTFRAME their sum; the
+others are zero (their rotations and scales have no linShift row).
 """
 
 from __future__ import annotations
@@ -71,8 +72,18 @@ class Frames:
         return self.shifts_mm[channel][self.active[channel]].get(axis, 0.0)
 
     def actual_frame_shift_mm(self, channel: int, line: int) -> float:
+        """FA linShift: IFRAME the settable frame's translation, PFRAME the programmed frame's,
+        ACTFRAME and TOTFRAME the chain's (the programmed translation turned and scaled by nothing
+        below it: the settable frame is a translation)."""
         frame, axis = self._frame_and_axis(line, MAX_ACTIVE_FRAME_INDEX + 1)
-        return self.active_shift_mm(channel, axis) if frame in _CARRY_SETTABLE else 0.0
+        programmed = self.programmable.get(channel)
+        name = self._names.get(axis, "")
+        own = programmed.translation.get(name, 0.0) if programmed is not None else 0.0
+        if frame == PFRAME:
+            return own
+        if frame == IFRAME:
+            return self.active_shift_mm(channel, axis)
+        return self.active_shift_mm(channel, axis) + own if frame in _CARRY_SETTABLE else 0.0
 
     def select(self, channel: int, index: int) -> None:
         """G500 (0), G54 (1) ...: the settable frame that becomes active."""
