@@ -288,9 +288,9 @@ class BlockCompiler:
 
     def _case(self, parser: Parser) -> tuple[Any, list, Any]:
         parser.pos += 1
-        parser.expect_op("(")
+        # CASE (R1) OF ... as the manual writes it; shop programs also write CASE LADAO[37] OF ...,
+        # which the control reads the same (the brackets are the expression's own)
         selector = parser.expression()
-        parser.expect_op(")")
         if not parser.at_name("OF"):
             raise ProgramAlarm(ALARM_SYNTAX, "CASE needs OF")
         parser.pos += 1
