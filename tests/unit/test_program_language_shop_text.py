@@ -157,3 +157,11 @@ def test_save_puts_the_callers_modal_record_back_and_a_copy_is_independent() -> 
     copied.settable["X"] = 5.0
     copied.motion = 2
     assert state.settable == {"X": 1.0} and state.motion == 0
+
+
+def test_words_read_the_same_in_the_fast_and_the_full_reader() -> None:
+    """A circle with a constant centre, once in a block of constants (the fast reader) and once beside
+    an expression (the full reader): the same arc."""
+    fast = run("G0 X0 Y0\nG2 X10 Y0 I5 J0 F100\nM30").moves[1]
+    full = run("R1=100\nG0 X0 Y0\nG2 X10 Y0 I5 J0 F=R1\nM30").moves[1]
+    assert fast == full and fast.centre_mm == {"X": 5.0, "Y": 0.0}

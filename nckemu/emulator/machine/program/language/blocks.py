@@ -16,6 +16,26 @@ from typing import Any
 from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, ProgramAlarm
 from .expressions import FUNCTIONS, NAME, NUM, OP, STR, Parser, is_dynamic
 from .gfunctions import G_FUNCTIONS, GROUP_TITLES, NO_EFFECT, NOT_SUPPORTED, STRAIGHT_G, check_block
+from .words import (
+    AddressWord,
+    Assign,
+    AxisSetting,
+    AxisWord,
+    Call,
+    CentreWord,
+    Fill,
+    FrameWord,
+    GWord,
+    Jump,
+    ModalCall,
+    Msg,
+    NoOp,
+    Return,
+    Setal,
+    Spos,
+    Suppress,
+    Word,
+)
 
 # block kinds
 WORDS, IF, ELSE, ENDIF, WHILE, ENDWHILE, FOR, ENDFOR, REPEAT, UNTIL, LOOP, ENDLOOP = range(12)
@@ -24,9 +44,6 @@ IF_JUMP, CASE, DEF, PROC, EXTERN, NOTHING, STRAIGHT, SECTION = range(12, 20)
 _KEYWORD_KINDS = {"ELSE": ELSE, "ENDIF": ENDIF, "ENDWHILE": ENDWHILE, "ENDFOR": ENDFOR,
                   "REPEAT": REPEAT, "LOOP": LOOP, "ENDLOOP": ENDLOOP}
 
-# item codes inside a WORDS block
-(I_ASSIGN, I_G, I_AXIS, I_ADDR, I_CALL, I_MSG, I_JUMP, I_FRAME, I_RET, I_SUPA, I_SETTING,
- I_MCALL, I_FILL, I_NOOP, I_SPOS, I_SETAL) = range(16)
 
 SINGLE_ADDRESSES = frozenset("FSMTDHLPIJKE")
 WORD_ADDRESSES = frozenset({"CR", "TURN", "AR", "AP", "RP", "PW", "SD", "PL", "LIMS", "OVR", "SPOS", "SPOSA"})
@@ -118,11 +135,11 @@ class BlockCompiler:
             letters = letters.upper()
             value: float | int = float(digits) if "." in digits else int(digits)
             if letters in axes:
-                items.append((I_AXIS, letters, value, None))
+                items.append(AxisWord(letters, value))
             elif letters == "G":
                 if value.__class__ is float or value < 0:
                     return None
-                items.append((I_G, value, None, None))
+                items.append(GWord(value))
             elif letters == "N":
                 if index or value.__class__ is float or value < 0:
                     return None
@@ -130,9 +147,9 @@ class BlockCompiler:
             elif letters in _SIMPLE_ADDRESSES:
                 if letters == "M" and (value.__class__ is float or value < 0):
                     return None
-                items.append((I_ADDR, letters, value, 0))
+                items.append(AddressWord(letters, value))
             elif letters in ("I", "J", "K"):
-                items.append((I_ADDR, letters, value, None))
+                items.append(CentreWord(letters, value))
             else:
                 return None
         _check_groups(items)
@@ -454,7 +471,7 @@ class BlockCompiler:
             raise ProgramAlarm(ALARM_SYNTAX, "axis value expected")
         return value, None
 
-    def _words(self, parser: Parser) -> list[tuple]:
+    def _words(self, parser: Parser) -> list[Word]:
         items: list[tuple] = []
         tokens = parser.tokens
         axes = self.axes
@@ -469,7 +486,7 @@ class BlockCompiler:
             # axis words: X10, X=expr, X=IC(5), X-5
             if name in axes:
                 axis_value, mode = self._axis_value(parser, frac)
-                items.append((I_AXIS, name, axis_value, mode))
+                items.append(AxisWord(name, axis_value, mode))
                 continue
             if frac is None and following is not None and following[0] == OP and following[1] == "(" \
                     and name not in ("MSG", "SETAL") and name not in FUNCTIONS and name not in NO_OP_WORDS:
@@ -477,31 +494,31 @@ class BlockCompiler:
                     raise ProgramAlarm(ALARM_SYNTAX, f"{name}() stands after an address and '='")
                 args = parser.arguments()
                 repeat = self._repeat(parser)
-                items.append((I_CALL, name, args, repeat))
+                items.append(Call(name, args, repeat))
                 continue
             split = _ADDRESS_WORD.fullmatch(name)
             if split and not is_assign:
                 letters, digits = split.group(1), split.group(2)
                 if letters in axes:
                     number_value = float(digits + frac) if frac else int(digits)
-                    items.append((I_AXIS, letters, number_value, None))
+                    items.append(AxisWord(letters, number_value))
                     continue
                 if letters in SINGLE_ADDRESSES or letters == "G" or letters == "N":
                     items.append(self._address(letters, digits, frac))
                     continue
             if split and is_assign and split.group(1) in EXTENDED:
                 parser.pos += 1
-                items.append((I_ADDR, split.group(1), parser.expression(), int(split.group(2))))
+                items.append(AddressWord(split.group(1), parser.expression(), int(split.group(2))))
                 continue
             if split and is_assign and split.group(1) == "R":
                 parser.pos += 1
-                items.append((I_ASSIGN, ("R", int(split.group(2)), []), parser.expression()))
+                items.append(Assign(("R", int(split.group(2)), []), parser.expression()))
                 continue
             if name == "G" and not is_assign:
                 raise ProgramAlarm(ALARM_SYNTAX, "G needs a number")
             if name in ("I", "J", "K"):
                 centre_value, mode = self._axis_value(parser, frac)
-                items.append((I_ADDR, name, centre_value, mode))
+                items.append(CentreWord(name, centre_value, mode))
                 continue
             if name in SINGLE_ADDRESSES or name in WORD_ADDRESSES:
                 address_value = self._value_after(parser, name, frac)
@@ -509,54 +526,54 @@ class BlockCompiler:
                     if name in ("L",):
                         raise ProgramAlarm(ALARM_SYNTAX, "L needs a number")
                     # a lone letter: a subprogram of that name, or nothing
-                    items.append((I_CALL, name, None, None))
+                    items.append(Call(name))
                     continue
                 if name in ("SPOS", "SPOSA"):
-                    items.append((I_SPOS, 1, address_value, None))
+                    items.append(Spos(1, address_value))
                     continue
-                items.append((I_ADDR, name, address_value, 0))
+                items.append(AddressWord(name, address_value))
                 continue
             if frac is not None:
                 raise ProgramAlarm(ALARM_SYNTAX, f"unexpected {name}{frac}")
             if name in JUMPS:
-                items.append((I_JUMP, name, "" if name == "GOTOS" else self._target(parser), None))
+                items.append(Jump(name, "" if name == "GOTOS" else self._target(parser)))
                 continue
             if name == "MSG":
                 args = parser.arguments()
                 if len(args) > 2:
                     raise ProgramAlarm(ALARM_SYNTAX, "MSG takes a text")
-                items.append((I_MSG, args[0] if args else "", None, None))
+                items.append(Msg(args[0] if args else ""))
                 continue
             if name == "SETAL":
                 args = parser.arguments()
                 if not args or args[0] is None:
                     raise ProgramAlarm(ALARM_SYNTAX, "SETAL needs an alarm number")
-                items.append((I_SETAL, args[0], None, None))
+                items.append(Setal(args[0]))
                 continue
             if name in FRAME_WORDS:
-                items.append((I_FRAME, name, self._frame_axes(parser), None))
+                items.append(FrameWord(name, self._frame_axes(parser)))
                 continue
             if name in ("SUPA", "G153"):
-                items.append((I_SUPA, name, None, None))
+                items.append(Suppress(name))
                 continue
             if name in ("RET",):
-                items.append((I_RET, name, None, None))
+                items.append(Return())
                 continue
             if name == "MCALL":
                 token = parser.peek()
                 if token is None:
-                    items.append((I_MCALL, None, None, None))
+                    items.append(ModalCall(None))
                     continue
                 parser.pos += 1
                 args = parser.arguments() if parser.at_op("(") else None
-                items.append((I_MCALL, token[1], args, None))
+                items.append(ModalCall(token[1], args))
                 continue
             if name == "CALL":
                 target = parser.expression()
-                items.append((I_CALL, target, None, None))
+                items.append(Call(target))
                 continue
             if name in SPLINES:
-                items.append((I_G, 1, name, None))
+                items.append(GWord(1, name))
                 continue
             if name in NOT_SUPPORTED_WORDS:
                 entry = G_FUNCTIONS[name]
@@ -569,12 +586,12 @@ class BlockCompiler:
                 elif parser.at_op("="):
                     parser.pos += 1
                     parser.expression()
-                items.append((I_NOOP, name, args, None))
+                items.append(NoOp(name, args))
                 continue
             if name in AXIS_SETTINGS and following is not None and following[1] == "[":
                 indices = parser.indices()
                 parser.expect_op("=")
-                items.append((I_SETTING, name, indices, parser.expression()))
+                items.append(AxisSetting(name, indices, parser.expression()))
                 continue
             if is_assign or (following is not None and following[0] == OP and following[1] == "["):
                 parser.pos -= 1
@@ -583,12 +600,12 @@ class BlockCompiler:
                 if (parser.at_name("SET") or parser.at_name("REP")) and parser.pos + 1 < len(tokens) \
                         and tokens[parser.pos + 1][1] == "(":
                     which, args = self._initialiser(parser)
-                    items.append((I_FILL, target, which, args))
+                    items.append(Fill(target, which, args))
                 else:
-                    items.append((I_ASSIGN, target, parser.expression()))
+                    items.append(Assign(target, parser.expression()))
                 continue
             # a bare name: a subprogram without parameters (or a name the program never defined)
-            items.append((I_CALL, name, None, self._repeat(parser)))
+            items.append(Call(name, None, self._repeat(parser)))
         return items
 
     def _repeat(self, parser: Parser) -> Any:
@@ -601,15 +618,17 @@ class BlockCompiler:
             return parser.expression()
         return None
 
-    def _address(self, letters: str, digits: str, frac: str | None) -> tuple:
+    def _address(self, letters: str, digits: str, frac: str | None) -> GWord | NoOp | AddressWord | CentreWord:
         if letters == "G":
             if frac:
                 raise ProgramAlarm(ALARM_SYNTAX, f"G{digits}{frac} is not a G function")
-            return (I_G, int(digits), None, None)
+            return GWord(int(digits))
         if letters == "N":
-            return (I_NOOP, "N", None, None)
+            return NoOp("N")
         value: float | int = float(digits + frac) if frac else int(digits)
-        return (I_ADDR, letters, value, 0)
+        if letters in ("I", "J", "K"):
+            return CentreWord(letters, value)
+        return AddressWord(letters, value)
 
     def _frame_axes(self, parser: Parser) -> list[tuple[str, Any]]:
         pairs = []
@@ -639,20 +658,17 @@ class BlockCompiler:
 
 
 
-# item kinds whose name may be a G function of a group (G1, SUPA, TRANS, BRISK)
-_GROUPED_ITEMS = frozenset({I_G, I_SUPA, I_FRAME, I_NOOP})
-
-
-def _check_groups(items: list[tuple]) -> None:
+def _check_groups(items: list) -> None:
     """The control's alarm for two G functions of one group in the block (gfunctions.check_block)."""
     names = []
     for item in items:
-        code = item[0]
-        if code in _GROUPED_ITEMS:
-            if code == I_G:
-                names.append(item[2] or f"G{item[1]}")
-            elif item[1] in G_FUNCTIONS:
-                names.append(item[1])
+        kind = item.__class__
+        if kind is GWord:
+            names.append(item.spline or f"G{item.code}")
+        elif (kind is Suppress or kind is NoOp) and item.name in G_FUNCTIONS:
+            names.append(item.name)
+        elif kind is FrameWord and item.word in G_FUNCTIONS:
+            names.append(item.word)
     if len(names) > 1:
         check_block(names)
 

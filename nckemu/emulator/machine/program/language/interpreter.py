@@ -40,6 +40,7 @@ from ..motions import (
 )
 from . import blocks as b
 from . import framing
+from . import words as w
 from .alarms import (
     ALARM_ARITHMETIC,
     ALARM_AUXILIARY,
@@ -885,69 +886,70 @@ class Interpreter:
         ret = False
         spos: list[int] = []
         for item in items:
-            code = item[0]
-            if code == b.I_AXIS:
-                value = item[2]
-                axis_words.append((item[1], value(self) if value.__class__ is FunctionType else value, item[3]))
-            elif code == b.I_G:
-                self._g(item[1], flags)
-                if item[2] is not None:
-                    self._log_once(item[2], f"{item[2]}: runs as straight moves through its points")
-            elif code == b.I_ADDR:
-                letter = item[1]
-                value = item[2]
+            kind = item.__class__
+            if kind is w.AxisWord:
+                value = item.value
+                axis_words.append((item.axis, value(self) if value.__class__ is FunctionType else value, item.mode))
+            elif kind is w.GWord:
+                self._g(item.code, flags)
+                if item.spline is not None:
+                    self._log_once(item.spline, f"{item.spline}: runs as straight moves through its points")
+            elif kind is w.AddressWord:
+                letter = item.letter
+                value = item.value
                 if value.__class__ is FunctionType:
                     value = value(self)
                 if letter == "M":
-                    m_codes.append((item[3], _m_code(value)))
-                elif letter in ("I", "J", "K"):
-                    address[letter] = (value, item[3] or None)
+                    m_codes.append((item.extension, _m_code(value)))
                 elif letter == "S":
-                    address[f"S{item[3] or 1}"] = value
+                    address[f"S{item.extension or 1}"] = value
                 elif letter == "L":
                     call = (f"L{int(number(value))}", [], None)
                 elif letter == "E":
                     raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "name E not defined (no axis E)")
                 else:
                     address[letter] = value
-            elif code == b.I_ASSIGN:
-                value = item[2]
-                self._assign(item[1], value(self) if value.__class__ is FunctionType else value)
-            elif code == b.I_SUPA:
+            elif kind is w.CentreWord:
+                value = item.value
+                address[item.letter] = (value(self) if value.__class__ is FunctionType else value, item.mode)
+            elif kind is w.Assign:
+                value = item.value
+                self._assign(item.target, value(self) if value.__class__ is FunctionType else value)
+            elif kind is w.Suppress:
                 flags["supa"] = True
-            elif code == b.I_MSG:
-                message = to_text(evaluate(item[1], self))
-            elif code == b.I_JUMP:
-                jump = (item[1], item[2])
-            elif code == b.I_CALL:
-                call = (item[1], item[2], item[3])
-            elif code == b.I_RET:
+            elif kind is w.Msg:
+                message = to_text(evaluate(item.text, self))
+            elif kind is w.Jump:
+                jump = (item.kind, item.target)
+            elif kind is w.Call:
+                call = (item.name, item.args, item.repeat)
+            elif kind is w.Return:
                 ret = True
-            elif code == b.I_FRAME:
-                self._frame_instruction(item[1], item[2])
-            elif code == b.I_SETTING:
-                indices = tuple(evaluate(i, self) for i in item[2])
+            elif kind is w.FrameWord:
+                self._frame_instruction(item.word, item.pairs)
+            elif kind is w.AxisSetting:
+                indices = tuple(evaluate(i, self) for i in item.indices)
                 if len(indices) != 1:
-                    raise ProgramAlarm(ALARM_SYNTAX, f"{item[1]}[axis]=value")
-                self._settings[(item[1], self._axis_name(indices[0]))] = evaluate(item[3], self)
-            elif code == b.I_FILL:
-                kind, name, indices = item[1]
-                variable = self._variable(name) if kind == "VAR" else None
+                    raise ProgramAlarm(ALARM_SYNTAX, f"{item.name}[axis]=value")
+                self._settings[(item.name, self._axis_name(indices[0]))] = evaluate(item.value, self)
+            elif kind is w.Fill:
+                target_kind, name, indices = item.target
+                variable = self._variable(name) if target_kind == "VAR" else None
                 if variable is None:
                     raise undefined(name if isinstance(name, str) else "R")
                 variable.fill(tuple(evaluate(i, self) for i in indices),
-                              [evaluate(v, self) for v in item[3]], repeat=item[2] == "REP")
-            elif code == b.I_MCALL:
-                self._modal_call = None if item[1] is None else (item[1], item[2])
-            elif code == b.I_SPOS:
-                spos.append(item[1])
-            elif code == b.I_SETAL:
-                self._setal(evaluate(item[1], self))
-            elif code == b.I_NOOP:
-                if item[1] in DIAMETER_WORDS or item[1] == "FGROUP":
-                    self.modal.feed_rules = self.modal.feed_rules.word(item[1], item[2], self._fgroup_axes)
-                elif item[1] != "N":
-                    self._log_once(item[1], f"{item[1]} accepted, not modelled")
+                              [evaluate(v, self) for v in item.values], repeat=item.which == "REP")
+            elif kind is w.ModalCall:
+                self._modal_call = None if item.name is None else (item.name, item.args)
+            elif kind is w.Spos:
+                spos.append(item.spindle)
+            elif kind is w.Setal:
+                self._setal(evaluate(item.number, self))
+            elif kind is w.NoOp:
+                if item.name in DIAMETER_WORDS or item.name == "FGROUP":
+                    self.modal.feed_rules = self.modal.feed_rules.word(item.name, item.args, self._fgroup_axes)
+                elif item.name != "N":
+                    self._log_once(item.name, f"{item.name} accepted, not modelled")
         events: list[Event] = []
         if message is not None:
             events.append(Message(message))
