@@ -166,6 +166,13 @@ class Tabulated:
 
 
 TimeLaw = Trapezoid | Tabulated
+# A Trapezoid's arguments, not built yet (Planner.straight)
+LawArgs = tuple[float, float, float, bool, bool]
+
+
+def time_law(law: TimeLaw | LawArgs) -> TimeLaw:
+    """The law itself, built from its arguments where :meth:`Planner.straight` left them."""
+    return Trapezoid(*law) if law.__class__ is tuple else law  # type: ignore[arg-type,return-value]
 
 
 @dataclass(frozen=True, slots=True)
@@ -276,11 +283,13 @@ class Planner:
 
     def straight(self, deltas: list[tuple[str, float]], feed: float | None, feed_mode: str, exact_stop: bool,
                  feed_pct: float, rapid_pct: float, spindle_rpm: float,
-                 fgroup: frozenset[str] | None = None) -> tuple[float, float, float, TimeLaw | None]:
+                 fgroup: frozenset[str] | None = None) -> tuple[float, float, float, TimeLaw | LawArgs | None]:
         """:meth:`move` for the channel's hot path: ``deltas`` (axis, target - start) of the axes that
         move (|delta| above EPSILON_MM), overrides as numbers; (duration_s, feed_mm_min, length_mm, law).
         The same arithmetic in the same order as :meth:`move` (a property test holds them equal), with
-        no dictionaries built and the single-segment trapezoid inlined."""
+        no dictionaries built and the single-segment trapezoid inlined. A move at feed gives its law as
+        the :class:`Trapezoid`'s arguments (:func:`time_law` builds it): most moves end within a cycle
+        and nobody asks where they were in between."""
         if feed is None:
             if not deltas:
                 return 0.0, 0.0, 0.0, None
@@ -329,7 +338,7 @@ class Planner:
             duration = length / speed_mm_s + ramps * speed_mm_s / (2.0 * accel)
         else:
             duration = ramps * math.sqrt(2.0 * (length / ramps) / accel)
-        return duration, speed_mm_s * S_PER_MIN, length, Trapezoid(length, speed_mm_s, accel, ramp_in, exact_stop)
+        return duration, speed_mm_s * S_PER_MIN, length, (length, speed_mm_s, accel, ramp_in, exact_stop)
 
     def arc(self, start_mm: dict[str, float], arc: Arc, overrides: Overrides, spindle_rpm: float) -> Timed:
         path = arc_path(start_mm, arc)

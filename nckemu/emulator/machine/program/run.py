@@ -41,12 +41,14 @@ from nckemu.emulator.machine.program.planner import (
     EPSILON_MM,
     ArcPath,
     AxisLimits,
+    LawArgs,
     MotionLimits,
     Overrides,
     Planner,
     SpindleRamp,
     TimeLaw,
     css_rpm,
+    time_law,
 )
 from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments
 
@@ -143,7 +145,8 @@ class _Motion:
     # (machine axis number, position at the start, target) of every axis the block moves
     axes: list[tuple[int, float, float]]
     feed_mm_min: float
-    law: TimeLaw | None = None     # share of the path behind at a time since start_s (None: linear in time)
+    # share of the path behind at a time since start_s (None: linear in time; a tuple: its arguments)
+    law: TimeLaw | LawArgs | None = None
     arc: ArcPath | None = None     # a circle or helix (by channel axis name); None: a straight line
 
 
@@ -539,12 +542,10 @@ class ProgramRun:
         targets = event.target_mm
         if not axes.keys() >= targets.keys():  # names as the interpreter wrote them: ours are upper case
             targets = {self._axis_name(axis): value for axis, value in targets.items()}
-        moving = self._check_travel(targets, positions)
+        moving, deltas = self._check_travel(targets, positions)
         arc = law = None
         if event.__class__ is Move and event.css is None and not event.thread:
             # the common case: the planner's straight move on the deltas, no records built
-            deltas = [(name, target - start) for name, _, start, target in moving
-                      if abs(target - start) > EPSILON_MM]
             spindle_rpm = self._spindle_rpm(start_s) if event.feed_mode == "G95" else 0.0
             duration_s, feed_mm_min, _, law = self.planner.straight(
                 deltas, feed, event.feed_mode, event.exact_stop, state.feed_override_pct,
@@ -564,9 +565,8 @@ class ProgramRun:
                 timed = self.planner.arc(start_mm, event, self._overrides(), spindle_rpm)
                 arc = timed.arc
                 if arc is not None:  # both plane axes turn, named in the block or not
-                    named = {name for name, _, _, _ in moving}
-                    moving += [(name, axes[name], positions[axes[name]], positions[axes[name]])
-                               for name in (arc.first, arc.second) if name not in named and name in axes]
+                    moving += [(axes[name], positions[axes[name]], positions[axes[name]])
+                               for name in (arc.first, arc.second) if name not in targets and name in axes]
             duration_s, feed_mm_min, law = timed.duration_s, timed.feed_mm_min, timed.law
             if event.css is not None and duration_s != math.inf:
                 self._follow_cutting_speed(event, start_s, start_s + duration_s)
@@ -574,9 +574,7 @@ class ProgramRun:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity is zero (F0, or G95 with the "
                                                 "spindle standing)", program=state.program,
                                line=state.line_number, block=state.block_number)
-        self._motion = _Motion(start_s, start_s + duration_s,
-                               [(number, start, target) for _, number, start, target in moving], feed_mm_min,
-                               law, arc)
+        self._motion = _Motion(start_s, start_s + duration_s, moving, feed_mm_min, law, arc)
         if self.record is not None:
             self.record.feed_mm_min = feed or 0.0
         state.commanded_feed_mm_min = feed if feed_move else 0.0
@@ -590,11 +588,13 @@ class ProgramRun:
         return name
 
     def _check_travel(self, targets: dict[str, float], positions: dict[int, float]
-                      ) -> list[tuple[str, int, float, float]]:
-        """(name, number, start, target) of every axis ``targets`` names, after the software limit
-        switches: a target beyond an axis' travel is the NCK's alarm before anything moves."""
+                      ) -> tuple[list[tuple[int, float, float]], list[tuple[str, float]]]:
+        """(number, start, target) of every axis ``targets`` names and (name, target - start) of those that
+        move, after the software limit switches: a target beyond an axis' travel is the NCK's alarm before
+        anything moves. One pass: the channel calls this for every block."""
         travel = self._travel
         moving = []
+        deltas = []
         for name, value in targets.items():
             number, low_mm, high_mm, checked = travel[name]
             if checked and not low_mm <= value <= high_mm:
@@ -605,8 +605,12 @@ class ProgramRun:
                                    f"{spec.travel_max_mm:g} mm (software limit switch; travel_mm of axis "
                                    f"{spec.name} in the machine file moves it)",
                                    program=state.program, line=state.line_number, block=state.block_number)
-            moving.append((name, number, positions[number], value))
-        return moving
+            start = positions[number]
+            moving.append((number, start, value))
+            delta = value - start
+            if delta > EPSILON_MM or delta < -EPSILON_MM:
+                deltas.append((name, delta))
+        return moving, deltas
 
     def _move_axes(self, t_s: float, caught_up: bool = False) -> None:
         motion = self._motion
@@ -621,7 +625,12 @@ class ProgramRun:
             self._arrive(motion)
             return
         law = motion.law
-        fraction = law.fraction(t_s - motion.start_s) if law is not None else (t_s - motion.start_s) / span
+        if law is None:
+            fraction = (t_s - motion.start_s) / span
+        else:
+            if law.__class__ is tuple:
+                law = motion.law = time_law(law)
+            fraction = law.fraction(t_s - motion.start_s)  # type: ignore[union-attr]
         positions = self.parts.axes.positions_mm
         if motion.arc is not None:
             axes = self.axes
