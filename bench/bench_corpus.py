@@ -81,7 +81,31 @@ class _Faults(logging.Handler):
             self.tracebacks.append("".join(traceback.format_exception(*record.exc_info)))
 
 
-def run_one(machine: str, main: str, stored: list[tuple[str, bytes]], max_time_s: float) -> dict[str, Any]:
+class _OutOfTime(Exception):
+    """The program's real-time budget is spent (raised from the block listener, caught by run_one)."""
+
+
+class _Blocks:
+    """Counts the executed blocks by (program, line): where a program that does not end spends its time."""
+
+    def __init__(self, wall_s: float) -> None:
+        self.counts: Counter[tuple[str, int, str]] = Counter()
+        self.deadline = time.monotonic() + wall_s
+
+    def __call__(self, record: Any) -> None:
+        self.counts[(record.program.rsplit("/", 1)[-1], record.line, record.text[:60])] += 1
+        if len(self.counts) % 64 == 0 and time.monotonic() > self.deadline:
+            raise _OutOfTime
+
+    def hottest(self) -> str:
+        if not self.counts:
+            return ""
+        (program, line, text), count = self.counts.most_common(1)[0]
+        return f"; busiest block {program} line {line}: {text} ({count} times)"
+
+
+def run_one(machine: str, main: str, stored: list[tuple[str, bytes]], max_time_s: float,
+            wall_s: float = 1.0e9) -> dict[str, Any]:
     """Run one program in this process; the outcome as a dict (never raises)."""
     from nckemu.emulator.machine.clock import SimulatedClock
     from nckemu.emulator.machine.core import Emulator
@@ -100,7 +124,11 @@ def run_one(machine: str, main: str, stored: list[tuple[str, bytes]], max_time_s
                 refused.append(f"{path}: {exc}")
         target = f"/_N_MPF_DIR/_N_{_stem(Path(main).name)}_MPF"
         emulator.nck.programs.write(target, Path(main).read_bytes())
-        result = run_offline(emulator, target, max_time_s=max_time_s)
+        blocks = _Blocks(wall_s)
+        result = run_offline(emulator, target, max_time_s=max_time_s, on_block=blocks)
+    except _OutOfTime:
+        return {"outcome": "timeout", "detail": f"still running after {wall_s:.0f} s of real time"
+                                                f"{blocks.hottest()}"}
     except Exception:  # the outcome "crashed": what the runner exists to find
         return {"outcome": "crashed", "detail": traceback.format_exc(limit=8)}
     finally:
@@ -119,7 +147,8 @@ def run_one(machine: str, main: str, stored: list[tuple[str, bytes]], max_time_s
                            alarm_program=match.group(3) or "", line=int(match.group(4) or 0),
                            block=(match.group(5) or "").strip())
     else:
-        outcome.update(outcome="timeout", detail=f"still running after {result.t_s:.0f} s simulated")
+        outcome.update(outcome="timeout", detail=f"still running after {result.t_s:.0f} s simulated"
+                                                 f"{blocks.hottest()}")
     return outcome
 
 
@@ -176,6 +205,9 @@ def describe(outcome: dict[str, Any]) -> str:
 
 def feature_key(outcome: dict[str, Any]) -> str:
     """What blocks a program, grouped: the alarm number and the feature's words without numbers."""
+    if outcome["outcome"] == "timeout":
+        waits = any(name in outcome["detail"] for name in ("$A_IN", "$A_DB", "$A_OUT"))
+        return "timeout: waits for its PLC ($A_IN/$A_DBB)" if waits else "timeout: still computing or moving"
     if outcome["outcome"] != "alarm" or "number" not in outcome:
         return outcome["outcome"]
     feature = re.sub(r"[-\d.]+", "#", outcome["feature"])[:70]
@@ -188,7 +220,7 @@ def run_corpus(corpus: Path, *, only: str = "", machine: str = "", max_time_s: f
     results = []
     for repository, tree, main_path in programs(corpus, load_manifest(), only, machine):
         stored = _files(tree, repository, main_path)
-        outcome = run_isolated((repository["machine"], str(main_path), stored, max_time_s), wall_s)
+        outcome = run_isolated((repository["machine"], str(main_path), stored, max_time_s, wall_s), wall_s + 30.0)
         result = {"repo": repository["repo"], "program": f"{repository['repo']}/{main_path.relative_to(tree).as_posix()}",
                   **outcome}
         results.append(result)

@@ -421,6 +421,8 @@ class Interpreter:
         if not indices:
             if name in ("$P_AXN1", "$P_AXN2", "$P_AXN3"):  # the plane's abscissa, ordinate, applicate
                 return _PLANES[self.modal.plane][int(name[-1]) - 1]
+            if name == "$P_MC":  # a modal call (MCALL) is active: cycles ask before they position
+                return self._modal_call is not None
             if name == "$P_F":
                 return self.feed_mm
             if name == "$P_TOOLNO":
