@@ -59,3 +59,33 @@ def test_a_gud_file_put_over_s7_is_used_by_the_program_put_after_it(emu: Emulato
     assert main(["program", "put", str(gud), *port]) == 0
     assert not any("MGUD" in text for text in emu.call(lambda: emu.nck.alarm_list.active))
     assert emu.call(lambda: emu.nck.programs.definitions.variables()["INI"].get((53,))) == 1500.0
+
+
+def test_opc_ua_copy_file_to_server_activates_a_definition_file_or_refuses_it() -> None:
+    import asyncio
+
+    from asyncua import ua
+    from asyncua.ua.uaerrors import UaStatusCodeError
+
+    from .opcua_tools import NS_URI, connect, two_faces
+
+    async def copy(face, name: str, data: bytes) -> object:
+        client = await connect(face, "nckemu", "SUNRISE")
+        try:
+            ns = await client.get_namespace_index(NS_URI)
+            methods = await client.nodes.objects.get_child([f"{ns}:Sinumerik", f"{ns}:Methods"])
+            try:
+                return await methods.call_method(f"{ns}:CopyFileToServer", ua.Variant(name),
+                                                 ua.Variant(data, ua.VariantType.ByteString), ua.Variant(True))
+            except UaStatusCodeError as exc:
+                return type(exc).__name__
+        finally:
+            await client.disconnect()
+
+    with two_faces() as (emulator, face):
+        assert asyncio.run(copy(face, "UGUD.DEF", b"DEF NCK REAL OFFSETS[10]=REP(0.5)\n")) is None
+        variables = emulator.call(lambda: emulator.emulator.nck.programs.definitions.variables())
+        assert variables["OFFSETS"].get((9,)) == 0.5
+        assert asyncio.run(copy(face, "UGUD.DEF", b"DEF NCK REAL OFFSETS[10]\nOFFSETS[1]=2\n")) == \
+            "BadInvalidArgument"
+        assert "OFFSETS" in emulator.call(lambda: emulator.emulator.nck.programs.definitions.variables())
