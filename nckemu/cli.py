@@ -29,6 +29,7 @@ COMMAND_MODULES = (
     "nckemu.plcsim.commands",     # plc run, plc stubs
     "nckemu.plcsim.fleet_live",   # fleet: living machines (inputs/plc in a [[machine]])
     "nckemu.emulator.program_commands",  # program run (the program group)
+    "nckemu.twin.commands",       # machine fit, machine compare
 )
 
 log = logging.getLogger(__name__)

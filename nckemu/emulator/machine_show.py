@@ -9,9 +9,10 @@ from typing import Any
 from nckemu.catalogue.edges import EDGE_PARAMETER_NAMES, parameter_unit
 from nckemu.catalogue.table import load_table
 from nckemu.emulator.faces.opcua.settings import OpcUaSettings
-from nckemu.emulator.machine.machine_file import AXIS_DYNAMICS, Machine, Settings, axis_dynamics
+from nckemu.emulator.machine.machine_file import AXIS_DYNAMICS, Machine, Sensor, Settings, axis_dynamics
 from nckemu.emulator.machine.plc.memory import AREA_BYTES
 from nckemu.emulator.machine_check import opcua_document
+from nckemu.heat_response import HeatTerm
 from nckemu.protocol.db41 import CHANNEL_DB
 
 DYNAMICS_NAMES = dict(AXIS_DYNAMICS)
@@ -21,6 +22,22 @@ def _edge(values: tuple[float, ...]) -> dict[str, float]:
     """An edge's parameters that are set (non-zero) or named, by P number."""
     return {f"P{number}": value for number, value in enumerate(values, start=1)
             if value or number in (1, 2)}
+
+
+def _heat(sensor: Sensor) -> dict[str, Any]:
+    """What a running machine's heat does to the sensor: its fitted response, or the older keys."""
+    if sensor.response:
+        return {"response": [term.to_table() for term in sensor.response]}
+    return {"heat_spindle_K_per_krpm": sensor.heat_spindle_K_per_krpm,
+            "heat_axes_K_per_m_min": sensor.heat_axes_K_per_m_min,
+            "heat_time_constant_s": sensor.heat_time_constant_s}
+
+
+def _heat_words(heat: dict[str, Any]) -> str:
+    if "response" in heat:
+        return "; ".join(HeatTerm(**{k: v for k, v in t.items()}).words() for t in heat["response"])
+    return (f"{heat['heat_spindle_K_per_krpm']:g} K per 1000 rpm of the spindle + {heat['heat_axes_K_per_m_min']:g} K "
+            f"per m/min of path speed, tau {heat['heat_time_constant_s']:g} s")
 
 
 def machine_document(machine: Machine, opcua: OpcUaSettings) -> dict[str, Any]:
@@ -34,9 +51,10 @@ def machine_document(machine: Machine, opcua: OpcUaSettings) -> dict[str, Any]:
         "axes": [{"number": a.number, "name": a.name, "travel_mm": [a.travel_min_mm, a.travel_max_mm],
                   "rotary": a.rotary, "spindle": a.spindle, "referenced": a.referenced,
                   **({} if a.spindle else {number: {"value": value, "unit": unit} for number, (value, unit)
-                                           in axis_dynamics(machine, a.number).items()})}
+                                           in axis_dynamics(machine, a.number).items()}),
+                  "thermal_um_per_K": dict(a.thermal_um_per_K)}
                  for a in machine.axes],
-        "sensors": [{"name": s.name, "plc_input": s.plc_input, "temperature_C": s.temperature_C}
+        "sensors": [{"name": s.name, "plc_input": s.plc_input, "temperature_C": s.temperature_C, "heat": _heat(s)}
                     for s in machine.sensors],
         "drives": [asdict(drive) for drive in machine.drives],
         "drive_settings": asdict(machine.drive_settings),
@@ -81,8 +99,11 @@ def print_machine(doc: dict[str, Any]) -> None:
                            for number in DYNAMICS_NAMES if number in axis)
         print(f"  axis {axis['number']} {axis['name']}: {kind}{dynamics}"
               f"{'' if axis['referenced'] else ', not referenced'}")
+        if axis.get("thermal_um_per_K"):
+            print("    thermal error: " + ", ".join(f"{k:g} um/K of {name}" for name, k in axis["thermal_um_per_K"].items()))
     for sensor in doc["sensors"]:
         print(f"  sensor {sensor['name']}: {sensor['plc_input'] or 'no PLC input'}, {sensor['temperature_C']:g} degC")
+        print(f"    heat: {_heat_words(sensor['heat'])}")
     for drive in doc["drives"]:
         axis = f"axis {drive['axis']}" if drive["axis"] is not None else "no axis"
         sensor = f", motor sensor {drive['motor_sensor']}" if drive["motor_sensor"] else ""

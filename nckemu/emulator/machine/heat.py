@@ -1,8 +1,13 @@
 """The heat a running program makes: each sensor answers the spindle's speed and the axes' motion.
 
-Every sensor of the machine file has a first-order response (``heat_time_constant_s``) towards a rise
-of ``heat_spindle_K_per_krpm`` per 1000 rpm of the spindle plus ``heat_axes_K_per_m_min`` per m/min of
-path speed, on top of its fixed value or profile (assumed defaults, docs/programs.md). Only what a
+A sensor with a fitted response (``[[sensor.response]]``, written by `nckemu machine fit`; the terms
+and their math are nckemu/heat_response.py, shared with the fit) rises by the sum of its terms: the
+spindle's speed to a power (or running at all), the path speed, another sensor (the room, a
+neighbour), each through its own lag. A sensor without one keeps the first-order response of the
+older keys (``heat_time_constant_s``) towards a rise of ``heat_spindle_K_per_krpm`` per 1000 rpm of the
+spindle plus ``heat_axes_K_per_m_min`` per m/min of path speed, on top of its fixed value or profile
+(assumed defaults, docs/programs.md). A recorded input a term names (a coolant switch) reads 0 here:
+a program drives only the spindle and the axes. Only what a
 program drives heats: a recording's spindle speed or a test's values do not (a recording brings its
 own temperatures). The inputs are taken at each cycle and held over it, so the rise is exact for
 inputs that change at cycle boundaries and within a cycle's sampling otherwise.
@@ -14,6 +19,7 @@ import math
 from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.machine_file import Machine
+from nckemu.heat_response import PATH, SPINDLE, ResponseState
 
 if TYPE_CHECKING:
     from nckemu.emulator.machine.nck.model import NckModel
@@ -27,6 +33,9 @@ class Heat:
         self.nck = nck
         self._last_s: float | None = None
         self._inputs = (0.0, 0.0)   # spindle rpm and path speed in m/min over the last cycle
+        # The fitted responses' lag states, by sensor; their rise is what they add to the sensor.
+        self._responses = {sensor.name: ResponseState(sensor.response) for sensor in machine.sensors
+                           if sensor.response}
 
     def inputs(self) -> tuple[float, float]:
         """The program-driven spindle speed (rpm) and path speed (m/min) now."""
@@ -66,7 +75,15 @@ class Heat:
         dt_s = t_s - last
         spindle_rpm, path_m_min = self._inputs
         heat = self.nck.sensors.heat_C
+        if self._responses:
+            drives = {SPINDLE: spindle_rpm, PATH: path_m_min}
+            now_C = {sensor.name: self.nck.sensor_temperature_C(sensor.name) for sensor in self.machine.sensors}
+            for name, state in self._responses.items():
+                state.step(dt_s, drives, now_C)
+                heat[name] = state.rise_K
         for sensor in self.machine.sensors:
+            if sensor.name in self._responses:
+                continue
             target_K = sensor.heat_spindle_K_per_krpm * spindle_rpm / 1000.0 + sensor.heat_axes_K_per_m_min * path_m_min
             now_K = heat.get(sensor.name, 0.0)
             if target_K == 0.0 and now_K == 0.0:

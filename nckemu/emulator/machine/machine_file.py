@@ -18,6 +18,7 @@ from nckemu.catalogue.edges import STANDARD_EDGE_PARAMS
 from nckemu.catalogue.table import VariableSpec, load_table, machine_table, row_lines
 from nckemu.emulator.machine.plc.memory import AREA_BYTES
 from nckemu.errors import NckConfigError
+from nckemu.heat_response import SENSOR, HeatTerm, parse_terms
 from nckemu.textfile import read_text
 
 
@@ -61,6 +62,9 @@ class Sensor:
     heat_spindle_K_per_krpm: float = 1.0
     heat_axes_K_per_m_min: float = 0.2
     heat_time_constant_s: float = 600.0
+    # A fitted response (``[[sensor.response]]``, nckemu/heat_response.py; `nckemu machine fit` writes
+    # it): when present it replaces the three keys above for this sensor.
+    response: tuple[HeatTerm, ...] = ()
 
     def raw_value(self, temperature_C: float) -> int:
         raw = round(self.raw_offset + self.raw_per_C * temperature_C)
@@ -290,7 +294,8 @@ _KNOWN_KEYS: dict[str, frozenset[str]] = {
     "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
                        "tool_temp_comp_component", "recording", "thermal_um_per_K"}),
     "sensor": frozenset({"name", "temperature_C", "plc_input", "raw_offset", "raw_per_C", "profile",
-                         "heat_spindle_K_per_krpm", "heat_axes_K_per_m_min", "heat_time_constant_s"}),
+                         "heat_spindle_K_per_krpm", "heat_axes_K_per_m_min", "heat_time_constant_s",
+                         "response"}),
     "program.": frozenset(setting.name for setting in fields(ProgramSettings)),
     "plc.": frozenset({"data_blocks"}),
     "tools.": frozenset({"cutting_edge_params", "active_t", "active_d", "ori_length_components"}),
@@ -491,7 +496,8 @@ def _sensor(table: dict[str, Any], index: int, source: str) -> Sensor:
                                                     low=-1000.0, high=1000.0),
                   heat_axes_K_per_m_min=_positive(table, "heat_axes_K_per_m_min", 0.2, where, source, None,
                                                   low=-1000.0, high=1000.0),
-                  heat_time_constant_s=_positive(table, "heat_time_constant_s", 600.0, where, source, None))
+                  heat_time_constant_s=_positive(table, "heat_time_constant_s", 600.0, where, source, None),
+                  response=parse_terms(table.get("response", []), where, source))
 
 
 def parse_machine(text: str, source: str = "<string>") -> Machine:
@@ -535,6 +541,11 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
     if len(set(numbers)) != len(numbers):
         raise NckConfigError("two axes with one number", path=source, field="axis.number")
     sensors = tuple(_sensor(t, i, source) for i, t in enumerate(data.get("sensor", [])))
+    for index, sensor in enumerate(sensors):
+        for number, term in enumerate(sensor.response):
+            if term.input == SENSOR and all(other.name != term.sensor for other in sensors):
+                raise NckConfigError(f"no [[sensor]] named {term.sensor!r} (sensors: {', '.join(s.name for s in sensors)})",
+                                     path=source, field=f"sensor[{index}].response[{number}].sensor")
     for index, axis in enumerate(axes):
         for name in axis.thermal_um_per_K:
             if all(sensor.name != name for sensor in sensors):
@@ -690,12 +701,17 @@ def _opcua_table(table: object, source: str) -> dict[str, Any]:
     return dict(table)
 
 
-def load_machine(path: str | Path | None = None) -> Machine:
-    """The machine in ``path``, or the built-in default machine."""
+def machine_text(path: str | Path | None = None) -> tuple[str, str]:
+    """The text of the machine file ``path`` (or of the built-in default machine) and its source name."""
     if path is None:
         text = resources.files("nckemu.emulator.machine").joinpath("machines/default.toml").read_text("utf-8")
-        return parse_machine(text, "default.toml (built in)")
-    return parse_machine(read_text(path, "a machine is TOML text"), str(path))
+        return text, "default.toml (built in)"
+    return read_text(path, "a machine is TOML text"), str(path)
+
+
+def load_machine(path: str | Path | None = None) -> Machine:
+    """The machine in ``path``, or the built-in default machine."""
+    return parse_machine(*machine_text(path))
 
 
 # The axis machine data that say how fast a program's moves are, as `machine show` lists them.
