@@ -166,14 +166,15 @@ def run_program_command(args: argparse.Namespace) -> int:
             print(file=sys.stderr)
     summary = {"program": target, "outcome": result.outcome, "simulated_s": round(result.t_s, 3),
                "net_time_s": round(result.net_time_s, 3), "blocks": result.blocks, "parts": result.parts,
-               "alarms": result.alarms, "not_simulated": result.not_simulated,
+               "alarms": result.alarms, "not_simulated": result.not_simulated, "notes": result.notes,
                "wall_s": round(time.monotonic() - started, 3)}
     if args.json:
         print(json.dumps(summary))
     else:
         print(f"{target}: {result.outcome} after {result.net_time_s:.1f} s simulated ({result.blocks} blocks, "
               f"{result.parts:g} parts)" + "".join(f"\n  {line}" for line in result.not_simulated_lines())
-              + "".join(f"\n  alarm: {text}" for text in result.alarms))
+              + "".join(f"\n  alarm: {text}" for text in result.alarms)
+              + "".join(f"\n  note: {text}" for text in result.notes))
     return 0 if result.outcome == "ended" else 1
 
 

@@ -148,15 +148,16 @@ def run_compare(args: argparse.Namespace) -> int:
     if not responses:
         raise NckConfigError("no [[sensor.response]] in this machine: fit one with `nckemu machine fit`",
                              path=args.machine)
+    recorded = set(load_heat_runs(args.recording, [], step_s=60.0)[0].sensors_C)
+    responses = {name: terms for name, terms in responses.items() if name in recorded}
+    if not responses:
+        raise NckConfigError(f"none of the machine's fitted sensors is in the recording (it has: "
+                             f"{', '.join(sorted(recorded))})", path=args.recording[0])
     needed = sorted({term.input for terms in responses.values() for term in terms} - {SENSOR})
     inputs = ["axes" if name == PATH else name for name in needed]
     if SPINDLE not in inputs:
         inputs.append(SPINDLE)
     runs = load_heat_runs(args.recording, inputs, step_s=60.0)
-    lacking = sorted(set(responses) - set(runs[0].sensors_C))
-    if lacking:
-        raise NckConfigError(f"the recording has no temp_{lacking[0]}_C, a sensor the machine's responses fit",
-                             path=args.recording[0])
     base = {sensor.name: sensor.temperature_C for sensor in machine.sensors}
     result = compare(runs, base, responses)
     if args.figure:

@@ -99,5 +99,5 @@ def write_figure(path: str | Path, runs: Sequence[HeatRun], comparison: Comparis
         panel.legend(loc="upper right", fontsize=7)
     axes[-1, 0].set_xlabel(f"hours of {run.name}")
     figure.tight_layout()
-    figure.savefig(path, dpi=90, format="png")
+    figure.savefig(path, dpi=60, format="png")
     plt.close(figure)

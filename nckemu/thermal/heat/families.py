@@ -272,15 +272,21 @@ def polish(search: SensorSearch, specs: list[Spec]) -> list[Spec]:
             power = round(float(np.clip(x[1], 0.05, 3.5)), 4) if free_power else spec.power
             return replace(spec, tau_s=float(np.exp(x[0])), power=power)
 
-        def cost(x: np.ndarray, index: int = index, twins: list[float] = twins, shaped=shaped) -> float:
+        laws = [s.power for i, s in enumerate(out) if i != index and s.kind == "spindle" and s.power != spec.power]
+
+        def cost(x: np.ndarray, index: int = index, twins: list[float] = twins, shaped=shaped,
+                 laws: list[float] = laws) -> float:
             trial = shaped(x)
             if not MIN_TAU_S <= trial.tau_s <= longest or any(max(trial.tau_s, t) < ratio * min(trial.tau_s, t) for t in twins):
+                return math.inf
+            if trial.kind == "spindle" and any(abs(trial.power - law) < MIN_POWER_GAP for law in laws):
                 return math.inf
             return search.in_sample_sse(out[:index] + [trial] + out[index + 1:], cache=False)
 
         start = np.array([math.log(spec.tau_s), spec.power] if free_power else [math.log(spec.tau_s)])
-        found = minimize(cost, start, method="Nelder-Mead",
-                         options={"maxfev": 60, "xatol": 0.002, "fatol": 1e-9, "initial_simplex": None})
+        with np.errstate(invalid="ignore"):   # a simplex with an infinite corner (a constraint) subtracts inf
+            found = minimize(cost, start, method="Nelder-Mead",
+                             options={"maxfev": 60, "xatol": 0.002, "fatol": 1e-9, "initial_simplex": None})
         if math.isfinite(found.fun) and found.fun < cost(start):
             out[index] = shaped(found.x)
     for power in sorted({s.power for s in out if s.kind == "spindle" and s.power > 0}):
@@ -314,6 +320,10 @@ def _candidates(search: SensorSearch, specs: list[Spec]) -> Iterator[tuple[str, 
             found = _spindle(search, specs, columns)
             if found:
                 yield "spindle", found
+                if not powers:   # skin and core at once: one lag first would take the wrong place
+                    pair = _second_time_constant(search, found, len(found) - 1, columns)
+                    if pair:
+                        yield "spindle, two time constants", pair
         for power in sorted(set(powers)):
             if powers.count(power) == 1:
                 index = next(i for i, s in enumerate(specs) if s.kind == "spindle" and s.power == power)

@@ -35,6 +35,8 @@ from .table import HeatRun
 # follows the room by about as much as the room moves (a little more where it is better coupled).
 MAX_NEIGHBOUR_K_PER_K = 1.5
 MAX_AMBIENT_K_PER_K = 3.0
+# When no family passes alone, pairs of the round's best this many are tried together.
+PAIR_FAMILIES = 3
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,7 @@ class Settings:
     power_grid: tuple[float, ...] = tuple(round(v, 2) for v in np.arange(0.2, 2.81, 0.2))
     tau_ratio: float = 3.0            # two time constants of one input at least this far apart
     withdraw_share: float = 0.01      # a term whose removal costs less held-out RMS than this is withdrawn
+    min_effect_noise: float = 3.0     # a new term must move the sensor by this many times its white noise
     noise_factor: float = 1.3         # a held-out RMS within this factor of the white noise: nothing left
     reference: tuple[str, ...] = ()   # sensors that read the room (their terms are "ambient")
 
@@ -227,6 +230,20 @@ class SensorSearch:
                 return f"{spec.describe()} would take {k:+.2f} K per K (a machine's is {low:g} to {high:g})"
         return ""
 
+    def too_small(self, specs: list[Spec], before: list[Spec], noise_K: float) -> str:
+        """Why a new term is no finding ("" when it is one): it moves the sensor by less than a few
+        times the sensor's own white noise (a slow lag of any input mops up what is left otherwise)."""
+        y, x = self.judge.fitting_rows(self.y, self.design(specs))
+        coef = stats.least_squares(x, y)[0 if self.judge.per_run else 1:]
+        for spec, k in zip(specs, coef, strict=True):
+            if spec in before:
+                continue
+            moves_K = abs(float(k)) * float(np.ptp(self.columns.column(spec)))
+            if moves_K < self.settings.min_effect_noise * noise_K:
+                return (f"{spec.describe()} would move the sensor by {moves_K:.3f} K, less than "
+                        f"{self.settings.min_effect_noise:g}x its white noise ({noise_K:.3f} K)")
+        return ""
+
     def run(self, start: SensorHeat | None = None) -> SensorHeat:
         s = self.settings
         first = self.judge.judge(self.y, self.design([]))
@@ -248,11 +265,13 @@ class SensorSearch:
             for family, new_specs in candidates:
                 verdict = self.judge.judge(self.y, self.design(new_specs))
                 ok, why = self.judge.passes(current, verdict, len(candidates))
-                unphysical = self.unphysical(new_specs)
+                unphysical = self.unphysical(new_specs) or self.too_small(new_specs, specs, noise_K)
                 if unphysical:
                     ok, why = False, f"{why}; {unphysical}"
                 judged.append((verdict.rms, ok, family, new_specs, verdict, why))
             passing = sorted((j for j in judged if j[1]), key=lambda j: j[0])
+            if not passing:   # two families that only together explain what each alone cannot
+                passing = self._pairs(specs, current, judged)
             if not passing:
                 best = min(judged, key=lambda j: j[0], default=None)
                 closest = f"{best[2]}: {best[5]}" if best is not None else ""
@@ -270,6 +289,25 @@ class SensorSearch:
             specs, current, gone = self._withdraw(specs, current)
             withdrawn += gone
         return self._result(specs, first, current, withdrawn, closest, admitted_at)
+
+    def _pairs(self, specs: list[Spec], current: Judgement, judged: list) -> list:
+        """Two of the round's best families named together (each alone confounded with the other: a
+        coolant switched while the spindle runs), judged as one candidate against the pairs tried."""
+        best = sorted(judged, key=lambda j: j[0])[:PAIR_FAMILIES]
+        tries = []
+        for i, first in enumerate(best):
+            for second in best[i + 1:]:
+                added = [spec for spec in second[3] if spec not in first[3]]
+                if not added or any(a.kind == b.kind == "spindle" for a in added for b in first[3] if b not in specs):
+                    continue
+                tries.append((f"{first[2]} + {second[2]}", polish(self, list(first[3]) + added)))
+        passing = []
+        for family, merged in tries:
+            verdict = self.judge.judge(self.y, self.design(merged))
+            ok, why = self.judge.passes(current, verdict, len(judged) + len(tries))
+            if ok and not self.unphysical(merged) and not self.too_small(merged, specs, white_noise_C(self.y)):
+                passing.append((verdict.rms, ok, family, merged, verdict, why))
+        return sorted(passing, key=lambda j: j[0])
 
     def _withdraw(self, specs: list[Spec], current: Judgement) -> tuple[list[Spec], Judgement, list[str]]:
         """Earlier terms that the later ones made unnecessary on held-out data."""

@@ -105,3 +105,19 @@ def test_machine_show_lists_the_heat_of_every_sensor(tmp_path, capsys):
     assert "heat: spindle +0.25 K per krpm^1.60, tau 20 min; ambient room 0.8 K/K, tau 1.00 h" in out
     assert "heat: neighbour bearing 0.4 K/K, tau 40 min" in out
     assert "heat: 1 K per 1000 rpm of the spindle + 0.2 K per m/min of path speed, tau 600 s" in out
+
+
+def test_the_built_in_bed_warms_by_a_fraction_of_a_kelvin_and_md35100_is_said(tmp_path, capsys):
+    """Issue 50's warm-up: 15 min each at 3000, 6000, 9000 and 12000 rpm on the built-in machine. The bed
+    rose 9.7 K before (a spindle bearing's rise); 12000 rpm was held at 10000 without a word."""
+    program = tmp_path / "WARM1H.MPF"
+    program.write_text("N10 S3000 M3\nN20 G4 F900\nN30 S6000\nN40 G4 F900\nN50 S9000\nN60 G4 F900\n"
+                       "N70 S12000\nN80 G4 F900\nN90 M5\nN100 M30\n")
+    out = tmp_path / "sim.csv"
+    assert main(["program", "run", str(program), "--out", str(out), "--sample", "60"]) == 0
+    text = capsys.readouterr().out
+    assert "note: S12000 in N70 held at 10000 rpm by MD35100 SPIND_VELO_LIMIT of spindle 1" in text
+    bed = np.genfromtxt(out, delimiter=",", names=True)["temp_bed_C"]
+    assert 0.02 < bed[-1] - 20.0 < 0.5
+    assert main(["program", "run", str(program), "--json"]) == 0
+    assert "MD35100" in capsys.readouterr().out.splitlines()[-1]

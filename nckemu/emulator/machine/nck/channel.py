@@ -120,6 +120,7 @@ class Channel:
         # progStatus 5 says "aborted" after a reset and after the program's end alike (BTSS has no
         # "ended"): True when the last run reached its end, for the faces that can say so (live page).
         self.ended_normally = False
+        self.last_run_notes: list[str] = []   # and what it did other than programmed (run.notes)
         # The net time of the last complete run (ended by M2/M30 or its last block, not by reset) of each
         # program: path -> (hash of its text, seconds), what time_left_s counts down from. A changed text
         # is another program (its old time says nothing about it) and replaces the entry.
@@ -358,6 +359,7 @@ class Channel:
         if run is not None:
             run.close(run.t_s if run.ended else self._clock.now_s())
             self.last_run_blocks = run.blocks
+            self.last_run_notes = list(run.notes)
         if self.parts.programs.running and self.number == 1:
             self.parts.programs.running = ""
             self.parts.programs.called = tuple

@@ -40,6 +40,7 @@ class OfflineResult:
     alarms: list[str] = field(default_factory=list)
     # standard cycles the run called without a motion model: name -> calls (0 s counted for each)
     not_simulated: dict[str, int] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)   # e.g. a programmed speed MD35100 held lower
 
     def not_simulated_lines(self) -> list[str]:
         """"CYCLE62 not simulated: 0 s counted, 3 calls" for each such cycle, by name."""
@@ -143,5 +144,6 @@ def run_offline(emulator: Emulator, path: str, *, cycle_s: float | None = None, 
     alarms = [alarm.text for alarm in emulator.nck.alarm_list.pending]
     net_s = channel.state.old_net_time_s if outcome == "ended" else channel.net_time_s
     blocks = channel.run.blocks if channel.run is not None else channel.last_run_blocks
+    notes = list(channel.run.notes) if channel.run is not None else list(channel.last_run_notes)
     return OfflineResult(outcome, clock.now_s() - start_s, net_s, blocks, channel.state.actual_parts, alarms,
-                         dict(cycles))
+                         dict(cycles), notes)

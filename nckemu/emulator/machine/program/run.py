@@ -388,6 +388,8 @@ class ProgramRun:
         self.not_simulated: dict[str, int] = {}
         self.record: BlockRecord | None = None
         self.ended = False
+        # What the run did other than programmed, said once each (a speed MD35100 held lower).
+        self.notes: list[str] = []
 
     # ------------------------------------------------------------------ time
     def pause(self, now_s: float) -> None:
@@ -685,7 +687,14 @@ class ProgramRun:
             position = self.parts.axes.positions_mm[axis] if axis is not None else 0.0
             spindle.commanded_rpm = css_rpm(command.css, position, self.planner.limits.spindle_max_rpm)
         elif command.speed_rpm is not None:
-            spindle.commanded_rpm = min(abs(command.speed_rpm), self.planner.limits.spindle_max_rpm)
+            limit = self.planner.limits.spindle_max_rpm
+            spindle.commanded_rpm = min(abs(command.speed_rpm), limit)
+            if abs(command.speed_rpm) > limit:
+                where = f" in {self.record.number or f'line {self.record.line}'}" if self.record is not None else ""
+                note = (f"S{abs(command.speed_rpm):g}{where} held at {limit:g} rpm by MD35100 SPIND_VELO_LIMIT "
+                        f"of spindle {command.spindle}")
+                if note not in self.notes:
+                    self.notes.append(note)
         if command.direction is not None:
             spindle.direction = _DIRECTIONS[command.direction]
         target = 0.0 if spindle.direction == TURN_STOPPED else \
