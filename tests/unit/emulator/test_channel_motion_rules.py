@@ -197,3 +197,44 @@ def test_tapping_g331_g332_at_the_programmed_speed() -> None:
     assert took_s(table["N30"]) == pytest.approx(2.0 + 0.01, rel=1e-9)
     assert took_s(table["N40"]) == pytest.approx(2.0 + 0.01, rel=1e-9)
     assert table["N40"].positions_mm["Z"] == pytest.approx(0.0)
+
+
+# ------------------------------------------------------------------ helices and polar coordinates
+def test_a_helix_with_turn_takes_its_turns_and_is_on_them_halfway() -> None:
+    # From X20 Y0 about X0 Y0 back to X20 Y0 with two more turns (TURN=2): three turns of radius 20 while Z
+    # goes down 10 mm: hypot(3 x 2 pi 20, 10) = 377.12 mm at F1200 (20 mm/s), plus the ramps (the plane
+    # axes carry 376.99/377.12 of the path each: 2000 mm/s² over that share)
+    text = "G17 G90 G0 X20 Y0 Z0\nN10 G3 X20 Y0 Z-10 I-20 J0 TURN=2 F1200\nM30\n"
+    length = math.hypot(3 * 2 * math.pi * 20.0, 10.0)
+    expected = length / 20.0 + 20.0 / (2000.0 / (3 * 2 * math.pi * 20.0 / length))
+    table = blocks_of(MILL, text)
+    assert took_s(table["N10"]) == pytest.approx(expected, rel=1e-9)
+    # halfway in time (the ramps are symmetric): one and a half turns, on the far side, Z half way down
+    emulator = Emulator(parse_machine(MILL, "test.toml"), clock=SimulatedClock())
+    emulator.cycle_s = 0.1
+    path = program_path("HELIX.MPF")
+    emulator.nck.programs.write(path, text.encode())
+    emulator.nck.axes.set_position(1, 20.0)         # where the G0 goes: it takes no time
+    channel = emulator.nck.channels[1]
+    channel.select(path)
+    channel.start()
+    emulator.step_machine(0.0)
+    assert channel.state.block_number == "N10"
+    start_s = channel.run.block_start_s
+    emulator.clock.set(start_s + expected / 2)
+    emulator.step_machine(start_s + expected / 2)
+    positions = emulator.nck.axes.positions_mm
+    assert (positions[1], positions[2], positions[3]) == pytest.approx((-20.0, 0.0, -5.0), abs=1e-6)
+
+
+def test_polar_coordinates_pole_and_circle_about_it() -> None:
+    # G111 puts the pole at X50 Y50; AP=0 RP=20 is X70 Y50; G3 AP=180 turns about the pole to X30 Y50:
+    # a half circle of radius 20, 62.83 mm at 20 mm/s plus 20/2000 s of ramps
+    table = blocks_of(MILL, "G17 G90 G0 X0 Y0 Z0\nN10 G111 X50 Y50\nN20 G0 AP=0 RP=20\n"
+                            "N30 G3 AP=180 F1200\nN40 G110 X0 Y-10\nN50 G1 AP=270 RP=5\nM30\n")
+    assert (table["N20"].positions_mm["X"], table["N20"].positions_mm["Y"]) == pytest.approx((70.0, 50.0))
+    assert took_s(table["N10"]) == 0.0
+    assert took_s(table["N30"]) == pytest.approx(math.pi * 20.0 / 20.0 + 20.0 / 2000.0, rel=1e-9)
+    assert (table["N30"].positions_mm["X"], table["N30"].positions_mm["Y"]) == pytest.approx((30.0, 50.0))
+    # G110: the pole relative to the last programmed point (X30 Y50): X30 Y40; AP=270 RP=5 is X30 Y35
+    assert (table["N50"].positions_mm["X"], table["N50"].positions_mm["Y"]) == pytest.approx((30.0, 35.0))

@@ -79,8 +79,8 @@ _GROUPS: tuple[tuple[int, bool, str, str | None, dict[str, Emulation], frozenset
     # G25/G26 S..: the block's S is a spindle speed limit, not a speed (the limit is not applied)
     (3, False, "programmable frame, working area limit, pole", None, {
         "TRANS": RUN, "ATRANS": RUN, "ROT": RUN, "AROT": RUN, "SCALE": RUN, "ASCALE": RUN, "MIRROR": RUN,
-        "AMIRROR": RUN, "G25": RUN, "G26": RUN, "G110": NOT_SUPPORTED, "G111": NOT_SUPPORTED,
-        "G112": NOT_SUPPORTED, "G58": NOT_SUPPORTED, "G59": NOT_SUPPORTED, "ROTS": NOT_SUPPORTED,
+        "AMIRROR": RUN, "G25": RUN, "G26": RUN, "G110": RUN, "G111": RUN,
+        "G112": RUN, "G58": NOT_SUPPORTED, "G59": NOT_SUPPORTED, "ROTS": NOT_SUPPORTED,
         "AROTS": NOT_SUPPORTED}, frozenset()),
     (4, True, "FIFO", "STARTFIFO", {"STARTFIFO": NO_EFFECT, "STOPFIFO": NO_EFFECT, "FIFOCTRL": NO_EFFECT},
      frozenset()),

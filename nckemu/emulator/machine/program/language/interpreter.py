@@ -850,7 +850,7 @@ class Interpreter:
         self.modal.motion = code
 
     def _g_non_modal(self, code: int, flags: dict) -> None:        # group 2 (G4), 3 (G25/G26), 9, 11
-        flags[_G_FLAGS[code]] = True
+        flags[_G_FLAGS[code]] = code
 
     def _g_plane(self, code: int, flags: dict) -> None:            # group 6
         self.modal.plane = f"G{code}"
@@ -963,6 +963,8 @@ class Interpreter:
         for extension, m_code in m_codes:
             if m_code not in (3, 4, 5) and m_code not in _END_CODES:
                 events.append(MFunction(m_code, extension))
+        if flags.get("pole") or "AP" in address or "RP" in address:
+            axis_words = self._polar(axis_words, address, flags)
         moved = False
         if flags.get("dwell"):
             if axis_words:
@@ -999,6 +1001,29 @@ class Interpreter:
         if jump is not None:
             self._jump(frame, jump[0], jump[1], pos)
         return events
+
+    def _polar(self, axis_words: list, address: dict, flags: dict) -> list:
+        """Polar coordinates (polar.py): a G110/G111/G112 block sets the pole and moves nothing; AP=/RP=
+        become the end point of the plane's axes (and a circle's centre is the pole)."""
+        modal = self.modal
+        first, second, _ = _PLANES[modal.plane]
+        unit = INCH_MM if modal.inch_geometry else 1.0
+        wrote_polar = "AP" in address or "RP" in address
+        polar = modal.polar.with_words(address, unit)
+        code = flags.get("pole")
+        if code:
+            written = {axis: float(number(raw)) * unit for axis, raw, _ in axis_words if axis in (first, second)}
+            position = (self.work_pos.get(first, 0.0), self.work_pos.get(second, 0.0))
+            modal.polar = polar.new_pole(code, written, (first, second), position, wrote_polar)
+            return [word for word in axis_words if word[0] not in (first, second)]
+        modal.polar = polar
+        end_first, end_second = polar.point_mm()
+        words = [word for word in axis_words if word[0] not in (first, second)]
+        words += [(first, end_first / unit, "AC"), (second, end_second / unit, "AC")]
+        if modal.motion in (2, 3) and not any(word in address for word in ("I", "J", "K", "CR")):
+            address[_CENTRE_WORD[first]] = (polar.pole_mm[0] / unit, "AC")
+            address[_CENTRE_WORD[second]] = (polar.pole_mm[1] / unit, "AC")
+        return words
 
     def _setal(self, value: Any) -> None:
         number_value = int(number(value))
@@ -1246,7 +1271,8 @@ _G_GROUP_HANDLERS: dict[int, Any] = {
 }
 # the block flag a non-modal G function sets: G4 a dwell, G25/G26 S as a speed limit (not applied),
 # G53/G153 frames suppressed, G9 exact stop in this block
-_G_FLAGS = {4: "dwell", 25: "limit", 26: "limit", 53: "supa", 153: "supa", 9: "g9"}
+_G_FLAGS = {4: "dwell", 25: "limit", 26: "limit", 53: "supa", 153: "supa", 9: "g9", 110: "pole", 111: "pole",
+            112: "pole"}
 
 
 def _centre_from_radius(start_first: float, start_second: float, end_first: float, end_second: float,

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame
 
 from .feedrules import FeedRules
+from .polar import Polar
 
 
 @dataclass(slots=True)
@@ -23,6 +24,7 @@ class ModalState:
     inch_feed: bool = False            # group 13: G700 (feeds in inch too)
     feed_mode: str = "G94"             # group 15: G93, G94, G95
     feed_rules: FeedRules = field(default_factory=FeedRules)  # FGROUP, G96, DIAMON, thread pitch
+    polar: Polar = field(default_factory=Polar)  # group 3's pole (G110..G112) and AP=/RP=
     exact_stop: bool = True            # group 10: G60 (False: G64, G641...)
     frame_name: str = "G500"           # group 8: the settable frame
     settable: dict[str, float] = field(default_factory=dict)  # its offsets, mm
