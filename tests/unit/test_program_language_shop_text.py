@@ -165,3 +165,16 @@ def test_words_read_the_same_in_the_fast_and_the_full_reader() -> None:
     fast = run("G0 X0 Y0\nG2 X10 Y0 I5 J0 F100\nM30").moves[1]
     full = run("R1=100\nG0 X0 Y0\nG2 X10 Y0 I5 J0 F=R1\nM30").moves[1]
     assert fast == full and fast.centre_mm == {"X": 5.0, "Y": 0.0}
+
+
+@pytest.mark.parametrize(("r1", "expected"), [(0, [1.0]), (1, [2.0]), (2, [3.0])])
+def test_several_conditional_jumps_in_one_block_are_tried_in_order(r1: int, expected: list[float]) -> None:
+    text = (f"R1={r1}\nIF R1==0 GOTOF ZERO IF R1==1 GOTOF ONE\nG0 X3\nGOTOF END\nZERO: G0 X1\nGOTOF END\n"
+            "ONE: G0 X2\nEND: M30")
+    assert xs(text) == expected
+
+
+def test_an_axis_named_by_an_expression_moves_that_axis() -> None:
+    result = run('DEF AXIS _Z\n_Z=AXNAME("Z")\nG0 AX[X]=5 AX[_Z]=3\nAX[AXNAME("Y")]=IC(1)\nG0 AX[Q]=1\nM30')
+    assert [move.target_mm for move in result.moves] == [{"X": 5.0, "Z": 3.0}, {"Y": 1.0}]
+    assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_NAME_NOT_DEFINED, 5)

@@ -26,6 +26,7 @@ from .words import (
     Fill,
     FrameWord,
     GWord,
+    IndirectAxisWord,
     Jump,
     ModalCall,
     Msg,
@@ -224,9 +225,13 @@ class BlockCompiler:
                 parser.pos += 1
                 condition = parser.expression()
                 if keyword == "IF" and not parser.at_end():
-                    jump = self._jump(parser)
+                    # IF c1 GOTOF A IF c2 GOTOF B: conditional jumps tried in order, the first true jumps
+                    jumps = [(condition, self._jump(parser))]
+                    while parser.at_name("IF"):
+                        parser.pos += 1
+                        jumps.append((parser.expression(), self._jump(parser)))
                     self._end(parser)
-                    return Compiled(number, IF_JUMP, (condition, jump), text)
+                    return Compiled(number, IF_JUMP, tuple(jumps), text)
                 self._end(parser)
                 return Compiled(number, {"IF": IF, "WHILE": WHILE, "UNTIL": UNTIL}[keyword], condition, text)
             if keyword == "FOR":
@@ -587,6 +592,13 @@ class BlockCompiler:
                     parser.pos += 1
                     parser.expression()
                 items.append(NoOp(name, args))
+                continue
+            if name == "AX" and frac is None and following is not None and following[1] == "[":
+                indices = parser.indices()
+                if len(indices) != 1:
+                    raise ProgramAlarm(ALARM_SYNTAX, "AX[axis]=value")
+                axis_value, mode = self._axis_value(parser, None)
+                items.append(IndirectAxisWord(indices[0], axis_value, mode))
                 continue
             if name in AXIS_SETTINGS and following is not None and following[1] == "[":
                 indices = parser.indices()

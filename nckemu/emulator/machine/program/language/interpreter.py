@@ -651,9 +651,10 @@ class Interpreter:
             if pos in source.bad_nesting:
                 raise ProgramAlarm(ALARM_NESTING, "ENDIF without IF")
         elif kind == b.IF_JUMP:
-            condition, (jump_kind, target) = compiled.items
-            if truth(evaluate(condition, self)):
-                self._jump(frame, jump_kind, target, pos)
+            for condition, (jump_kind, target) in compiled.items:
+                if truth(evaluate(condition, self)):
+                    self._jump(frame, jump_kind, target, pos)
+                    break
         elif kind == b.CASE:
             selector, branches, default = compiled.items
             value = evaluate(selector, self)
@@ -892,6 +893,10 @@ class Interpreter:
             if kind is w.AxisWord:
                 value = item.value
                 axis_words.append((item.axis, value(self) if value.__class__ is FunctionType else value, item.mode))
+            elif kind is w.IndirectAxisWord:
+                value = item.value
+                axis_words.append((self._axis_name(evaluate(item.axis, self)),
+                                   value(self) if value.__class__ is FunctionType else value, item.mode))
             elif kind is w.GWord:
                 self._g(item.code, flags)
                 if item.spline is not None:

@@ -22,6 +22,16 @@ class AxisWord:
 
 
 @dataclass(frozen=True, slots=True)
+class IndirectAxisWord:
+    """``AX[_AXVAR]=10``, ``AX[AXNAME("X")]=IC(5)``: an axis named by an expression (an AXIS value or
+    the axis name), found when the block runs."""
+
+    axis: Any
+    value: Any
+    mode: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class GWord:
     """``G1``; a spline word (ASPLINE) runs as G1 and names itself in ``spline``."""
 
@@ -151,5 +161,5 @@ class NoOp:
     args: Any = None
 
 
-Word = (AxisWord | GWord | AddressWord | CentreWord | Assign | Fill | Call | ModalCall | Jump | Msg | Setal
+Word = (AxisWord | IndirectAxisWord | GWord | AddressWord | CentreWord | Assign | Fill | Call | ModalCall | Jump | Msg | Setal
         | FrameWord | Suppress | Return | AxisSetting | Spos | NoOp)
