@@ -178,3 +178,14 @@ def test_an_axis_named_by_an_expression_moves_that_axis() -> None:
     result = run('DEF AXIS _Z\n_Z=AXNAME("Z")\nG0 AX[X]=5 AX[_Z]=3\nAX[AXNAME("Y")]=IC(1)\nG0 AX[Q]=1\nM30')
     assert [move.target_mm for move in result.moves] == [{"X": 5.0, "Z": 3.0}, {"Y": 1.0}]
     assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_NAME_NOT_DEFINED, 5)
+
+
+def test_a_program_written_all_in_lower_case_runs() -> None:
+    env = DictEnvironment(programs={"SUB.SPF": "proc sub(real _a) save\ng91 g1 x=_a f100\nret"})
+    text = ("def int _i\ndef real _s\nfor _i = 1 to 3\n  _s = _s + _i\nendfor\nif _s == 6\n  g0 x=_s\nelse\n"
+            "  g0 x99\nendif\na1: g0 y1\nrepeat a1 p=1\nwhile r1 < 2\n  r1 = r1 + 1\nendwhile\nsub(2) p2\n"
+            'msg("fertig")\ngotof ende\ng0 x77\nende: m30\n')
+    result = run(text, env)
+    assert result.alarm is None
+    assert [move.target_mm for move in result.moves] == [{"X": 6.0}, {"Y": 1.0}, {"Y": 1.0}, {"X": 8.0}, {"X": 10.0}]
+    assert result.of(Message)[0].text == "fertig"
