@@ -20,7 +20,7 @@ from nckemu.thermal.model import families
 from nckemu.thermal.model.families import Family
 from nckemu.thermal.model.terms import Term
 
-from . import explain
+from . import explain, shapes
 from .findings import (
     AdmissionRuns,
     Alternative,
@@ -155,6 +155,18 @@ def runs_improve(before_ms: np.ndarray, after_ms: np.ndarray, level: float, min_
 def paired_test_applies(runs: int, level: float, min_runs: int) -> bool:
     """Enough runs for the paired test: at least ``min_runs``, and enough to reach ``level`` at all."""
     return runs >= min_runs and 0.5 ** runs <= level
+
+
+def percent(share: float) -> str:
+    """A share in percent: whole when it is whole (5%), else to a tenth (9.8%)."""
+    return f"{share:.0%}" if abs(share * 100 - round(share * 100)) < 1e-9 else f"{share:.1%}"
+
+
+def per_parameter_words(bar: float, one: float, terms: tuple[Term, ...]) -> str:
+    """Where a bar is weighed by the term's parameters, how."""
+    if len(terms) != 1 or abs(bar - one) < 1e-12:
+        return ""
+    return f" ({percent(one)} for each of its {shapes.parameters_of(terms[0])} parameters)"
 
 
 def t_critical(alpha: float, tests: int, dof: int) -> float:
@@ -319,9 +331,14 @@ class Selector:
         before_um, after_um, gain, figure = self.heldout_figures(cv, base_cv, runs_with)
         # A candidate only a few runs can judge (its columns missing in the others) clears the bar of a few.
         bar = self.bar if judged_by_pairs or not self.per_run else s.min_improvement
+        if judged_by_pairs and s.runs_bar_per_parameter and len(terms) == 1:
+            # The paired test is corrected over candidates, not over the values of a time constant
+            # tried (as the t-test was): each parameter of the term buys its own share (a move of two
+            # is judged over either of its terms alone instead).
+            bar = shapes.parameter_bar(bar, shapes.parameters_of(terms[0]))
         out.append(Guard("held-out", gain >= bar,
-                         f"{figure} {before_um:.3f} -> {after_um:.3f} um ({gain:.1%}; the bar is {bar:.0%})",
-                         round(gain, 4)))
+                         f"{figure} {before_um:.3f} -> {after_um:.3f} um ({gain:.1%}; the bar is {percent(bar)})"
+                         f"{per_parameter_words(bar, self.bar, terms)}", round(gain, 4)))
         return out
 
     def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
@@ -439,6 +456,7 @@ class Selector:
             if len(path.added) >= self.settings.max_effects or not self.round(path):
                 break
         path.at_limit = len(path.added) >= self.settings.max_effects
+        self.name_shapes(path)
         if self.paired_runs:
             self.withdraw_redundant(path)
         if path.at_limit:
@@ -447,41 +465,103 @@ class Selector:
         self.twin_shares(path)
         return path
 
+    def name_shapes(self, path: Path) -> None:
+        """A sensor named with its temperature and its own lag is named as the shape the two make: the
+        lag's column becomes the sensor's transient at the lag's time constant (the same span, the
+        same held-out figures), and the temperature is the static part (``shapes``). Whether the
+        static part earns its parameter is then the withdrawal's to judge."""
+        offset = 1 if path.gain_mode else 0
+        pairs = shapes.temperature_with_lag(path.added)
+        if not pairs:
+            return
+        coefficients = stats.least_squares(path.design, self.y)
+        first = path.design.shape[1] - len(path.added)
+        design, noise = path.design.copy(), path.noise.copy()
+        for temperature_index, lag_index in pairs:
+            lag = path.added[lag_index]
+            if not self.settings.second_time_constant_ratio and any(
+                    t.effect == "transient_gradient" and t.parameters.get("sensor") == lag.parameters["sensor"]
+                    for t in path.added):
+                continue  # a sensor at one time constant only: its transient is named already
+            candidate = self.library.candidate(shapes.as_transient(lag))
+            record = path.discovered[lag_index + offset]
+            if candidate is None or not isinstance(record.evidence, Evidence):
+                continue
+            column = first + lag_index
+            design[:, column], noise[:, column] = candidate.feature, candidate.noise
+            path.added[lag_index] = candidate.term
+            path.present.add(present_key(candidate.term))
+            record.evidence.note = shapes.shape_words(str(lag.parameters["sensor"]), float(lag.parameters["tau_s"]),
+                                                      float(coefficients[column]),
+                                                      float(coefficients[first + temperature_index]))
+            path.discovered[lag_index + offset] = finding(candidate.term.effect, candidate.term.parameters,
+                                                          record.evidence)
+        path.design, path.noise = design, noise
+        path.base_cv = self.baseline.cross_validate(path.design, self.y, self.baseline.folds)
+
+    def withdrawal_bar(self, term: Term) -> float:
+        """What a named term must still be worth at the end: the held-out bar, weighed by its
+        parameters as admission weighs them (``Settings.runs_bar_per_parameter``)."""
+        if not self.settings.runs_bar_per_parameter:
+            return self.bar
+        return shapes.parameter_bar(self.bar, shapes.parameters_of(term))
+
+    def harms_runs(self, before: tuple[float, ...], after: tuple[float, ...]) -> list[int]:
+        """The runs ``after`` leaves worse than ``before`` by more than ``run_harm_share`` and by more
+        than ``run_harm_floor_um``."""
+        s = self.settings
+        return [index for index, (b, a) in enumerate(zip(before, after, strict=True))
+                if a > b * (1 + s.run_harm_share) and a > b + s.run_harm_floor_um]
+
     def withdraw_redundant(self, path: Path) -> None:
         """With the runs' paired test and its lower bar, a term may pass in an early round and be
         explained by the terms named after it (a gradient of the rear and the ambient, then the rear's
-        and the front's own temperatures). Each term named alone (not in a move, which was judged as a
-        whole) must still clear the bar over the others: without it, the median over runs of held-out
-        RMS must rise by the bar, or the worst run by the margin of equivalence. The one that matters
-        least is withdrawn, and the rest are judged again."""
+        and the front's own temperatures; a second time constant that stood in for a temperature named
+        later). Each term must still clear its bar (``withdrawal_bar``) over the others: without it,
+        the median over runs of held-out RMS must rise by the bar, the worst run by the margin of
+        equivalence, or some run by more than the harm tolerance. The one that matters least is
+        withdrawn, and the rest are judged again; a term of a move whose partner goes stays, alone."""
         s = self.settings
         offset = 1 if path.gain_mode else 0
         while True:
-            weakest: tuple[float, int, stats.CrossValidation, list[int]] | None = None
+            weakest: tuple[float, int, stats.CrossValidation, list[int], float] | None = None
             for index in range(len(path.added)):
                 record = path.discovered[index + offset].evidence
-                if not isinstance(record, Evidence) or record.move is not None:
+                if not isinstance(record, Evidence):
                     continue
                 without, keep = self.without_added(path, index)
                 median_with, median_without = (float(np.median(cv.fold_rms_um)) for cv in (path.base_cv, without))
                 loss = 1.0 - median_with / median_without if median_without > 0 else 0.0
                 worst_with, worst_without = max(path.base_cv.fold_rms_um), max(without.fold_rms_um)
-                if loss < self.bar and worst_without <= (1 + s.equivalence) * worst_with \
+                bar = self.withdrawal_bar(path.added[index]) if record.move is None or s.runs_bar_per_parameter \
+                    else -math.inf
+                if loss < bar and worst_without <= (1 + s.equivalence) * worst_with \
+                        and not self.harms_runs(path.base_cv.fold_rms_um, without.fold_rms_um) \
                         and (weakest is None or loss < weakest[0]):
-                    weakest = (loss, index, without, keep)
+                    weakest = (loss, index, without, keep, bar)
             if weakest is None:
                 return
-            loss, index, without, keep = weakest
+            loss, index, without, keep, bar = weakest
             term = path.added.pop(index)
-            path.discovered.pop(index + offset)
+            gone = path.discovered.pop(index + offset).evidence
             path.design, path.noise = path.design[:, keep], path.noise[:, keep]
             path.withdrawn.append(Withdrawn(
                 term.effect, explain.label_with_time_constants(term), dict(term.parameters),
                 f"the terms named after it explain what it did: without it the median over runs of held-out RMS "
                 f"is {float(np.median(without.fold_rms_um)):.3f} um against {float(np.median(path.base_cv.fold_rms_um)):.3f} um "
-                f"with it ({loss:.1%}; the bar is {self.bar:.0%}), the worst run {max(without.fold_rms_um):.3f} um "
-                f"against {max(path.base_cv.fold_rms_um):.3f} um"))
+                f"with it ({loss:.1%}; the bar is {percent(bar)}){per_parameter_words(bar, self.bar, (term,))}, "
+                f"the worst run {max(without.fold_rms_um):.3f} um against {max(path.base_cv.fold_rms_um):.3f} um"))
             path.base_cv = without
+            if isinstance(gone, Evidence) and gone.move is not None:
+                self.leave_move(path, gone.move.terms, explain.label_with_time_constants(term))
+
+    def leave_move(self, path: Path, members: list[str], withdrawn: str) -> None:
+        """A term of a move was withdrawn: its partner stays as a term of its own, and says so."""
+        for found in path.discovered:
+            record = found.evidence
+            if isinstance(record, Evidence) and record.move is not None and record.move.terms == members:
+                record.move = None
+                record.preferred = f"named in a move with {withdrawn}, which the later terms made redundant (withdrawn)"
 
     def without_added(self, path: Path, index: int) -> tuple[stats.CrossValidation, list[int]]:
         """The path's design without the column of ``path.added[index]``, cross-validated, and the

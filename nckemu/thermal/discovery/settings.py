@@ -23,6 +23,16 @@ class Settings:
     # min_improvement: the paired test carries the evidence, the bar keeps out terms too small to matter.
     runs_min_improvement: float = 0.05
     runs_replace_t_test: bool = True
+    # ... and a term's bar is weighed by its parameters (issue 51): each of them (the coefficient, each
+    # time constant) must buy runs_min_improvement of what is left, 1 - (1 - bar)^parameters. The
+    # paired test is corrected over the candidates, not over the time constants tried as the t-test
+    # was, so without it a lag would earn its time constant for free.
+    runs_bar_per_parameter: bool = True
+    # No run made worse in silence: a term that leaves a run worse than this share more than before, and
+    # by more than run_harm_floor_um, is admitted only with the runs it harms named (a group of runs that
+    # follows another relation, fitted apart).
+    run_harm_share: float = 0.10
+    run_harm_floor_um: float = 0.3
     alpha: float = 0.01                 # family-wise, Bonferroni over the candidates of a round
     equivalence: float = 0.03           # held-out RMS within 3 % of the best: equivalent
     max_effects: int = 6

@@ -808,3 +808,78 @@ def make_month_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
     effect, parameters = (("several", {"terms": len(truth_model.terms)}) if name == "duty_month" else (None, {}))
     return RunFamily(name, recordings, ThermalModel(AXIS, [], "<each run's own offset>"),
                      FamilyTruth(effect, parameters, tuple(offsets), tuple(labels)))
+
+
+# ---------------------------------------------------------------------- issue 51: shapes, regimes, the room
+SHAPE_FAMILIES = ("transient_as_pair", "regime_days", "room_acts", "null_shape_days")
+SHAPE_SENSOR = "rear"
+SHAPE_TAU_S = 900.0
+SHAPE_TRANSIENT_UM_PER_K = 3.0
+SHAPE_STATIC_UM_PER_K = 4.0
+REGIME_UM_PER_K = 2.0
+# The runs of the reversed regime: a third of the month, one stretch of dates (runs 11-20).
+REGIME_RUNS = range(10, 20)
+ROOM_TAU_S = 3 * 3600.0
+ROOM_UM_PER_K = 2.5
+
+
+def shape_truth(name: str, reversed_run: bool = False) -> ThermalModel:
+    """The terms a shape family hides beside ``baseline_model()`` (none for the null)."""
+    if name == "transient_as_pair":
+        terms = [Term("transient_gradient", {"sensor": SHAPE_SENSOR, "tau_s": SHAPE_TAU_S,
+                                             "coeff_um_per_K": SHAPE_TRANSIENT_UM_PER_K}),
+                 Term("temperature", {"sensor": SHAPE_SENSOR, "t_ref_C": 20.0, "coeff_um_per_K": SHAPE_STATIC_UM_PER_K})]
+    elif name == "regime_days":
+        sign = -1.0 if reversed_run else 1.0
+        terms = [Term("temperature", {"sensor": SHAPE_SENSOR, "t_ref_C": 20.0, "coeff_um_per_K": sign * REGIME_UM_PER_K})]
+    elif name == "room_acts":
+        terms = [Term("thermal_lag", {"sensor": "ambient", "t_ref_C": 20.0, "tau_s": ROOM_TAU_S,
+                                      "coeff_um_per_K": ROOM_UM_PER_K})]
+    else:
+        terms = []
+    return ThermalModel(AXIS, terms, f"<{name}'s truth>")
+
+
+def make_shape_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
+    """A month of daily runs (one a day, named by date) of 8-12 h logged every 2 min, with the room
+    swinging by several kelvin between day and night and with the doors (deterministic per ``seed``;
+    the four families share inputs and noise draws seed for seed). Baseline: ``baseline_model()``.
+
+    - ``transient_as_pair``: the rear structure bends while the axes' heat crosses it (a transient of
+      the rear sensor at 0.5 h, 5 um/K) and grows a little with it (1 um/K): the shape a search names
+      as the rear's temperature plus its own lag of opposite sign, unless it names shapes.
+    - ``regime_days``: the structure grows 2 um/K with the rear temperature, except on the ten days
+      of ``REGIME_RUNS`` (a fixture was mounted the other way round), where it shrinks by as much.
+    - ``room_acts``: the room acts through the structure: a lag of the ambient at 3 h, 2.5 um/K.
+    - ``null_shape_days``: the same days, nothing left out."""
+    _check_family(name, SHAPE_FAMILIES, runs)
+    rng = np.random.default_rng([seed, 51])
+    recordings: list[Recording] = []
+    offsets: list[float] = []
+    labels: list[str] = []
+    for index in range(runs):
+        duration_s = float(rng.uniform(8.0, 12.0)) * 3600.0
+        grid = np.arange(0.0, duration_s + 120.0, 120.0)
+        spindle_load, axis_load = _duty_cycle(rng, grid), _duty_cycle(rng, grid)
+        # The hall: the day's level, a warming through the shift, and the doors' swings.
+        ambient = rng.uniform(16.0, 26.0) + rng.uniform(1.5, 4.0) * np.sin(np.pi * grid / (2 * duration_s)) \
+            + _lag_from(grid, _ar1(rng, grid, 1.0, 0.999), 900.0)
+        sensors = {"spindle": _lag_from(grid, ambient + 8.0 * spindle_load, 1200.0),
+                   "bed": _lag_from(grid, ambient + 2.0 * spindle_load + 1.5 * axis_load, 3 * 3600.0),
+                   "front": _lag_from(grid, ambient + 1.5 * spindle_load, 2400.0),
+                   "rear": _lag_from(grid, ambient + 6.0 * axis_load, 900.0),
+                   "ambient": ambient,
+                   "coolant": _lag_from(grid, ambient + 1.0 * spindle_load, 2400.0)}
+        truth = 3.0 * (sensors["spindle"] - 20.0) + 2.0 * (sensors["bed"] - 20.0)
+        reversed_run = index in REGIME_RUNS
+        structure = Recording("<truth>", grid, {f"temp_{k}_C": v for k, v in sensors.items()}, name="truth")
+        truth = truth + shape_truth(name, reversed_run).predict_um(structure)
+        day = f"2026-03-{index + 1:02d}" if index < 31 else f"day{index + 1:03d}"
+        recording, offset = _logged_day(rng, f"{day}_{name}_s{seed}", grid, truth, _ar1(rng, grid, 0.3, 0.95),
+                                        sensors, spindle_load)
+        recordings.append(recording)
+        offsets.append(offset)
+        labels.append("reversed" if reversed_run and name == "regime_days" else "usual")
+    effect = {"transient_as_pair": "transient_gradient", "regime_days": "temperature",
+              "room_acts": "thermal_lag"}.get(name)
+    return RunFamily(name, recordings, baseline_model(), FamilyTruth(effect, {}, tuple(offsets), tuple(labels)))
