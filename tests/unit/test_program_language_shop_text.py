@@ -189,3 +189,13 @@ def test_a_program_written_all_in_lower_case_runs() -> None:
     assert result.alarm is None
     assert [move.target_mm for move in result.moves] == [{"X": 6.0}, {"Y": 1.0}, {"Y": 1.0}, {"X": 8.0}, {"X": 10.0}]
     assert result.of(Message)[0].text == "fertig"
+
+
+def test_p_gg_reads_the_active_g_function_of_a_group_by_its_place_in_the_list() -> None:
+    env = DictEnvironment()
+    text = ("R1=$P_GG[13]\nR2=$P_GG[6]\nG18 G700 G91 G64 SOFT\nR3=$P_GG[13]\nR4=$P_GG[6]\nR5=$P_GG[14]\n"
+            "R6=$P_GG[10]\nR7=$P_GG[21]\nR8=$P_GG[1]\nG1 X0 F1\nR9=$P_GG[1]\nIF ($P_GG[13]==1) OR ($P_GG[13]==3)\n"
+            "R10=1\nENDIF\nM30")
+    assert run(text, env).alarm is None
+    # G71 G17 | G700 G18 G91 G64 SOFT | G0, G1 | inch (the test Siemens' cycles make)
+    assert [env.r_parameter(i) for i in range(1, 11)] == [2, 1, 3, 2, 2, 2, 2, 1, 2, 1]

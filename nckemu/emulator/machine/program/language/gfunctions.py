@@ -158,6 +158,9 @@ _GROUPS: tuple[tuple[int, bool, str, str | None, dict[str, Emulation], frozenset
 )
 
 GROUP_TITLES: dict[int, str] = {group: title for group, _, title, _, _, _ in _GROUPS}
+# each group's members in the Siemens list's order: $P_GG[n] and G[n]= count in it from 1
+GROUP_MEMBERS: dict[int, tuple[str, ...]] = {group: tuple(members) for group, _, _, _, members, _ in _GROUPS}
+GROUP_DEFAULTS: dict[int, str] = {group: default for group, _, _, default, _, _ in _GROUPS if default}
 
 
 def _build() -> dict[str, GFunction]:
@@ -177,6 +180,13 @@ STRAIGHT_G: frozenset[int] = frozenset(number for number, entry in BY_NUMBER.ite
 # G numbers the control has that change nothing the emulator models
 NO_EFFECT_G: frozenset[int] = frozenset(
     number for number, entry in BY_NUMBER.items() if entry.emulation is NO_EFFECT)
+
+
+def number_in_group(group: int, name: str | None) -> int:
+    """What ``$P_GG[group]`` reads for the active ``name``: its place in its group's list, from 1 (0 when
+    the group has nothing active or the emulator does not know the group)."""
+    members = GROUP_MEMBERS.get(group, ())
+    return members.index(name) + 1 if name in members else 0
 
 
 def group_of(name: str) -> int | None:

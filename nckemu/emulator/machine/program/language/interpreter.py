@@ -55,7 +55,15 @@ from .cycle_runner import CycleRunner, is_standard_cycle
 from .definitions import expand_macros
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
 from .feedrules import DIAMETER_WORDS, THREAD_MOTIONS, TRANSVERSE_AXIS
-from .gfunctions import BY_NUMBER, GROUP_TITLES, NOT_SUPPORTED, RUN
+from .gfunctions import (
+    BY_NUMBER,
+    G_FUNCTIONS,
+    GROUP_DEFAULTS,
+    GROUP_TITLES,
+    NOT_SUPPORTED,
+    RUN,
+    number_in_group,
+)
 from .lexer import strip_comment, tokenize
 from .modal import ModalState
 from .source import ProgramSource, decode_program, normalized
@@ -140,9 +148,10 @@ class Interpreter:
     # --- modal state ------------------------------------------------------------------------------
     def _reset_modal(self) -> None:
         env = self.env
-        self.modal = ModalState(motion=1 if env.reset_motion == 1 else 0,
-                                plane=env.reset_plane if env.reset_plane in _PLANES else "G17",
-                                inch_geometry=bool(env.reset_inch))
+        plane = env.reset_plane if env.reset_plane in _PLANES else "G17"
+        self.modal = ModalState(motion=1 if env.reset_motion == 1 else 0, plane=plane,
+                                inch_geometry=bool(env.reset_inch),
+                                g_groups={6: plane, 13: "G70" if env.reset_inch else "G71"})
         self.feed_mm = 0.0
         self.spindle_speed: dict[int, float] = {}
         self.swivel: Frame = IDENTITY_FRAME   # CYCLE800's frame, under the programmable frame
@@ -418,6 +427,10 @@ class Interpreter:
             return self._work_position(axis)
         if name in framing.FRAME_VARIABLES:
             return self._frame_variable(name, indices)
+        if name == "$P_GG" and len(indices) == 1:  # the active G function of a group, as its number in it
+            group = int(number(indices[0]))
+            active = f"G{self.modal.motion}" if group == 1 else self.modal.g_groups.get(group)
+            return number_in_group(group, active or GROUP_DEFAULTS.get(group))
         if not indices:
             if name in ("$P_AXN1", "$P_AXN2", "$P_AXN3"):  # the plane's abscissa, ordinate, applicate
                 return _PLANES[self.modal.plane][int(name[-1]) - 1]
@@ -838,6 +851,8 @@ class Interpreter:
         entry = BY_NUMBER.get(code)
         if entry is None:
             raise ProgramAlarm(ALARM_UNKNOWN_G, f"G function G{code} unknown (no SINUMERIK G function)")
+        if entry.modal and entry.group != 1:
+            self.modal.g_groups[entry.group] = entry.name
         if entry.emulation is RUN:
             _G_GROUP_HANDLERS[entry.group](self, code, flags)
         elif entry.emulation is NOT_SUPPORTED:
@@ -953,6 +968,9 @@ class Interpreter:
             elif kind is w.Setal:
                 self._setal(evaluate(item.number, self))
             elif kind is w.NoOp:
+                entry = G_FUNCTIONS.get(item.name)
+                if entry is not None and entry.modal:
+                    self.modal.g_groups[entry.group] = item.name
                 if item.name in DIAMETER_WORDS or item.name == "FGROUP":
                     self.modal.feed_rules = self.modal.feed_rules.word(item.name, item.args, self._fgroup_axes)
                 elif item.name != "N":

@@ -31,7 +31,10 @@ class ModalState:
     pframe: Frame = IDENTITY_FRAME     # group 3: the programmable frame (TRANS, ROT, SCALE, MIRROR)
     chain: Frame | None = None         # settable + programmable frame when more than a translation
     shift: dict[str, float] = field(default_factory=dict)  # what the frames and the tool add, mm
+    # the active G function of each modal group but 1 that a block has named (G64, G710, SOFT, CUT2D),
+    # what $P_GG reads; groups not named hold their default (gfunctions.GROUP_DEFAULTS)
+    g_groups: dict[int, str] = field(default_factory=dict)
 
     def copy(self) -> ModalState:
         """An independent copy (the dicts copied; the other fields are immutable)."""
-        return replace(self, settable=dict(self.settable), shift=dict(self.shift))
+        return replace(self, settable=dict(self.settable), shift=dict(self.shift), g_groups=dict(self.g_groups))
