@@ -53,9 +53,15 @@ REFUSALS = {
 }
 # Examples that wait on issue 37's address grammar (the other engineer's part): command -> reason.
 PENDING: dict[str, str] = {}
-# Examples that take minutes (the loop over FL_THERMAL's 46 h: seven PLC runs): run with -m slow. The
-# README's tour (a PLC run, a discovery and a loop at 60 s cycles, about 30 s of CPU) is not one.
-SLOW_MARKERS = ("nckemu loop fixtures/plc/fl_one_sensor.awl",)
+# Examples that take minutes, run with -m slow (make slow; CI runs it): the words that mark each.
+SLOW_MARKERS = (
+    "nckemu loop fixtures/plc/fl_one_sensor.awl",  # the loop over FL_THERMAL's 46 h: seven PLC runs
+    # The README's tour (a PLC run, a discovery and a loop, 45-70 s on two cores): test_readme_tour.py runs
+    # the same block as written in a fresh clone after `make serve`, in the slow suite.
+    "nckemu loop fixtures/plc/bed_only_z.awl --machine fixtures/machines/loop_mill.toml --inputs",
+    "nckemu discover ../shared/data/fl_thermal/recording.csv --split-runs",  # 46 h of 16 sensors, 6 runs
+    "nckemu recording check ../shared/data/fl_thermal/data.xlsx",  # reading a 46 h workbook twice
+)
 # Setting-up lines the runner stands for.
 SETUP = ("make serve", "make test")
 PLACEHOLDER = re.compile(r"(?:^|\s|=)(?:[A-Z][A-Z0-9_]*\.(?:toml|csv|awl|json|html|parquet|pcapng|mpf)|FILE|DIR|"

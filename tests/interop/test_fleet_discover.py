@@ -119,6 +119,7 @@ def test_same_findings_in_process_on_a_local_cluster_and_through_a_scheduler(
     assert "gain_error" in (tmp_path / "fleet.html").read_text(encoding="utf-8")
 
 
+@pytest.mark.slow  # a worker killed and a task retried: 50 s on two cores (the default run keeps the cluster test)
 def test_a_worker_killed_mid_run_is_retried_and_the_result_says_so(
         tmp_path: Path, dask_cluster: _DaskCluster) -> None:
     from distributed import Client
@@ -162,6 +163,7 @@ def test_an_unreachable_scheduler_is_one_line_and_exit_1_within_the_timeout(flee
     assert time.monotonic() - started < 60
 
 
+@pytest.mark.slow  # two reductions and three fleet discoveries: 25-150 s on two cores
 def test_reducing_days_first_keeps_the_findings_and_redoes_only_what_changed(tmp_path: Path) -> None:
     """1 machine-day = 1 file at 5 s; stage 1 reduces each to 60 s means on the cluster, stage 2 names
     the same physics per machine as on the raw files, with the same held-out figures (before within 5 %,

@@ -58,6 +58,9 @@ def test_faces_after_the_first_load_the_cache_and_serve_the_same(tmp_path: Path,
     assert not list(tmp_path.glob(".building-*"))
 
 
+# Slow (make slow): each builds the standard address space again, 15-90 s on two cores; the first test
+# above keeps the cache's build-and-load path in the default run.
+@pytest.mark.slow
 def test_a_damaged_cache_is_built_again(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                         caplog: pytest.LogCaptureFixture) -> None:
     monkeypatch.setenv("NCKEMU_CACHE", str(tmp_path))
@@ -73,6 +76,7 @@ def test_a_damaged_cache_is_built_again(tmp_path: Path, monkeypatch: pytest.Monk
     assert "ServerStatus" in asyncio.run(_start_and_view())[0]
 
 
+@pytest.mark.slow
 def test_an_unwritable_cache_only_costs_time(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     blocked = tmp_path / "file"
     blocked.write_text("not a directory", encoding="utf-8")
