@@ -238,3 +238,81 @@ def test_polar_coordinates_pole_and_circle_about_it() -> None:
     assert (table["N30"].positions_mm["X"], table["N30"].positions_mm["Y"]) == pytest.approx((30.0, 50.0))
     # G110: the pole relative to the last programmed point (X30 Y50): X30 Y40; AP=270 RP=5 is X30 Y35
     assert (table["N50"].positions_mm["X"], table["N50"].positions_mm["Y"]) == pytest.approx((30.0, 35.0))
+
+
+# ------------------------------------------------------------------ tool radius compensation
+MILL_WITH_TOOL = MILL + """
+[tools]
+cutting_edge_params = 25
+[[tool]]
+number = 1
+ident = "END_MILL_10"
+edges = [{ type = 120, length1_mm = 0.0, radius_mm = 5.0 }]
+"""
+SQUARE = """T1 D1 M6
+G17 G90 G0 X0 Y0 Z0
+N10 {side} G1 X10 Y10 F600
+N20 G1 X50
+N30 Y50
+N40 X10
+N50 Y10
+N60 G40 G1 X0 Y0
+M30
+"""
+
+
+def line_s(length_mm: float) -> float:
+    """A line at F600 (10 mm/s) between two stops, X and Y at 2000 mm/s² (the diagonal's shares allow more)."""
+    return length_mm / 10.0 + 10.0 / 2000.0
+
+
+def test_g42_goes_round_the_outside_of_a_square_with_the_edge_radius() -> None:
+    # The 40 mm square from X10 Y10, counter-clockwise, the tool (radius 5) right of it: outside. The
+    # approach ends 5 mm below the first corner (X10 Y5), each side runs 5 mm outside, each outside corner is
+    # a quarter circle of radius 5 about the corner (7.854 mm at 10 mm/s, its own ramps), the last side ends
+    # at X5 Y10 and G40 retracts to X0 Y0.
+    table = blocks_of(MILL_WITH_TOOL, SQUARE.format(side="G42"))
+    corner_s = math.pi / 2 * 5.0 / 10.0 + 10.0 / 2000.0
+    assert (table["N10"].positions_mm["X"], table["N10"].positions_mm["Y"]) == pytest.approx((10.0, 5.0))
+    assert took_s(table["N10"]) == pytest.approx(math.hypot(10.0, 5.0) / 10.0 + 10.0 / (2000.0 / (10 / math.hypot(10, 5))),
+                                                 rel=1e-9)
+    for number, corner in (("N20", (55.0, 10.0)), ("N30", (50.0, 55.0)), ("N40", (5.0, 50.0))):
+        assert took_s(table[number]) == pytest.approx(line_s(40.0) + corner_s, rel=1e-9), number
+        assert (table[number].positions_mm["X"], table[number].positions_mm["Y"]) == pytest.approx(corner)
+    assert took_s(table["N50"]) == pytest.approx(line_s(40.0), rel=1e-9)
+    assert (table["N50"].positions_mm["X"], table["N50"].positions_mm["Y"]) == pytest.approx((5.0, 10.0))
+    assert (table["N60"].positions_mm["X"], table["N60"].positions_mm["Y"]) == pytest.approx((0.0, 0.0))
+
+
+def test_g41_cuts_the_inside_corners_of_the_square() -> None:
+    # The tool left of the same contour: inside. Each side is 5 mm shorter at each inside corner.
+    table = blocks_of(MILL_WITH_TOOL, SQUARE.format(side="G41"))
+    ends = {"N10": (10.0, 15.0), "N20": (45.0, 15.0), "N30": (45.0, 45.0), "N40": (15.0, 45.0), "N50": (15.0, 10.0)}
+    for number, end in ends.items():
+        assert (table[number].positions_mm["X"], table[number].positions_mm["Y"]) == pytest.approx(end), number
+    assert took_s(table["N20"]) == pytest.approx(line_s(35.0), rel=1e-9)
+    assert took_s(table["N30"]) == pytest.approx(line_s(30.0), rel=1e-9)
+    assert took_s(table["N50"]) == pytest.approx(line_s(35.0), rel=1e-9)
+
+
+def test_g41_on_circles_offsets_their_radius() -> None:
+    # A full circle of radius 20 about X30 Y30, counter-clockwise, the tool left: inside, radius 15
+    text = ("T1 D1 M6\nG17 G90 G0 X0 Y0 Z0\nN10 G41 G1 X50 Y30 F600\nN20 G3 X50 Y30 I-20 J0\n"
+            "N30 G40 G1 X60 Y30\nM30\n")
+    table = blocks_of(MILL_WITH_TOOL, text)
+    assert (table["N10"].positions_mm["X"], table["N10"].positions_mm["Y"]) == pytest.approx((45.0, 30.0))
+    assert took_s(table["N20"]) == pytest.approx(2 * math.pi * 15.0 / 10.0 + 10.0 / 2000.0, rel=1e-9)
+
+
+@pytest.mark.parametrize(("text", "number"), [
+    # a circle of radius 3 with the tool's 5 mm on its inside
+    ("T1 D1 M6\nG17 G90 G0 X0 Y0\nG41 G1 X10 Y0 F600\nG3 X4 Y0 CR=3\nG40 G1 X0 Y0\nM30\n", 10758),
+    # an inside corner whose next side (2 mm) is shorter than the radius: the tool cannot get in
+    ("T1 D1 M6\nG17 G90 G0 X0 Y0\nG41 G1 X10 Y10 F600\nX50\nY12\nX10\nG40 G1 X0 Y0\nM30\n", 10751),
+])
+def test_a_contour_that_cannot_be_offset_is_the_control_s_alarm(text: str, number: int) -> None:
+    emulator = Emulator(parse_machine(MILL_WITH_TOOL, "test.toml"), clock=SimulatedClock())
+    path = program_path("BAD.MPF")
+    emulator.nck.programs.write(path, text.encode())
+    result = run_offline(emulator, path)
+    assert result.outcome == "alarm" and str(number) in result.alarms[0], result.alarms

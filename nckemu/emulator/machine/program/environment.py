@@ -67,6 +67,10 @@ class ProgramEnvironment:
         """The active tool edge's length 1 (applied along the infeed axis of the plane)."""
         return 0.0
 
+    def tool_radius_mm(self, tool: int | str | None, edge: int | None) -> float:
+        """The active tool edge's radius (with its wear), which G41/G42 offset the contour by."""
+        return 0.0
+
     # system variables ($AC_TIME, $AC_ACTUAL_PARTS, $P_EP[X], ...)
     def system_variable(self, name: str, indices: tuple[object, ...] = ()) -> object:
         raise UndefinedName(name)

@@ -227,6 +227,15 @@ class NckEnvironment(ProgramEnvironment):
         except NckError:
             return 0.0
 
+    def tool_radius_mm(self, tool: int | str | None, edge: int | None) -> float:
+        number = self._tool_number(tool)
+        if not number or not edge:
+            return 0.0
+        try:
+            return self._parts.tools.active_radius_mm(number, edge)
+        except NckError:
+            return 0.0
+
     def _tool_number(self, tool: int | str | None) -> int:
         if isinstance(tool, int):
             return tool

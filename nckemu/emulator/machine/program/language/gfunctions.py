@@ -85,7 +85,7 @@ _GROUPS: tuple[tuple[int, bool, str, str | None, dict[str, Emulation], frozenset
     (4, True, "FIFO", "STARTFIFO", {"STARTFIFO": NO_EFFECT, "STOPFIFO": NO_EFFECT, "FIFOCTRL": NO_EFFECT},
      frozenset()),
     (6, True, "plane", "G17", {"G17": RUN, "G18": RUN, "G19": RUN}, frozenset({"G17", "G18", "G19"})),
-    (7, True, "tool radius compensation", "G40", {"G40": NO_EFFECT, "G41": NO_EFFECT, "G42": NO_EFFECT},
+    (7, True, "tool radius compensation", "G40", {"G40": RUN, "G41": RUN, "G42": RUN},
      frozenset({"G40"})),
     (8, True, "settable work offset", "G500", {
         "G500": RUN, "G54": RUN, "G55": RUN, "G56": RUN, "G57": RUN,

@@ -66,6 +66,7 @@ from .gfunctions import (
 )
 from .lexer import strip_comment, tokenize
 from .modal import ModalState
+from .radius_compensation import RadiusCompensation
 from .source import ProgramSource, decode_program, normalized
 from .variables import Variable
 
@@ -141,6 +142,7 @@ class Interpreter:
         self._stack: list[_Frame] = []
         self._frame: _Frame | None = None
         self._modal_call: tuple[Any, Any] | None = None
+        self._compensation: RadiusCompensation | None = None  # G41/G42 active (radius_compensation.py)
         self._r_count = int(env.r_count)
         self._cycles = CycleRunner(self)
         self._reset_modal()
@@ -288,7 +290,10 @@ class Interpreter:
                     if len(cache) >= MAX_CACHED_BLOCKS:
                         cache.clear()
                     cache[pos] = compiled
-            yield Block(source.path, line, compiled.number, compiled.text, frame.depth)
+            block: Block | None = Block(source.path, line, compiled.number, compiled.text, frame.depth)
+            if self._compensation is None or not self._compensation.holding:
+                yield block  # type: ignore[misc]
+                block = None
             try:
                 events = self._execute(compiled, frame, pos)
             except ProgramAlarm as alarm:
@@ -296,6 +301,13 @@ class Interpreter:
             except ArithmeticError as exc:  # an overflow deep in a conversion is still arithmetic
                 alarm = ProgramAlarm(ALARM_ARITHMETIC, f"arithmetic error ({exc})")
                 raise self._located(alarm, source, line, compiled.text) from None
+            if self._compensation is not None:  # G41/G42: a contour element waits for the next one
+                try:
+                    events = self._compensation.take(block, events or [])
+                except ProgramAlarm as alarm:
+                    raise self._located(alarm, source, line, compiled.text) from None
+                if self._compensation.done:
+                    self._compensation = None
             if events:
                 yield from events
                 if events[-1].__class__ is ProgramEnd:
@@ -887,6 +899,24 @@ class Interpreter:
     def _g_dimensions(self, code: int, flags: dict) -> None:       # group 14
         self.modal.absolute = code == 90
 
+    def _g_radius_compensation(self, code: int, flags: dict) -> None:  # group 7
+        compensation = self._compensation
+        if code == 40:
+            if compensation is not None:
+                compensation.ending = True
+            return
+        radius = float(self.env.tool_radius_mm(self.tool, self.edge))
+        if radius <= 0.0:
+            self._log_once(f"G{code}", f"G{code} with an edge radius of 0: the contour runs as programmed")
+            return
+        if compensation is None:
+            first, second, _ = _PLANES[self.modal.plane]
+            start = (self.work_pos.get(first, 0.0) + self.modal.shift.get(first, 0.0),
+                     self.work_pos.get(second, 0.0) + self.modal.shift.get(second, 0.0))
+            self._compensation = RadiusCompensation(code, radius, (first, second), start)
+        else:
+            compensation.ending = False
+
     def _g_feed_type(self, code: int, flags: dict) -> None:        # group 15
         # G96/G97 (constant cutting speed on/off) are both feed per revolution
         self.modal.feed_mode = f"G{code}" if code in (93, 94, 95) else "G95"
@@ -1288,6 +1318,7 @@ class Interpreter:
 
 _G_GROUP_HANDLERS: dict[int, Any] = {
     1: Interpreter._g_motion, 2: Interpreter._g_non_modal, 3: Interpreter._g_non_modal, 6: Interpreter._g_plane,
+    7: Interpreter._g_radius_compensation,
     8: Interpreter._g_settable_frame, 9: Interpreter._g_non_modal, 10: Interpreter._g_path_mode,
     11: Interpreter._g_non_modal, 13: Interpreter._g_units, 14: Interpreter._g_dimensions,
     15: Interpreter._g_feed_type,
