@@ -108,7 +108,7 @@ def test_system_variables_a_cycle_reads() -> None:
     program = (b"DEF AXIS _X, _Y, _Z, _AX\nG17\n_X=$P_AXN1 _Y=$P_AXN2 _Z=$P_AXN3\n"
                b"R10=$MA_MAX_AX_VELO[X] R11=$MA_MAX_AX_VELO[AX2] R12=$MC_TOOL_TEMP_COMP_ON\n"
                b"_AX=(Y)\nIF _AX<>\"Y\"\n SETAL(61001)\nENDIF\nIF AXNAME(\"Z\")<>_Z\n SETAL(61002)\nENDIF\n"
-               b"G18\nIF $P_AXN1<>\"Z\"\n SETAL(61003)\nENDIF\nIF $P_MC\n SETAL(61004)\nENDIF\nR13=$A_YEAR\nM30\n")
+               b"G18\nIF $P_AXN1<>\"Z\"\n SETAL(61003)\nENDIF\nIF $P_MC\n SETAL(61004)\nENDIF\nIF $P_GG[6]<>2\n SETAL(61005)\nENDIF\nG91\nIF $P_GG[14]<>2\n SETAL(61006)\nENDIF\nG90\nR13=$A_YEAR\nM30\n")
     _run(emulator, "CYCLE_VARS", program)
     store = emulator.nck.store
     r = store.read_lines(store.spec("R"), 1, 11, 4)
