@@ -9,10 +9,8 @@ previous motion ended (the caller moves the machine in between). Every error is 
 from __future__ import annotations
 
 import logging
-import math
 import re
 from collections.abc import Iterator
-from dataclasses import replace
 from types import FunctionType
 from typing import Any
 
@@ -20,13 +18,11 @@ from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame
 
 from ..environment import ProgramEnvironment, UndefinedName
 from ..motions import (
-    ALARM_CIRCLE_END_POINT,
     ALARM_FEED_ZERO,
     ALARM_JUMP_TARGET,
     ALARM_NAME_NOT_DEFINED,
     ALARM_PROGRAM_NOT_FOUND,
     ALARM_SYNTAX,
-    Arc,
     Block,
     Dwell,
     Event,
@@ -54,7 +50,7 @@ from .blocks import BlockCompiler, Compiled
 from .cycle_runner import CycleRunner, is_standard_cycle
 from .definitions import expand_macros
 from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
-from .feedrules import DIAMETER_WORDS, THREAD_MOTIONS, TRANSVERSE_AXIS
+from .feedrules import DIAMETER_WORDS, TRANSVERSE_AXIS
 from .gfunctions import (
     BY_NUMBER,
     G_FUNCTIONS,
@@ -66,21 +62,15 @@ from .gfunctions import (
 )
 from .lexer import strip_comment, tokenize
 from .modal import ModalState
+from .motion_builder import INCH_MM, MotionBuilder
+from .motion_builder import PLANES as _PLANES
 from .radius_compensation import RadiusCompensation
 from .source import ProgramSource, decode_program, normalized
 from .variables import Variable
 
 log = logging.getLogger(__name__)
 
-INCH_MM = 25.4
 MAX_CACHED_BLOCKS = 50_000
-# The circle end-point tolerance: MD21000 CIRCLE_ERROR_CONST (mm) and MD21010 CIRCLE_ERROR_FACTOR
-# (share of the radius); the larger applies. Defaults as we remember them, UNCONFIRMED.
-CIRCLE_ERROR_CONST_MM = 0.01
-CIRCLE_ERROR_FACTOR = 0.001
-
-_PLANES = {"G17": ("X", "Y", "Z"), "G18": ("Z", "X", "Y"), "G19": ("Y", "Z", "X")}
-_CENTRE_WORD = {"X": "I", "Y": "J", "Z": "K"}
 _STANDARD_CYCLE = re.compile(r"(CYCLE\d+[A-Z]?|POCKET\d+|SLOT\d+|LONGHOLE|HOLES\d|WORKPIECE|[EF]_[A-Z0-9_]+)")
 _BLOCK_NUMBER = re.compile(r"(?:/\d?\s*)?(N\d+)", re.IGNORECASE)
 _END_CODES = frozenset({0, 1, 2, 17, 30})
@@ -143,6 +133,7 @@ class Interpreter:
         self._frame: _Frame | None = None
         self._modal_call: tuple[Any, Any] | None = None
         self._compensation: RadiusCompensation | None = None  # G41/G42 active (radius_compensation.py)
+        self.paths = MotionBuilder(self)  # the motion job: a block's axis words into moves and circles
         self._r_count = int(env.r_count)
         self._cycles = CycleRunner(self)
         self._reset_modal()
@@ -1002,7 +993,7 @@ class Interpreter:
                 if entry is not None and entry.modal:
                     self.modal.g_groups[entry.group] = item.name
                 if item.name in DIAMETER_WORDS or item.name == "FGROUP":
-                    self.modal.feed_rules = self.modal.feed_rules.word(item.name, item.args, self._fgroup_axes)
+                    self.modal.feed_rules = self.modal.feed_rules.word(item.name, item.args, self.paths.fgroup_axes)
                 elif item.name != "N":
                     self._log_once(item.name, f"{item.name} accepted, not modelled")
         events: list[Event] = []
@@ -1017,7 +1008,7 @@ class Interpreter:
             if m_code not in (3, 4, 5) and m_code not in _END_CODES:
                 events.append(MFunction(m_code, extension))
         if flags.get("pole") or "AP" in address or "RP" in address:
-            axis_words = self._polar(axis_words, address, flags)
+            axis_words = self.paths.polar(axis_words, address, flags)
         moved = False
         if flags.get("dwell"):
             if axis_words:
@@ -1055,28 +1046,8 @@ class Interpreter:
             self._jump(frame, jump[0], jump[1], pos)
         return events
 
-    def _polar(self, axis_words: list, address: dict, flags: dict) -> list:
-        """Polar coordinates (polar.py): a G110/G111/G112 block sets the pole and moves nothing; AP=/RP=
-        become the end point of the plane's axes (and a circle's centre is the pole)."""
-        modal = self.modal
-        first, second, _ = _PLANES[modal.plane]
-        unit = INCH_MM if modal.inch_geometry else 1.0
-        wrote_polar = "AP" in address or "RP" in address
-        polar = modal.polar.with_words(address, unit)
-        code = flags.get("pole")
-        if code:
-            written = {axis: float(number(raw)) * unit for axis, raw, _ in axis_words if axis in (first, second)}
-            position = (self.work_pos.get(first, 0.0), self.work_pos.get(second, 0.0))
-            modal.polar = polar.new_pole(code, written, (first, second), position, wrote_polar)
-            return [word for word in axis_words if word[0] not in (first, second)]
-        modal.polar = polar
-        end_first, end_second = polar.point_mm()
-        words = [word for word in axis_words if word[0] not in (first, second)]
-        words += [(first, end_first / unit, "AC"), (second, end_second / unit, "AC")]
-        if modal.motion in (2, 3) and not any(word in address for word in ("I", "J", "K", "CR")):
-            address[_CENTRE_WORD[first]] = (polar.pole_mm[0] / unit, "AC")
-            address[_CENTRE_WORD[second]] = (polar.pole_mm[1] / unit, "AC")
-        return words
+    def _motion(self, axis_words: list, address: dict, flags: dict) -> Event | list[Event]:
+        return self.paths.motion(axis_words, address, flags)
 
     def _setal(self, value: Any) -> None:
         number_value = int(number(value))
@@ -1154,167 +1125,6 @@ class Interpreter:
         self._update_shift()
         self.env.set_programmable_frame(self._programmable())
 
-    def _framed_motion(self, axis_words: list, address: dict, flags: dict, chain: Frame) -> Event | list[Event]:
-        """A move or circle through a frame that rotates, scales or mirrors: the end point (and centre)
-        worked out in the work system, then taken through the frame chain and the tool length."""
-        work_pos = self.work_pos
-        unit_mm = INCH_MM if self.modal.inch_geometry else 1.0
-        start = dict(work_pos)
-        programmed: dict[str, float] = {}
-        for axis, raw, mode in axis_words:
-            value = raw if raw.__class__ is float else float(number(raw))
-            unit = unit_mm if not self._is_rotary(axis) else 1.0
-            incremental = mode == "IC" or (mode is None and not self.modal.absolute)
-            work = (work_pos[axis] + value * unit) if incremental else value * unit
-            programmed[axis] = work / unit
-            work_pos[axis] = work
-        moving = chain.coupled(set(programmed)) & set(work_pos)
-        work_targets = {axis: work_pos[axis] for axis in moving}
-        tool = {_PLANES[self.modal.plane][2]: self.tool_length_mm} if self.tool_length_mm else {}
-        exact_stop = self.modal.exact_stop or bool(flags.get("g9"))
-        if self.modal.motion > 1:
-            if self.feed_mm <= 0:
-                raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-            saved_shift, self.modal.shift = self.modal.shift, {}
-            try:
-                first, second, _ = _PLANES[self.modal.plane]
-                # a circle starts where the tool is: that point in the work system of this frame
-                plane_start = {axis: self._work_position(axis) for axis in (first, second) if axis in start}
-                arc = self._arc(work_targets, programmed, plane_start, address, {}, exact_stop)
-            finally:
-                self.modal.shift = saved_shift
-            framed = framing.framed_arc(arc, {**start, **plane_start}, chain, tool)
-            if framed.__class__ is list:  # chords of a circle the frame tilts out of the machine's planes
-                return [self._with_feed_rules(chord) for chord in framed]  # type: ignore[union-attr]
-            return self._with_feed_rules(framed)  # type: ignore[arg-type]
-        targets = chain.apply(work_targets)
-        for axis, length in tool.items():
-            if axis in targets:
-                targets[axis] += length
-        if self.modal.motion == 0:
-            return Move(targets, None, self.modal.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
-        if self.modal.motion in THREAD_MOTIONS:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"G{self.modal.motion} in a rotated, scaled or mirrored frame "
-                                                       "is not supported by the emulator")
-        if self.feed_mm <= 0:
-            raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-        return self._with_feed_rules(Move(targets, self.feed_mm, self.modal.feed_mode, exact_stop,  # type: ignore[arg-type]
-                                          programmed))
-
-    def _motion(self, axis_words: list, address: dict, flags: dict) -> Event | list[Event]:
-        suppress = bool(flags.get("supa"))
-        if self.modal.chain is not None and not suppress:
-            return self._framed_motion(axis_words, address, flags, self.modal.chain)
-        shift = self.modal.shift
-        work_pos = self.work_pos
-        inch = self.modal.inch_geometry
-        absolute = self.modal.absolute
-        targets: dict[str, float] = {}
-        programmed: dict[str, float] = {}
-        start_machine = {axis: work_pos[axis] + shift.get(axis, 0.0) for axis in _PLANES[self.modal.plane][:2]
-                         if axis in work_pos}
-        rules = self.modal.feed_rules
-        for axis, raw, mode in axis_words:
-            value = raw if raw.__class__ is float else float(number(raw))
-            unit = INCH_MM if inch and not self._is_rotary(axis) else 1.0
-            incremental = mode == "IC" or (mode is None and not absolute)
-            value = rules.radius_of(axis, value, incremental)
-            offset = shift.get(axis, 0.0)
-            if suppress:
-                machine = (work_pos[axis] + offset + value * unit) if incremental else value * unit
-                work = machine - offset
-                programmed[axis] = rules.programmed_of(axis, machine / unit)
-            else:
-                work = (work_pos[axis] + value * unit) if incremental else value * unit
-                machine = work + offset
-                programmed[axis] = rules.programmed_of(axis, work / unit)
-            work_pos[axis] = work
-            targets[axis] = machine
-        exact_stop = self.modal.exact_stop or bool(flags.get("g9"))
-        motion = self.modal.motion
-        if motion == 0:
-            return Move(targets, None, self.modal.feed_mode, exact_stop, programmed)  # type: ignore[arg-type]
-        if motion in THREAD_MOTIONS:
-            return self._thread(targets, programmed, address, exact_stop)
-        if self.feed_mm <= 0:
-            raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-        if motion == 1:
-            return self._with_feed_rules(Move(targets, self.feed_mm, self.modal.feed_mode, exact_stop,  # type: ignore[arg-type]
-                                              programmed))
-        return self._with_feed_rules(self._arc(targets, programmed, start_machine, address, flags, exact_stop))
-
-    def _with_feed_rules(self, motion: Move | Arc) -> Move | Arc:
-        """The feed group and G96 on a motion at feed (nothing to add in the common case)."""
-        rules = self.modal.feed_rules
-        if rules.fgroup is None and not rules.constant_speed:
-            return motion
-        return replace(motion, fgroup=rules.fgroup,
-                       css=rules.css(self.modal.shift.get(TRANSVERSE_AXIS, 0.0)) if motion.feed_mode == "G95" else None)
-
-    def _thread(self, targets: dict, programmed: dict, address: dict, exact_stop: bool) -> Move:
-        """G33: feed per revolution at the pitch; G331/G332 (tapping): the pitch at the programmed S.
-        The feed override does not act on either (Move.thread)."""
-        self.modal.feed_rules = self.modal.feed_rules.with_pitch(address, INCH_MM if self.modal.inch_geometry else 1.0)
-        pitch = self.modal.feed_rules.pitch_mm
-        if self.modal.motion == 33:
-            return Move(targets, pitch, "G95", exact_stop, programmed, thread=True)
-        speed = abs(self.spindle_speed.get(1, 0.0))
-        if speed <= 0.0:
-            raise ProgramAlarm(ALARM_FEED_ZERO, f"G{self.modal.motion}: tapping without a spindle speed (S)")
-        return Move(targets, pitch * speed, "G94", exact_stop, programmed, thread=True)
-
-    def _fgroup_axes(self, args: list) -> list[str]:
-        """FGROUP's arguments as channel axis names (each written as a bare axis name)."""
-        names = []
-        for arg in args:
-            lvalue = getattr(arg, "lvalue", None)
-            if arg is None or lvalue is None or lvalue[0] != "VAR" or lvalue[2]:
-                raise ProgramAlarm(ALARM_SYNTAX, "FGROUP takes channel axis names: FGROUP(X, Y, C)")
-            names.append(self._axis_name(lvalue[1]))
-        return names
-
-    def _arc(self, targets: dict, programmed: dict, start: dict, address: dict, flags: dict,
-             exact_stop: bool) -> Arc:
-        if "AR" in address or "AP" in address or "RP" in address:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "AR/AP/RP circles are not supported by the emulator")
-        first, second, _ = _PLANES[self.modal.plane]
-        if first not in start or second not in start:
-            raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"{self.modal.plane}: the plane's axes are not in this channel")
-        unit = INCH_MM if self.modal.inch_geometry else 1.0
-        start_first, start_second = start[first], start[second]
-        end_first, end_second = targets.get(first, start_first), targets.get(second, start_second)
-        clockwise = self.modal.motion == 2
-        if "CR" in address:
-            radius = float(number(address["CR"])) * unit
-            centre = _centre_from_radius(start_first, start_second, end_first, end_second, radius, clockwise)
-        else:
-            first_word = address.get(_CENTRE_WORD.get(first, ""))
-            second_word = address.get(_CENTRE_WORD.get(second, ""))
-            if first_word is None and second_word is None:
-                raise ProgramAlarm(ALARM_CIRCLE_END_POINT, "circle without centre (I, J, K) or radius (CR=)")
-            supa = bool(flags.get("supa"))
-            centre = (self._centre(first_word, first, start_first, unit, supa),
-                      self._centre(second_word, second, start_second, unit, supa))
-            radius_start = math.hypot(start_first - centre[0], start_second - centre[1])
-            radius_end = math.hypot(end_first - centre[0], end_second - centre[1])
-            tolerance = max(CIRCLE_ERROR_CONST_MM, CIRCLE_ERROR_FACTOR * max(radius_start, radius_end))
-            if abs(radius_start - radius_end) > tolerance:
-                raise ProgramAlarm(ALARM_CIRCLE_END_POINT,
-                                   f"error in end point of circle (radii {radius_start:.4f} and {radius_end:.4f} mm)")
-        turns = int(number(address["TURN"])) if "TURN" in address else 0
-        return Arc(targets, {first: centre[0], second: centre[1]}, clockwise, self.modal.plane,  # type: ignore[arg-type]
-                   self.feed_mm, self.modal.feed_mode, turns, exact_stop, programmed)  # type: ignore[arg-type]
-
-    def _centre(self, word: tuple | None, axis: str, start: float, unit: float, supa: bool) -> float:
-        """One centre coordinate (machine mm) from I/J/K: incremental from the start, or =AC(...)."""
-        if word is None:
-            return start
-        value, mode = word
-        offset = (value if value.__class__ is float else float(number(value))) * unit
-        if mode == "AC":
-            return offset + (0.0 if supa else self.modal.shift.get(axis, 0.0))
-        return start + offset
-
 
 _G_GROUP_HANDLERS: dict[int, Any] = {
     1: Interpreter._g_motion, 2: Interpreter._g_non_modal, 3: Interpreter._g_non_modal, 6: Interpreter._g_plane,
@@ -1327,21 +1137,6 @@ _G_GROUP_HANDLERS: dict[int, Any] = {
 # G53/G153 frames suppressed, G9 exact stop in this block
 _G_FLAGS = {4: "dwell", 25: "limit", 26: "limit", 53: "supa", 153: "supa", 9: "g9", 110: "pole", 111: "pole",
             112: "pole"}
-
-
-def _centre_from_radius(start_first: float, start_second: float, end_first: float, end_second: float,
-                        radius: float, clockwise: bool) -> tuple[float, float]:
-    dx = end_first - start_first
-    dy = end_second - start_second
-    chord = math.hypot(dx, dy)
-    size = abs(radius)
-    if chord == 0 or size == 0 or chord > 2 * size + CIRCLE_ERROR_CONST_MM:
-        raise ProgramAlarm(ALARM_CIRCLE_END_POINT, f"error in end point of circle (CR={radius:.4f} mm)")
-    height = math.sqrt(max(size * size - chord * chord / 4, 0.0))
-    # counter-clockwise with the short arc (CR > 0): centre on the left of the chord
-    side = 1.0 if (not clockwise) == (radius > 0) else -1.0
-    return (start_first + dx / 2 - side * height * dy / chord,
-            start_second + dy / 2 + side * height * dx / chord)
 
 
 def _as_text(text: str | bytes) -> str:
