@@ -8,8 +8,9 @@ list marks it; a machine may change it, and the emulator takes group 1 from ``en
 - ``RUN``: the interpreter acts on it (motion, plane, units, frames, feed type, ...);
 - ``NO_EFFECT``: the control has it and a program using it runs here, but nothing the emulator models
   changes (logged once per program): path quality, look-ahead, corner behaviour, OEM functions;
-- ``NOT_SUPPORTED``: the control has it and it changes what the machine does (a thread, a reference
-  point approach, polar coordinates), so running on would give wrong positions or times: the block
+- ``NOT_SUPPORTED``: the control has it and it changes what the machine does (a circle through an
+  intermediate point, a reference point approach, an axial offset), so running on would give wrong
+  positions or times: the block
   stops with 12550 naming the G function "not supported by the emulator".
 
 A G number that is not in the table is no SINUMERIK G function (G43 of an ISO control, G999): 12470.
