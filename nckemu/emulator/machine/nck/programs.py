@@ -14,6 +14,7 @@ from typing import Any
 
 from nckemu.catalogue.program_names import DIRECTORIES, directory_path, program_path
 from nckemu.emulator.machine.program.language.definitions import GlobalDefinitions, is_definition_file
+from nckemu.emulator.machine.program.language.source import decode_program
 from nckemu.errors import NckNoSuchFile, NckPiStateError
 
 DEFAULT_PROGRAMS = ("/_N_MPF_DIR/_N_TEST_MPF", "/_N_MPF_DIR/_N_MAIN_MPF")
@@ -21,10 +22,7 @@ DEFAULT_PROGRAMS = ("/_N_MPF_DIR/_N_TEST_MPF", "/_N_MPF_DIR/_N_MAIN_MPF")
 
 def program_text(data: bytes) -> str:
     """A stored program as text: UTF-8 where it is (comments with a degree sign), else Latin-1 (any byte)."""
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        return data.decode("latin-1")
+    return decode_program(data)
 
 
 class Programs:

@@ -25,6 +25,7 @@ from ..motions import ALARM_SYNTAX, ProgramAlarm
 from .blocks import DEF, BlockCompiler
 from .expressions import evaluate, undefined
 from .lexer import strip_comment, tokenize
+from .source import decode_program
 from .variables import Variable
 
 # The files a control activates, in the order it reads them (later ones win on a name both define).
@@ -80,7 +81,7 @@ def parse_definitions(path: str, text: str | bytes) -> DefinitionFile:
         if len(text) > MAX_DEFINITION_BYTES:
             raise ProgramAlarm(ALARM_SYNTAX, f"definition file of {len(text)} bytes (at most "
                                              f"{MAX_DEFINITION_BYTES})", program=path, line=1)
-        text = _decode(bytes(text))
+        text = decode_program(bytes(text))
     elif len(text) > MAX_DEFINITION_BYTES:
         raise ProgramAlarm(ALARM_SYNTAX, f"definition file of {len(text)} characters (at most "
                                          f"{MAX_DEFINITION_BYTES})", program=path, line=1)
@@ -134,13 +135,6 @@ def _parse_block(block: str, compiler: BlockCompiler, parsed: DefinitionFile) ->
         parsed.variables[name] = variable
         elements += len(variable.value) if dims else 1
     return elements
-
-
-def _decode(data: bytes) -> str:
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        return data.decode("latin-1")
 
 
 def expand_macros(block: str, macros: dict[str, str]) -> str:
