@@ -175,3 +175,12 @@ def test_the_nck_io_and_the_plc_nck_data_area_a_grinder_program_reads() -> None:
     emulator.nck.programs.write("/_N_MPF_DIR/_N_IO2_MPF", b"R1=$A_DBB[5000]\nM30\n")
     result = run_offline(emulator, "/_N_MPF_DIR/_N_IO2_MPF", max_time_s=60.0)
     assert "alarm 12550" in result.alarms[0] and "byte offsets" in result.alarms[0]
+
+
+def test_a_users_cycle_under_mcall_is_not_called_again_by_its_own_moves() -> None:
+    """A shop's own CYCLE82.SPF moves the axes; under MCALL CYCLE82 those moves do not call it again."""
+    emulator = _emulator()
+    emulator.nck.programs.write("/_N_SPF_DIR/_N_CYCLE82_SPF", b"PROC CYCLE82(REAL RTP, REAL DP)\n"
+                                                              b"G1 Z=DP F500\nG0 Z=RTP\nR5=R5+1\nM17\n")
+    _run(emulator, "HOLES", b"G0 X10 Y10 Z-10\nMCALL CYCLE82(-10, -30)\nX20\nX30 Y20\nMCALL\nX40\nM30\n")
+    assert emulator.nck.store.read_lines(emulator.nck.store.spec("R"), 1, 6, 1)[0] == 2.0

@@ -132,6 +132,9 @@ class Interpreter:
         self._stack: list[_Frame] = []
         self._frame: _Frame | None = None
         self._modal_call: tuple[Any, Any] | None = None
+        # The depth of the subprogram a modal call entered while it runs: its own motion blocks do not
+        # call it again (a user's CYCLE82.SPF under MCALL CYCLE82 would otherwise call itself forever).
+        self._modal_depth: int | None = None
         self._compensation: RadiusCompensation | None = None  # G41/G42 active (radius_compensation.py)
         self.paths = MotionBuilder(self)  # the motion job: a block's axis words into moves and circles
         self._r_count = int(env.r_count)
@@ -232,6 +235,7 @@ class Interpreter:
             self._reset_modal()
             self._settings.clear()
             self._modal_call = None
+            self._modal_depth = None
         frame = _Frame(self._main, 0, 1, 0)
         self._stack = [frame]
         self._frame = frame
@@ -604,9 +608,19 @@ class Interpreter:
                     raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
                 events = [Move(targets, self.feed_mm, self.modal.feed_mode, self.modal.exact_stop,  # type: ignore[arg-type]
                                dict(axis_words))]
-        if self._modal_call is not None:
-            events += self._call(self._modal_call[0], self._modal_call[1], None, frame) or ()
+        if self._modal_call is not None and self._modal_may_call(frame):
+            events += self._call_modal(frame)
         return events
+
+    def _modal_may_call(self, frame: _Frame) -> bool:
+        return self._modal_depth is None or frame.depth < self._modal_depth
+
+    def _call_modal(self, frame: _Frame) -> list[Event]:
+        """The modal call after a motion block; the subprogram it enters does not call it again."""
+        events = self._call(self._modal_call[0], self._modal_call[1], None, frame) or []  # type: ignore[index]
+        if self._frame is not frame and self._modal_depth is None:
+            self._modal_depth = self._frame.depth  # type: ignore[union-attr]
+        return list(events)
 
     def _execute(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
         kind = compiled.kind
@@ -838,6 +852,8 @@ class Interpreter:
     def _return(self) -> None:
         frame = self._stack.pop()
         self._frame = self._stack[-1]
+        if frame.depth == self._modal_depth:
+            self._modal_depth = None
         for ref, param in frame.back_refs:
             self._assign(ref, frame.vars[param].get(()))
         if frame.saved_modal is not None:
@@ -1032,15 +1048,16 @@ class Interpreter:
                 events.append(MFunction(m_code, extension))
                 if m_code in (2, 30, 17):
                     end_code = m_code
-        if moved and self._modal_call is not None and call is None:
-            call = (self._modal_call[0], self._modal_call[1], None)
+        modal = moved and self._modal_call is not None and call is None and self._modal_may_call(frame)
         if end_code is not None or ret:
             if frame.depth == 0 or (end_code in (2, 30) and not self.env.subprogram_end_returns):
                 events.append(ProgramEnd(end_code if end_code is not None else 0))
                 return events
             self._return()
             return events
-        if call is not None:
+        if modal:
+            events += self._call_modal(frame)
+        elif call is not None:
             events += self._call(call[0], call[1], call[2], frame) or ()
         if jump is not None:
             self._jump(frame, jump[0], jump[1], pos)
