@@ -24,7 +24,7 @@ forward search and its guards) and ``explain`` (words, mismatch windows). This m
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -76,6 +76,8 @@ class Discovery:
     # After the last named term, when what is left is structure and no run stands out: where it is
     # largest (a run, or a window of the one recording) and what it follows there.
     left: list[dict[str, Any]] = field(default_factory=list)
+    # Terms that fit and pass every other guard, but that a machine cannot have (issue 51): never named.
+    cannot_have: list[Closest] = field(default_factory=list)
     # The search stopped at Settings.max_effects, not because nothing more passed: said, with the figure.
     stopped_at_limit: str = ""
     # Several runs: the figures of each (leave-one-run-out), which columns some runs lack.
@@ -113,6 +115,7 @@ class Discovery:
             "likely_not_proven": [item.to_json() for item in self.likely],
             "closest_candidates": [item.to_json() for item in self.closest],
             "withdrawn": [item.to_json() for item in self.withdrawn],
+            "cannot_have": [item.to_json() for item in self.cannot_have],
             "left": self.left,
             "stopped_at_limit": self.stopped_at_limit,
             "residual_structure": self.residual_structure,
@@ -125,6 +128,13 @@ class Discovery:
             document["run_figures"] = self.run_figures
             document["coverage"] = self.coverage
         return document
+
+
+def _with_structure(settings: Settings, model: ThermalModel | None) -> Settings:
+    """The model file's [structure] (what its machine can have) in place of the default."""
+    if model is None or model.structure is None:
+        return settings
+    return replace(settings, structure=model.structure)
 
 
 def _isolated(flagged: np.ndarray, longest: int = 2) -> np.ndarray:
@@ -169,7 +179,7 @@ class Discoverer:
             if len(axes) != 1:
                 raise NckConfigError(f"several axes ({', '.join(axes)}): name one with --axis", path=recording.source)
             axis = axes[0]
-        self.settings = settings or Settings()
+        self.settings = _with_structure(settings or Settings(), model)
         self.constant_um = constant_program([recording], axis) if model is None else None
         if self.constant_um is not None:
             model = ThermalModel(axis, [Term("offset", {"value_um": self.constant_um})],
@@ -185,7 +195,7 @@ class Discoverer:
                  settings: Settings | None = None) -> Discoverer:
         """Several runs of one machine: each its own offset, held out one at a time."""
         self = cls.__new__(cls)
-        self.settings = settings or Settings()
+        self.settings = _with_structure(settings or Settings(), model)
         self.constant_um = constant_program(runs, axis) if model is None else None
         if self.constant_um is not None:  # each run's own offset is the whole baseline
             model = ThermalModel(axis, [], f"<the sim_{axis}_um column, constant {self.constant_um:g} um>")
@@ -298,6 +308,12 @@ class Discoverer:
         self.selector, self.setup, self.path = selector, setup, chosen
         result = self._finish(setup, chosen, preferred)
         result.withdrawn = list(chosen.withdrawn)
+        named = {explain.label_with_time_constants(term) for term in chosen.added}
+        result.cannot_have = [Closest(term.effect, label, {k: (round(v, 6) if isinstance(v, float) else v)
+                                                           for k, v in term.parameters.items()},
+                                      [GuardFigure(g.name, g.passes, g.figure) for g in guards])
+                              for label, term, guards in sorted(chosen.cannot_have, key=lambda item: -item[2][-1].gain)
+                              if label not in named][:3]
         result.baseline_constant_um = self.constant_um
         self._honest(result, selector, setup, chosen)
         if len(self.problem.runs) > 1:

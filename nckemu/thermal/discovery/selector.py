@@ -136,6 +136,8 @@ class Path:
     withdrawn: list[Withdrawn] = field(default_factory=list)
     # The search stopped at Settings.max_effects: the last round's candidates were surveyed, not judged.
     at_limit: bool = False
+    # Candidates that passed every guard but what a machine can have: (label, term, guards).
+    cannot_have: list[tuple[str, Term, list[Guard]]] = field(default_factory=list)
     # The last round's candidates with every guard's figure, judged once (``Selector.judged``).
     judged: list[tuple[Evaluation, list[Guard]]] | None = None
 
@@ -155,6 +157,9 @@ def runs_improve(before_ms: np.ndarray, after_ms: np.ndarray, level: float, min_
 def paired_test_applies(runs: int, level: float, min_runs: int) -> bool:
     """Enough runs for the paired test: at least ``min_runs``, and enough to reach ``level`` at all."""
     return runs >= min_runs and 0.5 ** runs <= level
+
+
+CANNOT_HAVE = "fits, but a machine cannot have it"
 
 
 def percent(share: float) -> str:
@@ -320,8 +325,11 @@ class Selector:
             out.append(Guard("t-test", all(abs(t) >= t_crit for t in t_values),
                              f"t = {t_words} (critical {t_crit:.2f})"))
         physical = all(bounded(term) for term in terms)
-        out.append(Guard("physical", physical, "parameters a machine can have" if physical else
-                         "parameters outside what a machine can have"))
+        cannot = "; ".join(why for term in terms
+                           if (why := term.spec.cannot_have(term.parameters, term.coefficient, s.structure)))
+        out.append(Guard("physical", physical and not cannot,
+                         "parameters outside what a machine can have" if not physical else
+                         f"{CANNOT_HAVE}: {cannot}" if cannot else "parameters a machine can have"))
         if self.per_run:  # ... and it must not leave the worst run worse
             figures = self.run_figures(cv, base_cv, runs_with)
             limit = (1 + s.equivalence) * figures.worst_before_um
@@ -624,6 +632,7 @@ class Selector:
         evaluations, t_crit, tests = evaluated
         single_paired_tests = self.paired_tests  # pair_round counts its moves' own
         passing = [e for e in evaluations if self.passes(e, path.base_cv, t_crit)]
+        self.note_cannot_have(path, [e for e in evaluations if e not in passing], t_crit)
         passing = [e for e in passing if self.earned(e, evaluations, passing)]
         if not passing and s.pair_moves and len(path.added) + 2 <= s.max_effects \
                 and self.pair_round(path, evaluations, tests):
@@ -652,6 +661,19 @@ class Selector:
         path.noise = np.column_stack([path.noise, chosen.candidate.noise])
         path.base_cv = chosen.cv
         return True
+
+    def note_cannot_have(self, path: Path, refused: list[Evaluation], t_crit: float) -> None:
+        """Candidates that pass every guard but what a machine can have: never named, listed with
+        their figures ("fits, but a machine cannot have it")."""
+        for evaluation in refused:
+            label = explain.label_with_time_constants(evaluation.candidate.term)
+            if any(item[0] == label for item in path.cannot_have):
+                continue
+            guards = self.guards_of(evaluation, path.base_cv, t_crit)
+            failing = [g for g in guards if not g.passes]
+            if len(failing) == 1 and failing[0].figure.startswith(CANNOT_HAVE):
+                term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
+                path.cannot_have.append((label, term, guards))
 
     # ------------------------------------------------------------------ one sensor, two time constants
     def twin_of_one_sign(self, path: Path, evaluation: Evaluation) -> bool:

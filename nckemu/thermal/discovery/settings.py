@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nckemu.thermal.model.structure import Structure
+
 
 @dataclass(frozen=True)
 class Settings:
@@ -33,6 +35,9 @@ class Settings:
     # follows another relation, fitted apart).
     run_harm_share: float = 0.10
     run_harm_floor_um: float = 0.3
+    # What a machine can have (issue 51): a term beyond it fits, but is never named (a model file's
+    # [structure] table sets it for its machine).
+    structure: Structure = Structure()
     alpha: float = 0.01                 # family-wise, Bonferroni over the candidates of a round
     equivalence: float = 0.03           # held-out RMS within 3 % of the best: equivalent
     max_effects: int = 6

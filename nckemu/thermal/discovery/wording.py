@@ -122,6 +122,13 @@ def finding_lines(discovery: Discovery) -> list[str]:
         lines.append(f"likely, not proven: {item.label} {json.dumps(item.parameters)}: held-out "
                      f"{e.heldout_rms_before_um:.3f} -> {e.heldout_rms_after_um:.3f} um "
                      f"({e.heldout_improvement:.1%}, the bar is {e.heldout_bar:.0%}); {e.why}")
+    for item in discovery.cannot_have:
+        physical = next(g for g in item.guards if g.guard == "physical")
+        held_out = item.guards[-1]
+        coefficient = next((v for k, v in item.parameters.items() if k.startswith(("coeff", "slope"))), None)
+        size = f" {coefficient:+.3g}" if isinstance(coefficient, float) else ""
+        lines.append(f"{physical.figure.split(':')[0]}: {item.label}{size} ({physical.figure.split(': ', 1)[1]}); "
+                     f"{held_out.figure}")
     if discovery.stopped_at_limit:
         lines.append(f"stopped: {discovery.stopped_at_limit}")
     for withdrawn in discovery.withdrawn:

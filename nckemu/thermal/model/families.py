@@ -29,6 +29,7 @@ from nckemu.errors import NckConfigError
 from nckemu.thermal.recordings.recording import Recording
 
 from .lags import asymmetric_lag, first_order_lag
+from .structure import Structure
 
 # The PLC forms plcsim/stlgen.py knows how to write (one emitter each).
 PLC_FORMS = ("constant", "linear", "square", "difference", "lag", "asymmetric_lag", "skin_core",
@@ -100,6 +101,12 @@ class Family:
     # (0: without a sensor; 1: one sensor; 2: sensor pairs; 3..: searched time constants). The order
     # decides only how ties and equivalent explanations are listed.
     stage: int = 1
+    # What a machine can have (issue 51, docs/thermal.md): the coefficient's size as a multiple of the
+    # structure's expansion over its length (um/K; per metre for a slope), None: no such bound; and
+    # whether a room sensor may carry it (the room acts through the structure, never as hysteresis).
+    size_in_structures: float | None = None
+    per_metre: bool = False
+    room_may_carry: bool = True
 
     def present_key(self, parameters: dict[str, Any]) -> str:
         """What a found term rules out of later rounds: the family, or the family of that sensor (pair)."""
@@ -115,6 +122,24 @@ class Family:
         if self.coefficient_range is not None:
             return self.coefficient_range[0] <= coefficient <= self.coefficient_range[1]
         return math.isfinite(coefficient)
+
+
+    def cannot_have(self, parameters: dict[str, Any], coefficient: float, structure: Structure) -> str:
+        """Why a machine of ``structure`` cannot have this term ("" when it can)."""
+        sensor = parameters.get("sensor")
+        if not self.room_may_carry and isinstance(sensor, str) and structure.is_room(sensor):
+            return (f"{sensor} is the room: it acts through the structure (a lag), never as {self.effect} of "
+                    f"the air")
+        if self.size_in_structures is None or not math.isfinite(coefficient):
+            return ""
+        limit = self.size_in_structures * (structure.expansion_um_per_m_K if self.per_metre else structure.um_per_K)
+        if abs(coefficient) <= limit:
+            return ""
+        unit = "um/(m K)" if self.per_metre else "um/K"
+        what = f"a metre of {structure.material.replace('_', ' ')}" if self.per_metre else \
+            structure.words().split(" at ")[0]
+        return (f"{abs(coefficient):.3g} {unit} is more than {limit:.3g} {unit}, {self.size_in_structures:g} x what "
+                f"{what} can expand per kelvin")
 
 
 _REGISTRY: dict[str, Family] = {}
@@ -296,7 +321,7 @@ for _family in (
            stage=0),
     Family("temperature", "coeff_um_per_K", ("sensor",), {"t_ref_C": 20.0}, 1, "linear in one sensor",
            lambda r, _a, p: _deviation(r, p), _per_sensor("temperature", "coeff_um_per_K", not_modelled=True),
-           plc_form="linear"),
+           plc_form="linear", size_in_structures=1.0),
     Family("gain_error", "gain", (), {}, 1,
            "the model's shape is right, its scale is not (recorded = gain x model)", None,
            coefficient_range=(0.2, 5.0), default_coefficient=1.0),
@@ -305,7 +330,7 @@ for _family in (
            _per_sensor("quadratic_temperature", "coeff_um_per_K2"), plc_form="square"),
     Family("thermal_gradient", "coeff_um_per_K", ("sensors",), {}, 2, "bending from the difference of two sensors",
            lambda r, _a, p: r.sensor(p["sensors"][0]) - r.sensor(p["sensors"][1]), _gradient_candidates,
-           plc_form="difference", check=_two_sensors, stage=2),
+           plc_form="difference", check=_two_sensors, stage=2, size_in_structures=3.0),
     Family("centrifugal_growth", "coeff_um_per_krpm2", (), {}, 2,
            "spindle growth with the square of the speed, without lag", _spindle, _spindle_candidates,
            plc_form="speed_square", uses_spindle=True, stage=0),
@@ -313,19 +338,19 @@ for _family in (
            "expansion growing with the distance from P0 (tan beta)", _position,
            _per_sensor("position_dependent_expansion", "slope_um_per_m_per_K", not_modelled=True, positions=True,
                        extra={"p0_mm": 0.0}),
-           plc_form="position_slope", uses_position=True),
+           plc_form="position_slope", uses_position=True, size_in_structures=1.5, per_metre=True),
     Family("thermal_lag", "coeff_um_per_K", ("sensor", "tau_s"), {"t_ref_C": 20.0}, 3,
            "the structure follows a sensor through a first-order lag",
            lambda r, _a, p: first_order_lag(r.t_s, r.sensor(p["sensor"]), float(p["tau_s"]))
            - float(p.get("t_ref_C", 20.0)),
            _lag_candidates, plc_form="lag", extends=("temperature",), time_constants=("tau_s",), stage=3,
-           searched_column="lag"),
+           searched_column="lag", size_in_structures=1.0),
     Family("heating_cooling_hysteresis", "coeff_um_per_K", ("sensor", "tau_heat_s", "tau_cool_s"), {"t_ref_C": 20.0}, 4,
            "different lags while heating and while cooling",
            lambda r, _a, p: asymmetric_lag(r.t_s, r.sensor(p["sensor"]), float(p["tau_heat_s"]),
                                            float(p["tau_cool_s"])) - float(p.get("t_ref_C", 20.0)),
            _hysteresis_candidates, plc_form="asymmetric_lag", extends=("temperature", "thermal_lag"),
-           time_constants=("tau_heat_s", "tau_cool_s"), stage=5),
+           time_constants=("tau_heat_s", "tau_cool_s"), stage=5, size_in_structures=1.0, room_may_carry=False),
     # Two responses of one sensor (more than a lag): beside the sensor's own temperature it spans what
     # its lag spans, and then the lag, the simpler, is named. Its time constant going to infinity
     # leaves the sensor's temperature (less its value at the start, which an offset holds).
@@ -333,6 +358,6 @@ for _family in (
            "bending while heat crosses a structure (skin-core): a sensor minus its own lagged value, "
            "rising with the sensor, then straightening as the structure evens out",
            _transient, _transient_candidates, plc_form="skin_core", extends=("temperature",),
-           time_constants=("tau_s",), stage=4, searched_column="transient"),
+           time_constants=("tau_s",), stage=4, searched_column="transient", size_in_structures=3.0),
 ):
     register(_family)

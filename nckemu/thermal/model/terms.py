@@ -22,6 +22,7 @@ from nckemu.textfile import read_text
 from nckemu.thermal.recordings.recording import Recording
 
 from .families import Family, family, known, names
+from .structure import Structure, parse_structure, render_structure
 
 
 @dataclass
@@ -53,6 +54,8 @@ class ThermalModel:
     axis: str
     terms: list[Term]
     source: str = "<model>"
+    # What the machine's structure allows a discovered term to be (None: discovery's default).
+    structure: Structure | None = None
 
     @property
     def gain(self) -> float:
@@ -102,7 +105,8 @@ def parse_model(text: str, source: str = "<model>") -> ThermalModel:
     if not isinstance(axis, str) or not axis:
         raise NckConfigError("the model needs axis = \"<name>\"", path=source, field="axis")
     terms = [_check_term(t, i, source) for i, t in enumerate(data.get("term", []))]
-    return ThermalModel(axis, terms, source)
+    structure = parse_structure(data["structure"], source) if "structure" in data else None
+    return ThermalModel(axis, terms, source, structure)
 
 
 def load_model(path: str | Path) -> ThermalModel:
@@ -123,6 +127,8 @@ def _toml_value(value: Any) -> str:
 
 def render_model(model: ThermalModel, comments: Callable[[Term], str] | None = None) -> str:
     lines = [f'axis = "{model.axis}"']
+    if model.structure is not None:
+        lines += ["", *render_structure(model.structure)]
     for term in model.terms:
         lines += ["", "[[term]]"]
         note = comments(term) if comments else ""
