@@ -63,6 +63,7 @@ def test_runs_lacking_a_sensor_are_named_and_candidates_judged_where_it_is() -> 
     assert result.missing_physics[0].effect == "thermal_lag"
 
 
+@pytest.mark.slow  # a whole run family's discovery: 30-130 s on two cores (make slow)
 def test_a_sensor_the_physics_needs_missing_in_some_runs_is_judged_on_the_others() -> None:
     """job_mix_gradient seed 1 with front absent from 2 of 8 runs: front - rear is still named first
     (before, with its candidates left out, a temperature and two lags stood in for it)."""

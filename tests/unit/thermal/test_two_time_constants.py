@@ -4,6 +4,8 @@ they were."""
 
 from __future__ import annotations
 
+import pytest
+
 from nckemu.thermal.discovery.discover import discover_runs
 from nckemu.thermal.discovery.settings import Settings
 from nckemu.thermal.discovery.wording import finding_lines
@@ -32,6 +34,7 @@ def test_a_skin_and_a_core_are_both_named_with_their_shares() -> None:
     assert line.count("tau ") == 2 and line.count("um/K") == 2 and "of the two" in line
 
 
+@pytest.mark.slow  # the two-time-constant search turned off and on: 30-70 s on two cores (make slow)
 def test_turned_off_the_one_time_constant_stands() -> None:
     family = make_two_tau_family("two_tau_days", 1, runs=12)
     result = discover_runs(family.runs, AXIS, family.model, Settings(second_time_constant_ratio=0.0))
