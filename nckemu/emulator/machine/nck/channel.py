@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from nckemu.emulator.machine.clock import Clock
+from nckemu.emulator.machine.nck.channel_life import Event, Life, next_life
 from nckemu.emulator.machine.nck.channel_states import (  # noqa: F401 (also imported from here)
     AC_INTERRUPTED,
     AC_RESET,
@@ -117,9 +118,8 @@ class Channel:
         self.recorded_program = ""
         self.run: ProgramRun | None = None
         self.last_run_blocks = 0          # blocks the last run executed (program run offline)
-        # progStatus 5 says "aborted" after a reset and after the program's end alike (BTSS has no
-        # "ended"): True when the last run reached its end, for the faces that can say so (live page).
-        self.ended_normally = False
+        # Where the program is (channel_life.py's table); state.status and state.program_status report it.
+        self.life = Life.RESET
         self.last_run_notes: list[str] = []   # and what it did other than programmed (run.notes)
         # The net time of the last complete run (ended by M2/M30 or its last block, not by reset) of each
         # program: path -> (hash of its text, seconds), what time_left_s counts down from. A changed text
@@ -134,6 +134,12 @@ class Channel:
         self.state_listeners: list[Callable[[Channel], None]] = []
         # Told of every executed block (program run offline: the block table).
         self.block_listeners: list[Callable[[BlockRecord], None]] = []
+
+    @property
+    def ended_normally(self) -> bool:
+        """progStatus 5 says "aborted" after a reset and after the program's end alike (BTSS has no
+        "ended"): True when the last run reached its end, for the faces that can say so (live page)."""
+        return self.life is Life.ENDED
 
     # ------------------------------------------------------------------ the interface every face uses
     def select(self, path: str) -> None:
@@ -181,10 +187,8 @@ class Channel:
             if self.run is not None:
                 self.run.resume(now)
             self._begin_timing(now)
-            self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
             self.state.start_counter += 1
-            self._tell("resumed")
-            self._tell_state()
+            self._enter(Event.RESUME)
             return
         if not self.selected:
             self._refuse(settings.start_refused_alarm, "NC start not possible: no program selected")
@@ -201,35 +205,26 @@ class Channel:
             self.parts.programs.called = self.run.interpreter.programs_in_use
         self._net_s = 0.0
         self._begin_timing(now)
-        self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
-        self.ended_normally = False
         self.state.message = ""
         self.state.start_counter += 1
-        self._tell("started")
-        self._tell_state()
+        self._enter(Event.START)
 
     def stop(self) -> None:
         """NC stop: the run holds where it is (motion and dwell resume where they stopped)."""
-        if self.state.status != CHAN_ACTIVE:
+        if not self.life.active:
             return
-        self._interrupt(PROG_STOPPED)
+        self._interrupt(Event.STOP)
 
     def reset(self) -> None:
         """Reset: the run is aborted, alarms of the run are cleared, the spindle stops."""
         self._hold()
-        was_reset = self.state.status == CHAN_RESET
-        if not was_reset:
+        if not self.life.at_rest:
             self.state.old_net_time_s = self._net_s
         self._finish_run()
         self._clear_alarms(self._alarms)
         self._clear_alarms(self._notices)
-        self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
         self.state.reset_counter += 1
-        if not was_reset:
-            self.ended_normally = False
-        if not was_reset:
-            self._tell("aborted")
-        self._tell_state()
+        self._enter(Event.RESET)
 
     def set_mode(self, mode: int) -> None:
         """AUTOMATIC (2), MDA (1) or JOG (0); refused (an alarm, NckPiStateError) while a program runs."""
@@ -263,17 +258,16 @@ class Channel:
         """The channel active with no program (a recording says the machine works): times and counters
         run, nothing executes. ``shown_as``: the NC path the faces name the run by (nothing is stored
         under it; a program selected in the channel names it instead)."""
-        if self.state.status == CHAN_RESET:
+        if self.life.at_rest:
             self._net_s = 0.0
         if shown_as:
             self.recorded_program = shown_as
         if self.run is None and self.recorded_program and not self.selected:
             self.state.program = self.recorded_program
         self._begin_timing()
-        if self.state.status != CHAN_ACTIVE:
+        if not self.life.active:
             self.state.start_counter += 1
-        self.state.status, self.state.program_status = CHAN_ACTIVE, PROG_RUNNING
-        self._tell_state()
+        self._enter(Event.WORK)
 
     def end_program(self, at_s: float | None = None, *, part_done: bool = True) -> None:
         """M30: the run ends, its net time becomes the last program's, a part is counted. ``at_s``: the
@@ -290,11 +284,7 @@ class Channel:
             path, text_hash = self._run_key
             self.completed_runs_s[path] = (text_hash, self.state.old_net_time_s)
         self._finish_run()
-        self.state.status, self.state.program_status = CHAN_RESET, PROG_ABORTED
-        self.ended_normally = True
-        if had_run:
-            self._tell("ended")
-        self._tell_state()
+        self._enter(Event.END, tell=had_run)
 
     # ------------------------------------------------------------------ the cycle
     def step(self, t_s: float) -> None:
@@ -315,13 +305,14 @@ class Channel:
             self.program_alarm(ProgramAlarm(12080, f"internal error: {type(exc).__name__}: {exc}"))
             return
         waiting = outcome == "waiting"
-        if waiting != (self.state.program_status == PROG_WAITING):
-            self.state.program_status = PROG_WAITING if waiting else PROG_RUNNING
-            self._tell_state()
+        if waiting and self.life is Life.RUNNING:
+            self._enter(Event.WAIT)
+        elif not waiting and self.life is Life.WAITING:
+            self._enter(Event.GO_ON)
         if outcome == "ended":
             self.end_program(run.t_s, part_done=run.blocks > 0)
         elif outcome == "stopped":  # M0 / M1
-            self._interrupt(PROG_STOPPED, run.t_s)
+            self._interrupt(Event.STOP, run.t_s)
 
     def program_alarm(self, alarm: ProgramAlarm) -> None:
         """A program alarm: on the NCK's list (cleared by reset), the channel interrupted."""
@@ -330,8 +321,8 @@ class Channel:
         log.warning("%s", text)
         self.parts.alarm_list.raise_alarm(text, alarm.number, (str(self.number), block or str(alarm.line)))
         self._alarms.append(text)
-        if self.state.status == CHAN_ACTIVE:
-            self._interrupt(PROG_INTERRUPTED)
+        if self.life.active:
+            self._interrupt(Event.ALARM)
 
     # ------------------------------------------------------------------ helpers
     def _refuse(self, alarm_number: int, reason: str) -> Any:
@@ -343,15 +334,22 @@ class Channel:
         log.info("%s", text)
         raise NckPiStateError(reason)
 
-    def _interrupt(self, program_status: int, at_s: float | None = None) -> None:
+    def _enter(self, event: Event, *, tell: bool = True) -> None:
+        """The one place the channel's life changes: the table's next place, reported as BTSS numbers,
+        then the change told (unless ``tell`` is False) and the state listeners called."""
+        self.life, change = next_life(self.life, event)
+        self.state.status, self.state.program_status = self.life.reported
+        if change is not None and tell:
+            self._tell(change)
+        self._tell_state()
+
+    def _interrupt(self, event: Event, at_s: float | None = None) -> None:
         at_s = self._clock.now_s() if at_s is None else at_s
         self._hold(at_s)
         if self.run is not None:
             self.run.pause(at_s)
-        self.state.status, self.state.program_status = CHAN_INTERRUPTED, program_status
         self.state.path_feed_mm_min = 0.0
-        self._tell("interrupted")
-        self._tell_state()
+        self._enter(event)
 
     def _finish_run(self) -> None:
         run, self.run = self.run, None
