@@ -299,12 +299,15 @@ class Planner:
             timed = self._rapid(dict(deltas), math.sqrt(squares), Overrides(feed_pct, rapid_pct, 100.0), exact_stop)
             return timed.duration_s, timed.feed_mm_min, timed.length_mm, timed.law
         group = self._path_axes if fgroup is None else fgroup
-        squares = everything = 0.0
+        squares = 0.0
         for axis, delta in deltas:
-            everything += delta * delta
             if axis in group:
                 squares += delta * delta
-        length = math.sqrt(squares if squares > EPSILON_MM * EPSILON_MM else everything)
+        if squares <= EPSILON_MM * EPSILON_MM:  # no axis of the feed group moves: F along the others
+            squares = 0.0
+            for _, delta in deltas:
+                squares += delta * delta
+        length = math.sqrt(squares)
         if length <= EPSILON_MM:
             return 0.0, 0.0, 0.0, None
         factor = max(feed_pct, 0.0) / 100.0

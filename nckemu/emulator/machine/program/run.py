@@ -385,6 +385,7 @@ class ProgramRun:
                                parts.axes.specs[number].travel_max_mm, not parts.axes.specs[number].rotary)
                         for name, number in self.axes.items()}
         self._numbers = sorted(set(self.axes.values()))
+        self._wait_for_spindle = parts.machine.program.wait_for_spindle
         self.env = NckEnvironment(channel, parts, self)
         self.interpreter = Interpreter(self.env, path, text)
         self._events: Iterator[Event] = self.interpreter.events()
@@ -547,7 +548,7 @@ class ProgramRun:
             self.t_s = max(self.t_s, until_s)
             return False
         start_s = self.t_s
-        if feed_move and self.parts.machine.program.wait_for_spindle:
+        if feed_move and self._wait_for_spindle:
             start_s = max(start_s, self._spindle_ready_s)
         positions, axes = self.parts.axes.positions_mm, self.axes
         targets = event.target_mm
