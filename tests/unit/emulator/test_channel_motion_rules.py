@@ -316,3 +316,19 @@ def test_a_contour_that_cannot_be_offset_is_the_control_s_alarm(text: str, numbe
     emulator.nck.programs.write(path, text.encode())
     result = run_offline(emulator, path)
     assert result.outcome == "alarm" and str(number) in result.alarms[0], result.alarms
+
+
+@pytest.mark.parametrize(("machine", "text", "number"), [
+    (LATHE, "G18 G90 G96 S200 M5\nG1 X10 F0.1\nM30\n", 14800),        # G96 feeds per revolution: M5 feeds nothing
+    (LATHE, "G18 G90 S500 M3\nG33 Z-10\nM30\n", 12080),                # a thread without its pitch
+    (LATHE, "G18 G90\nG331 Z-10 K1\nM30\n", 14800),                    # tapping without S
+    (MILL, "G1 F100 RP=-5\nM30\n", 12080),                             # a negative polar radius
+    (MILL, "FGROUP(Q)\nM30\n", 12550),                                 # no axis Q
+    (MILL, "G17 G0 X0 Y0\nG3 X0 Y0 I10 TURN=-1 F100\nM30\n", 12080),   # negative turns
+])
+def test_bad_turning_polar_and_feed_group_words_are_alarms(machine: str, text: str, number: int) -> None:
+    emulator = Emulator(parse_machine(machine, "test.toml"), clock=SimulatedClock())
+    path = program_path("BAD.MPF")
+    emulator.nck.programs.write(path, text.encode())
+    result = run_offline(emulator, path)
+    assert result.outcome == "alarm" and f"alarm {number}" in result.alarms[0], result.alarms

@@ -580,8 +580,11 @@ class ProgramRun:
                     moving += [(axes[name], positions[axes[name]], positions[axes[name]])
                                for name in (arc.first, arc.second) if name not in targets and name in axes]
             duration_s, feed_mm_min, law = timed.duration_s, timed.feed_mm_min, timed.law
-            if event.css is not None and duration_s != math.inf:
-                self._follow_cutting_speed(event, start_s, start_s + duration_s)
+            if event.css is not None and timed.law is not None:
+                if not self._spindle_rpm(start_s):  # G96 feeds per revolution: a standing spindle feeds nothing
+                    duration_s = math.inf
+                else:
+                    self._follow_cutting_speed(event, start_s, start_s + duration_s)
         if duration_s == math.inf:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity is zero (F0, or G95 with the "
                                                 "spindle standing)", program=state.program,

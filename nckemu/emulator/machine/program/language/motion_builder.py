@@ -219,6 +219,8 @@ class MotionBuilder:
                 raise ProgramAlarm(ALARM_CIRCLE_END_POINT,
                                    f"error in end point of circle (radii {radius_start:.4f} and {radius_end:.4f} mm)")
         turns = int(number(address["TURN"])) if "TURN" in address else 0
+        if turns < 0:
+            raise ProgramAlarm(ALARM_SYNTAX, f"TURN={turns}: the number of full turns is not negative")
         return Arc(targets, {first: centre[0], second: centre[1]}, clockwise, self.it.modal.plane,  # type: ignore[arg-type]
                    self.it.feed_mm, self.it.modal.feed_mode, turns, exact_stop, programmed)  # type: ignore[arg-type]
 
