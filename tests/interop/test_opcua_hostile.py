@@ -193,11 +193,28 @@ def test_a_second_create_session_on_a_channel_closes_the_first(faces: tuple[Emul
     assert on_loop(faces, go()) <= 1
 
 
+def test_requests_sent_faster_than_served_wait_and_are_all_answered(
+        faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """A client that sends requests without reading the answers: past the messages asyncua 2.x queues for a
+    connection (500; it then closes the connection in silence) the face stops reading until it has served
+    them, and every request is answered."""
+    async def go() -> list[str]:
+        wire = await session(faces[1])
+        wire.send(b"".join(wire.read() for _ in range(2000)))
+        seen = [(await wire.answer(10)).kind for _ in range(2000)]
+        wire.close()
+        return seen
+
+    seen = on_loop(faces, go())
+    assert seen.count("MSG") == 2000, {kind: seen.count(kind) for kind in set(seen)}
+
+
 def test_publish_requests_past_the_cap_are_refused(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
+    """asyncua 2.x keeps a channel's subscriptions + 10 Publish requests and refuses the oldest past that."""
     async def go() -> dict[str, int]:
         wire = await session(faces[1], "nckemu", "SUNRISE")
         await wire.subscribe()
-        wire.send(b"".join(wire.publish() for _ in range(Limits().max_publish_requests + 20)))
+        wire.send(b"".join(wire.publish() for _ in range(120)))
         seen: dict[str, int] = {}
         for _ in range(20):
             got = await wire.answer(5)

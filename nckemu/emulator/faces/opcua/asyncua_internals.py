@@ -2,10 +2,12 @@
 
 asyncua's public API covers part of what the face does: value callbacks
 (``Server.set_attribute_value_callback``), the server callbacks (``Server.subscribe_server_callback``
-with ``CallbackType.PreRead`` ...), the address space read and written as a mapping (``aspace[nodeid]``).
-The face uses those wherever they do the job. What they cannot do is listed here, each with its reason,
+with ``CallbackType.PreRead`` ...), the address space read and written as a mapping (``aspace[nodeid]``),
+the port bound for port 0 (``BinaryServer.port``), the transport limits (``Server.limits``) and, since
+asyncua 2.x, the server's bounds on its sessions (``InternalServer.min_session_timeout_ms`` ...). The
+face uses those wherever they do the job. What they cannot do is listed here, each with its reason,
 and nowhere else in the face touches an asyncua name that starts with ``_`` or replaces a method of an
-asyncua object:
+asyncua object. asyncua 2.x (2.1) offers no public way to any of these:
 
 - ``AddressSpace._nodes`` is replaced by a mapping that makes SINUMERIK nodes when first named
   (open-ended ids like ``R[u1,56]`` cannot be made in advance) and by a shelf shared by the faces of
@@ -13,33 +15,46 @@ asyncua object:
 - ``AddressSpace._handle_to_attribute_map``: which node a monitored item's handle was on, when the item
   goes (the face stops sampling a node nobody monitors);
 - ``AddressSpace.add_datachange_callback`` / ``delete_datachange_callback``: the face learns which
-  nodes are monitored (asyncua's value callbacks do not feed monitored items; the face pushes);
+  nodes are monitored (asyncua's value callbacks do not feed monitored items; the face pushes). The
+  server callbacks ``ItemSubscriptionCreated``/``Deleted`` do not replace them: items that go with
+  their subscription or session go without either callback;
 - ``AddressSpace.load_aspace_shelf``: replaced per server so that the faces share one open shelf;
 - ``InternalServer.attribute_service``: replaced by the face's, which writes SINUMERIK variables
-  through the model with the session user's rights (asyncua's refuses writes on access bits alone);
+  through the model with the session user's rights (asyncua's refuses writes on access bits alone,
+  and its ``PreWrite`` callback cannot refuse or redirect a write);
 - ``InternalServer.create_session`` and five methods of each session (``create_session``,
   ``activate_session``, ``call``, ``create_subscription``, ``create_monitored_items``): the
   controller's limits (sessions, subscriptions, session timeout, allowed intervals) and the rights of
   the session's user on method calls and monitored items; asyncua has no server callback before
-  them;
+  them. asyncua 2.x's own bounds do not do the controller's: its session count is one class-wide
+  count for every server of the process, its ``max_session_timeout_ms`` and ``max_subscriptions``
+  are fixed when the server is made (the face reads its settings at each request) and a requested
+  timeout of 0 becomes its minimum, not the controller's 60 s; the publishing intervals it keeps as
+  asked;
 - ``SubscriptionService.create_monitored_items``: the samples-per-second cap;
 - ``MonitoredItemService._monitored_datachange``: how many items a subscription holds (the cap);
 - ``BinaryServer._server``: the listening socket, for the port bound when asked for port 0 on a host
   that binds several sockets (for one socket asyncua's public ``BinaryServer.port`` says it);
-- ``asyncua.server.server.BinaryServer``, ``UaProcessor._process_message``, ``_publish_requests``,
-  ``_session_watchdog_task``, ``_connection._incoming_parts``, ``OPCUAProtocol._buffer``,
-  ``_process_one_msg``, ``BinaryServer._make_protocol``, ``BinaryServer._policies``: the connection
-  guards of ``transport.py`` (hostile input answered with OPC UA errors); the three base classes here
-  give them public names.
+- ``asyncua.server.server.BinaryServer``, ``UaProcessor._process_message``, ``_session_watchdog_task``
+  (stopped when a second CreateSession ends the first session), ``_connection._incoming_parts``,
+  ``OPCUAProtocol._buffer``, ``_process_one_msg``, ``BinaryServer._make_protocol``,
+  ``BinaryServer._policies``: the connection guards of ``transport.py`` (hostile input answered with
+  OPC UA errors; asyncua 2.x still has faults 1-5, 7, 8 and 10 of docs/asyncua-hostile-input.md); the
+  three base classes here give them public names.
+
+No longer reached for since asyncua 2.x: ``UaProcessor._publish_requests`` (2.x bounds the queued
+Publish requests itself) and the session watchdog on close (2.x no longer awaits it from itself).
 
 ``check()`` runs at import and raises ``AsyncuaShapeError`` (an ``NckConfigError``) naming the asyncua
 version and what moved, so that another asyncua fails at once with one line instead of misbehaving.
-pyproject.toml pins the range this was tested with.
+pyproject.toml pins the range this was tested with. asyncua 1.1 has the same shapes and still serves,
+but without the two mends above (``MENDED_IN_2``): the face says so in one warning.
 """
 
 from __future__ import annotations
 
 import inspect
+import logging
 from collections.abc import Callable, MutableMapping
 from typing import Any
 
@@ -57,7 +72,9 @@ from asyncua.server.uaprocessor import UaProcessor
 
 from nckemu.errors import NckConfigError
 
-TESTED = "asyncua >=1.1.8,<1.2 (the tested range, pinned in pyproject.toml)"
+log = logging.getLogger("nckemu.emulator.opcua.asyncua")
+
+TESTED = "asyncua >=2.1,<3 (the tested range, pinned in pyproject.toml)"
 VERSION = getattr(asyncua, "__version__", "unknown")
 
 # The session methods the face wraps (``override_session``).
@@ -111,7 +128,7 @@ def problems() -> list[str]:
         found.append("Server.start no longer makes asyncua.server.server.BinaryServer")
     if _parameters(UaProcessor._process_message) != ("self", "typeid", "requesthdr", "seqhdr", "body"):
         found.append("UaProcessor._process_message takes other arguments")
-    missing("UaProcessor.__init__", _assigns(UaProcessor.__init__, "_publish_requests", "_session_watchdog_task",
+    missing("UaProcessor.__init__", _assigns(UaProcessor.__init__, "_session_watchdog_task",
                                              "_connection"))
     missing("SecureConnection.__init__", _assigns(SecureConnection.__init__, "_incoming_parts"))
     missing("OPCUAProtocol.__init__", _assigns(OPCUAProtocol.__init__, "_buffer", "processor"))
@@ -133,7 +150,21 @@ def check() -> None:
             field="asyncua")
 
 
+def mends_missing() -> list[str]:
+    """What the face leaves to asyncua since 2.x and the installed asyncua lacks (asyncua 1.1: both)."""
+    missing: list[str] = []
+    if not callable(getattr(UaProcessor, "publish_request_limit", None)):
+        missing.append("a bound on queued Publish requests")
+    if "current_task" not in UaProcessor.close.__code__.co_names:
+        missing.append("a session watchdog that does not await itself")
+    return missing
+
+
 check()
+MENDED_IN_2 = mends_missing()
+if MENDED_IN_2:
+    log.warning("OPC UA: asyncua %s serves the face without %s (asyncua 2.x has them; pyproject.toml asks "
+                "for %s)", VERSION, " and ".join(MENDED_IN_2), TESTED.split(" (")[0])
 
 
 # ---------------------------------------------------------------------- the address space
@@ -234,10 +265,6 @@ class Processor(UaProcessor):
     async def serve(self, typeid: Any, requesthdr: Any, seqhdr: Any, body: Any) -> Any:
         """asyncua's handling of one decoded request."""
         return await UaProcessor._process_message(self, typeid, requesthdr, seqhdr, body)
-
-    @property
-    def publish_requests_queued(self) -> int:
-        return len(self._publish_requests)
 
     def take_session_watchdog(self) -> Any:
         """The channel's session watchdog task (None when there is none), no longer the processor's."""

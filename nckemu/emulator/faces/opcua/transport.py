@@ -17,12 +17,17 @@ steps):
 - a second CreateSession on one channel: asyncua forgets the first session, which then lives on
   (a flood grows the server); here the first one is closed. A connection lost closes every session
   it created;
-- Publish requests: asyncua queues any number; here more than ``max_publish_requests`` queued on a
-  channel get ``BadTooManyPublishRequests``.
-- a session that times out: asyncua's watchdog closes it by waiting on itself (a traceback), and the
-  connection's close raises that again (a second one); here the watchdog is stopped, not awaited.
+- more whole messages on one connection than asyncua 2.x queues (its
+  ``max_pending_messages_per_connection``, 500: a client sending requests faster than they are served):
+  asyncua 2.x closes the connection in silence; here the rest waits with reading paused and is served
+  in turn (the S7 face pauses its reading the same way).
 - a request body that cannot be decoded: asyncua answers BadInternalError with a traceback in the
   log; here BadDecodingError and one line at debug level (a client cannot fill the disk with logs).
+
+Two faults of asyncua 1.1 that the face worked around are mended in asyncua 2.x, which the face now
+needs: Publish requests queued without a bound (2.x keeps the channel's subscriptions + 10 and answers
+the oldest past that ``BadTooManyPublishRequests``, Part 4, 5.13.5), and a session that timed out
+closed by a watchdog awaiting itself (a traceback, then a second one when the connection closed).
 
 Installed by ``install(server, limits)`` before ``server.start()``: a face's server makes these
 connections; any other asyncua server in the process keeps asyncua's own.
@@ -56,7 +61,6 @@ _KNOWN_TYPES = (b"HEL", b"OPN", b"MSG", b"CLO")
 # silence on an OpenSecureChannel marked as an abort chunk.
 _CHUNK_TYPES = {b"HEL": (b"F",), b"OPN": (b"F",), b"CLO": (b"F",), b"MSG": (b"F", b"C", b"A")}
 _CREATE_SESSION = ua.NodeId(ua.ObjectIds.CreateSessionRequest_Encoding_DefaultBinary)
-_PUBLISH = ua.NodeId(ua.ObjectIds.PublishRequest_Encoding_DefaultBinary)
 # What asyncua's decoders raise on bytes that are no valid encoding (a truncated field, an unknown
 # encoding byte or enum value, a string that is not UTF-8, an array length past the data).
 _DECODING = (NotEnoughData, struct.error, UnicodeDecodeError, ValueError, IndexError, KeyError, TypeError,
@@ -68,7 +72,6 @@ class Limits:
     """What one OPC UA connection may do before it is answered with an error and closed."""
 
     partial_timeout_s: float = 10.0  # a begun message, or the Hello after connecting, must come by then
-    max_publish_requests: int = 100  # queued on one channel (the spec lets a server refuse more)
     max_message_bytes: int = 20 * 1024 * 1024  # a whole request, all chunks (CopyFileToServer: 16 MiB)
     # Operations in one request (Part 4's operation limits): asyncua decodes a request whole before it
     # answers, about 0.3 ms an item here, so 5000 monitored items in one call held every client of
@@ -133,8 +136,8 @@ def _status_of(exc: BaseException) -> int:
 
 
 class _Processor(Processor):
-    """asyncua's processor; a second CreateSession closes the first, Publish requests are capped, a
-    request it cannot decode gets BadDecodingError."""
+    """asyncua's processor; a second CreateSession closes the first, a request with too many operations
+    gets BadTooManyOperations before it is decoded, one that does not decode BadDecodingError."""
 
     def __init__(self, *args: Any, limits: Limits, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -153,8 +156,6 @@ class _Processor(Processor):
     async def serve(self, typeid: Any, requesthdr: Any, seqhdr: Any, body: Any) -> Any:
         if typeid == _CREATE_SESSION and self.session is not None:
             await self._end_session()
-        elif typeid == _PUBLISH and self.publish_requests_queued >= self.guard.max_publish_requests:
-            raise ServiceError(ua.StatusCodes.BadTooManyPublishRequests)
         try:
             result = await super().serve(typeid, requesthdr, seqhdr, body)
         except (ServiceError, UaStatusCodeError):
@@ -179,12 +180,9 @@ class _Processor(Processor):
             await session.close_session(True)
 
     async def close(self) -> None:
-        # asyncua's close waits for the session watchdog; when the watchdog itself closes a timed-out
-        # session, that is a task waiting on itself (RuntimeError), and the connection's close later
-        # raises it again. Stop the watchdog here, never wait on it.
-        watchdog = self.take_session_watchdog()
-        if watchdog is not None and watchdog is not asyncio.current_task():
-            watchdog.cancel()
+        # asyncua 2.x keeps an activated session with subscriptions when its connection goes (for a
+        # client to take it up on a new channel, Part 4, 6.7); the controller's sessions end with their
+        # connection, so that a client that drops its connections cannot hold the ten sessions.
         try:
             await super().close()
         finally:
@@ -218,6 +216,7 @@ class _Protocol(Protocol):
         self._hello_seen = False
         self._timer: asyncio.TimerHandle | None = None
         self._failed = False
+        self._held = b""  # whole messages past asyncua's queue (and what follows them), reading paused
 
     def connection_made(self, transport: Any) -> None:
         super().connection_made(transport)
@@ -263,8 +262,9 @@ class _Protocol(Protocol):
     def data_received(self, data: bytes) -> None:
         if self._failed:
             return
-        buffered = self.buffered + data
+        buffered, self._held = self.buffered + self._held + data, b""
         offset = 0
+        ends: list[int] = []
         # Check every complete header in what has arrived before asyncua parses it.
         while len(buffered) - offset >= 8:
             kind, chunk = buffered[offset:offset + 3], buffered[offset + 3:offset + 4]
@@ -278,13 +278,25 @@ class _Protocol(Protocol):
                 break
             self._hello_seen = True
             offset += size
+            ends.append(offset)
+        # asyncua 2.x queues at most max_pending_messages_per_connection whole messages a connection and
+        # closes it in silence past that (1.1 queued without a bound): the rest waits here with reading
+        # paused (the client's sending waits on TCP) until asyncua has served half its queue.
+        room = self.messages.maxsize - self.messages.qsize() if self.messages.maxsize else len(ends)
+        if len(ends) > room:
+            cut = ends[room - 1] if room > 0 else 0
+            buffered, self._held = buffered[:cut], buffered[cut:]
+            self.transport.pause_reading()
         self.buffered = b""
         super().data_received(buffered)
         self._rearm()
 
     def _rearm(self) -> None:
-        """The timer runs while part of a message is here: bytes of a chunk, or chunks of a message."""
-        if self.buffered or not self._hello_seen or self.processor.chunks_waiting:
+        """The timer runs while part of a message is here: bytes of a chunk, or chunks of a message (not
+        while the face holds messages back: then the client waits for the face)."""
+        if self._held:
+            self._disarm()
+        elif self.buffered or not self._hello_seen or self.processor.chunks_waiting:
             self._arm()  # the rest must come within the partial timeout
         else:
             self._disarm()
@@ -301,6 +313,9 @@ class _Protocol(Protocol):
             return False
         if not self._failed:
             self._rearm()
+            if self._held and self.messages.qsize() <= self.messages.maxsize // 2:
+                self.transport.resume_reading()
+                self.data_received(b"")
         return going_on and not self._failed
 
 
