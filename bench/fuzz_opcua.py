@@ -100,7 +100,9 @@ def ua_watcher(url: str, stop: Any, out: Any) -> None:
     async def go() -> tuple[list[float], int]:
         latencies: list[float] = []
         failures = 0
-        async with Client(url, timeout=10) as client:
+        # asyncua 2.x's client takes its connection for lost when its server probe (each watchdog interval, 1 s by
+        # default) is answered slower than the interval, as on loaded cores: probe within the timeout instead.
+        async with Client(url, timeout=10, watchdog_intervall=10.0) as client:
             node = client.get_node(ua.NodeId("/Channel/State/progStatus", 2))
             while not stop.is_set():
                 started = time.perf_counter()

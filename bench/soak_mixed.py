@@ -201,7 +201,9 @@ def ua_client(url: str, number: int, operations: int, items: int, deadline: floa
                 if node.nodeid.Identifier == word:
                     seen.append(int(value))
 
-        client = Client(url, timeout=10)
+        # asyncua 2.x's client takes its connection for lost when its server probe (each watchdog interval, 1 s by
+        # default) is answered slower than the interval, as on loaded cores: probe within the timeout instead.
+        client = Client(url, timeout=10, watchdog_intervall=10.0)
         client.set_user("nckemu")
         client.set_password("SUNRISE")
         async with client:
@@ -299,7 +301,9 @@ def check_durable(port: int, url: str, acked: list[float], users: list[int], pro
 
     async def opcua_side() -> int:
         missing = 0
-        client = Client(url, timeout=10)
+        # asyncua 2.x's client takes its connection for lost when its server probe (each watchdog interval, 1 s by
+        # default) is answered slower than the interval, as on loaded cores: probe within the timeout instead.
+        client = Client(url, timeout=10, watchdog_intervall=10.0)
         client.set_user("nckemu")
         client.set_password("SUNRISE")
         async with client:
