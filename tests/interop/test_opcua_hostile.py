@@ -14,7 +14,7 @@ import pytest
 from asyncua import ua
 
 from bench.opcua_wire import Answer, Wire
-from nckemu.emulator.faces.opcua import OpcUaFace
+from nckemu.emulator.faces.opcua import OpcUaFace, asyncua_internals
 from nckemu.emulator.faces.opcua.transport import Limits
 from nckemu.emulator.runner import EmulatorThread
 
@@ -22,6 +22,11 @@ from .opcua_tools import two_faces
 
 pytestmark = pytest.mark.timeout(180)
 HOST = "127.0.0.1"
+# What the face leaves to asyncua 2.x (pyproject asks for it); an older asyncua still imports and serves
+# without it, saying so in one warning (asyncua_internals.MENDED_IN_2), and these tests of it skip there.
+mended_in_asyncua_2 = pytest.mark.skipif(
+    bool(asyncua_internals.MENDED_IN_2),
+    reason=f"asyncua {asyncua_internals.VERSION} lacks {' and '.join(asyncua_internals.MENDED_IN_2)} (asyncua 2.x)")
 
 
 @pytest.fixture(scope="module")
@@ -209,6 +214,7 @@ def test_requests_sent_faster_than_served_wait_and_are_all_answered(
     assert seen.count("MSG") == 2000, {kind: seen.count(kind) for kind in set(seen)}
 
 
+@mended_in_asyncua_2
 def test_publish_requests_past_the_cap_are_refused(faces: tuple[EmulatorThread, OpcUaFace]) -> None:
     """asyncua 2.x keeps a channel's subscriptions + 10 Publish requests and refuses the oldest past that."""
     async def go() -> dict[str, int]:
@@ -277,6 +283,7 @@ def test_a_method_called_with_too_few_or_too_many_arguments_is_refused_without_a
     assert "Traceback" not in caplog.text and not [r for r in caplog.records if r.levelno >= logging.ERROR]
 
 
+@mended_in_asyncua_2
 def test_a_session_that_times_out_is_closed_without_a_traceback(
         faces: tuple[EmulatorThread, OpcUaFace], caplog: pytest.LogCaptureFixture) -> None:
     """asyncua's watchdog closed a timed-out session by waiting on itself; the connection's close then
