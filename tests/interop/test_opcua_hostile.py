@@ -23,7 +23,7 @@ from .opcua_tools import two_faces
 pytestmark = pytest.mark.timeout(180)
 HOST = "127.0.0.1"
 # What the face leaves to asyncua 2.x (pyproject asks for it); an older asyncua still imports and serves
-# without it, saying so in one warning (asyncua_internals.MENDED_IN_2), and these tests of it skip there.
+# without it (asyncua_internals.MENDED_IN_2), and these tests of it skip there, saying why.
 mended_in_asyncua_2 = pytest.mark.skipif(
     bool(asyncua_internals.MENDED_IN_2),
     reason=f"asyncua {asyncua_internals.VERSION} lacks {' and '.join(asyncua_internals.MENDED_IN_2)} (asyncua 2.x)")
