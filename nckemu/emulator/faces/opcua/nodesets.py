@@ -46,7 +46,7 @@ from nckemu.emulator.faces.opcua import shelf as address_cache
 
 log = logging.getLogger("nckemu.emulator.opcua.nodesets")
 
-# The npm package and the version make installs (its files were checked against asyncua 1.1).
+# The npm package and the version make installs (its files were checked against asyncua 1.1 and 2.1).
 NPM_PACKAGE = "node-opcua-nodesets"
 NPM_VERSION = "2.185.0"
 ENV_DIRECTORY = "NCKEMU_NODESETS"
