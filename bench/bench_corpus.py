@@ -91,10 +91,12 @@ class _Blocks:
     def __init__(self, wall_s: float) -> None:
         self.counts: Counter[tuple[str, int, str]] = Counter()
         self.deadline = time.monotonic() + wall_s
+        self.seen = 0
 
     def __call__(self, record: Any) -> None:
         self.counts[(record.program.rsplit("/", 1)[-1], record.line, record.text[:60])] += 1
-        if len(self.counts) % 64 == 0 and time.monotonic() > self.deadline:
+        self.seen += 1
+        if self.seen % 256 == 0 and time.monotonic() > self.deadline:
             raise _OutOfTime
 
     def hottest(self) -> str:
