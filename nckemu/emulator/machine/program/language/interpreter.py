@@ -827,6 +827,8 @@ class Interpreter:
         tokens = tokenize(strip_comment(header).strip())
         parser = Parser(tokens, self._resolve)
         while not parser.at_name("PROC"):
+            if parser.at_end():  # the line the scan took for a PROC line holds no PROC word
+                raise ProgramAlarm(ALARM_SYNTAX, "PROC line without PROC")
             parser.pos += 1
         parser.pos += 1
         _, params = self._compiler.proc_header(parser)
