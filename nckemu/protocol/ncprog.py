@@ -72,7 +72,8 @@ ERROR_SEQUENCE = 0x8401          # "invalid service sequence" (no such transfer 
 ERROR_TEXTS = {
     ERROR_NO_SUCH_FILE: "no such file or directory", ERROR_STORE_FULL: "the program store is full",
     ERROR_NOT_A_FILE_NAME: "not an NC file name", ERROR_IN_USE: "the program is running",
-    ERROR_BAD_CONTENT: "the transfer's header is not valid (length, time stamp, $PATH line)",
+    ERROR_BAD_CONTENT: "the transfer's header is not valid (length, time stamp, $PATH line), or a "
+                       "definition file with an error (the NCK's alarm list names its line)",
     ERROR_SEQUENCE: "no such transfer (sequence)",
 }
 # Window sizes the clients use: libnodave's upload asks for 20 pushes before its continue upload.

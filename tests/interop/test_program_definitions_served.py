@@ -49,7 +49,9 @@ def test_a_gud_file_put_over_s7_is_used_by_the_program_put_after_it(emu: Emulato
     assert main(["get", "R7", *port]) == 0 and "1500" in capsys.readouterr().out
 
     gud.write_bytes(b"DEF NCK REAL INI[100]\nDEF NCK INT RUNS\nDEF NCK REAL = 5\n")
+    capsys.readouterr()
     assert main(["program", "put", str(gud), *port]) == 1
+    assert "definition file with an error" in capsys.readouterr().err
     assert emu.call(lambda: emu.nck.programs.definitions.variables()["INI"].get((53,))) == 1500.0
     assert emu.call(lambda: emu.nck.programs.read("/_N_DEF_DIR/_N_MGUD_DEF")).count(b"\n") == 2
     # the refusal is on the NCK's alarm list with the file and the line, until a good version comes

@@ -27,6 +27,7 @@ from datetime import datetime
 
 from nckemu.catalogue.program_names import program_path
 from nckemu.emulator.machine.nck.programs import Programs
+from nckemu.emulator.machine.program.language.definitions import DefinitionRefused
 from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments, NckPiStateError
 from nckemu.protocol import blocks, ncprog, s7
 from nckemu.protocol.errors import NckProtocolError
@@ -47,6 +48,8 @@ LISTING_LINE = "{name} {size}\n"
 
 
 def _error_for(exc: NckError) -> int:
+    if isinstance(exc, DefinitionRefused):  # a GUD/macro file with an error: its content, not its name
+        return ncprog.ERROR_BAD_CONTENT
     if isinstance(exc, NckNoSuchFile):
         return ncprog.ERROR_NO_SUCH_FILE
     if isinstance(exc, NckPiBadArguments):
