@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.signal import lfilter
 
 from nckemu.heat_response import PATH, SENSOR, SPINDLE, HeatTerm, spindle_drive
 from nckemu.thermal.model.lags import first_order_lag
@@ -84,6 +85,12 @@ class Columns:
         self.reference: tuple[str, ...] = ()
         self.simulated: dict[str, list[np.ndarray]] = {}
         self._fitting: dict[tuple[Spec, ...], np.ndarray] = {}
+        # One grid step shared by every run (the fit's grid): each lag runs over all runs at once.
+        steps = [np.diff(run.t_s) for run in runs]
+        first = float(steps[0][0]) if len(steps[0]) else 0.0
+        uniform = first > 0 and all(len(d) and float(np.ptp(d)) <= 1e-9 * first and abs(float(d[0]) - first) <= 1e-9 * first
+                                    for d in steps)
+        self._step_s: float | None = first if uniform else None
         spans = [run.duration_s for run in runs]
         span_s = float(np.median(spans)) * (settings.train_share if len(runs) == 1 else 1.0)
         self.longest_tau_s = span_s / 3.0
@@ -112,13 +119,37 @@ class Columns:
     def column(self, spec: Spec, *, cache: bool = True) -> np.ndarray:
         found = self._cache.get(spec)
         if found is None:
-            parts = []
-            for run in self.runs:
-                drive = self.drive(run, spec)
-                parts.append(drive if spec.tau_s <= 0 else first_order_lag(run.t_s, drive, spec.tau_s))
-            found = np.concatenate(parts)
+            drives = [self.drive(run, spec) for run in self.runs]
+            if spec.tau_s <= 0:
+                found = np.concatenate(drives)
+            elif self._step_s is not None:
+                found = self._lag_rows(drives, spec.tau_s)
+            else:
+                found = np.concatenate([first_order_lag(run.t_s, drive, spec.tau_s)
+                                        for run, drive in zip(self.runs, drives, strict=True)])
             if cache:
                 self._cache[spec] = found
+        return found
+
+    def _lag_rows(self, drives: list[np.ndarray], tau_s: float) -> np.ndarray:
+        """``first_order_lag`` of every run at once: the runs as rows of one filter (one grid step)."""
+        lengths = [len(drive) for drive in drives]
+        rows = np.empty((len(drives), max(lengths)))
+        for row, drive in zip(rows, drives, strict=True):
+            row[:len(drive)] = drive - drive[0]
+            row[len(drive):] = row[len(drive) - 1]
+        alpha = 1.0 - math.exp(-self._step_s / tau_s)
+        lagged = lfilter([alpha], [1.0, alpha - 1.0], rows, axis=1)
+        return np.concatenate([lagged[k, :n] + drive[0] for k, (n, drive) in enumerate(zip(lengths, drives, strict=True))])
+
+    def fitting_one(self, spec: Spec, *, cache: bool = True) -> np.ndarray:
+        """One column as the in-sample fit sees it."""
+        found = self._fitting.get((spec,))
+        if found is None:
+            column = self.column(spec, cache=cache)
+            found = self.judge.within(column) if self.judge.per_run else column[self.judge.train]
+            if cache:
+                self._fitting[(spec,)] = found
         return found
 
     def fitting(self, specs: tuple[Spec, ...]) -> np.ndarray:
@@ -286,7 +317,7 @@ def polish(search: SensorSearch, specs: list[Spec]) -> list[Spec]:
         start = np.array([math.log(spec.tau_s), spec.power] if free_power else [math.log(spec.tau_s)])
         with np.errstate(invalid="ignore"):   # a simplex with an infinite corner (a constraint) subtracts inf
             found = minimize(cost, start, method="Nelder-Mead",
-                             options={"maxfev": 60, "xatol": 0.002, "fatol": 1e-9, "initial_simplex": None})
+                             options={"maxfev": 40, "xatol": 0.004, "fatol": 1e-9})
         if math.isfinite(found.fun) and found.fun < cost(start):
             out[index] = shaped(found.x)
     for power in sorted({s.power for s in out if s.kind == "spindle" and s.power > 0}):
@@ -298,16 +329,24 @@ def polish(search: SensorSearch, specs: list[Spec]) -> list[Spec]:
         def shared(p: float, first: int = group[0], now: list[Spec] = out) -> float:
             return search.in_sample_sse(_with_power(now, first, round(float(p), 4)), cache=False)
 
-        found = minimize_scalar(shared, bounds=(max(0.05, power - 0.3), power + 0.3), method="bounded",
-                                options={"maxiter": 25, "xatol": 0.002})
+        others = [s.power for s in out if s.kind == "spindle" and s.power != power]
+        low = max([0.05, power - 0.3] + [o + MIN_POWER_GAP for o in others if o < power])
+        high = min([power + 0.3] + [o - MIN_POWER_GAP for o in others if o > power])
+        if high <= low:
+            continue
+        found = minimize_scalar(shared, bounds=(low, high), method="bounded", options={"maxiter": 25, "xatol": 0.002})
         if found.fun < shared(power):
             out = _with_power(out, group[0], round(float(found.x), 4))
     return out
 
 
 def family_candidates(search: SensorSearch, specs: list[Spec], only: str = "") -> list[tuple[str, list[Spec]]]:
-    """Each family's best next design (label, specs) for this round (``only``: that family alone)."""
-    return [(label, found) for label, found in _candidates(search, specs) if not only or label == only]
+    """Each family's best next design (label, specs) for this round (``only="spindle"``: a single lag of
+    the spindle alone)."""
+    if only == "spindle":
+        found = _spindle(search, specs, search.columns) if all(SPINDLE in run.inputs for run in search.runs) else None
+        return [("spindle", found)] if found else []
+    return list(_candidates(search, specs))
 
 
 def _candidates(search: SensorSearch, specs: list[Spec]) -> Iterator[tuple[str, list[Spec]]]:

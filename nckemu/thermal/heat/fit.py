@@ -54,6 +54,9 @@ class Settings:
     tau_ratio: float = 3.0            # two time constants of one input at least this far apart
     withdraw_share: float = 0.01      # a term whose removal costs less held-out RMS than this is withdrawn
     min_effect_noise: float = 3.0     # a new term must move the sensor by this many times its white noise
+    # Each admitted term's time constant and power polished off the grid (False: the grid alone, the
+    # bench's anchor).
+    polish: bool = True
     noise_factor: float = 1.3         # a held-out RMS within this factor of the white noise: nothing left
     reference: tuple[str, ...] = ()   # sensors that read the room (their terms are "ambient")
 
@@ -137,13 +140,13 @@ class Judge:
             test = np.flatnonzero(~self.train)
             self.folds = [test[block] for _train, block in Blocks(settings.blocks).split(len(test))]
         self.starts = np.concatenate(([0], np.cumsum(lengths)))[:-1]
+        self.lengths = np.asarray(lengths, dtype=float)
 
     def within(self, values: np.ndarray) -> np.ndarray:
         """Each run's own mean taken off (its own offset), column by column."""
         sums = np.add.reduceat(values, self.starts, axis=0)
-        counts = np.bincount(self.groups).astype(float)
-        means = sums / (counts[:, None] if values.ndim == 2 else counts)
-        return values - means[self.groups]
+        means = sums / (self.lengths[:, None] if values.ndim == 2 else self.lengths)
+        return values - np.repeat(means, self.lengths.astype(np.int64), axis=0)
 
     def fitting_rows(self, y: np.ndarray, design: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """y and the design as the in-sample fit sees them: the training rows with a constant, or every
@@ -157,12 +160,12 @@ class Judge:
         if self.per_run:
             yw, xw = self.within(y), self.within(design)
             residual = np.empty(self.count)
-            gram, cross = xw.T @ xw, xw.T @ yw
+            gram, cross = _products(xw, xw), _products(xw, yw)
             for test in self.folds:
                 xt, yt = xw[test], yw[test]
-                coef = np.linalg.lstsq(gram - xt.T @ xt, cross - xt.T @ yt, rcond=None)[0] if xw.shape[1] else \
-                    np.zeros(0)
-                residual[test] = yt - xt @ coef
+                coef = np.linalg.lstsq(gram - _products(xt, xt), cross - _products(xt, yt), rcond=None)[0] \
+                    if xw.shape[1] else np.zeros(0)
+                residual[test] = yt - np.einsum("ij,j->i", xt, coef)
             unit_ms = np.array([float(np.mean(residual[test] ** 2)) for test in self.folds])
             return Judgement(float(np.median(np.sqrt(unit_ms))), unit_ms, residual)
         x = np.column_stack((np.ones(self.count), design))
@@ -190,6 +193,12 @@ class Judge:
         return ok, why
 
 
+def _products(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a.T @ b for the tall, narrow designs of a heat fit, without BLAS: its threads cost more than they
+    save on a few columns when the cores are shared (measured: 7x the fit's time on this machine)."""
+    return np.einsum("ij,i...->j...", a, b)
+
+
 def _contribution_shares(terms: list[HeatTerm], columns: list[np.ndarray]) -> list[float]:
     spreads = [abs(term.K) * float(np.mean(np.abs(column - np.mean(column)))) for term, column in zip(terms, columns, strict=True)]
     total = sum(spreads)
@@ -204,6 +213,7 @@ class SensorSearch:
         self.sensor, self.runs, self.columns, self.judge, self.settings = sensor, runs, columns, judge, settings
         self.neighbours = neighbours
         self.y = np.concatenate([run.sensors_C[sensor] for run in runs])
+        self._y_fit: np.ndarray | None = None
 
     def design(self, specs: list[Spec], *, cache: bool = True) -> np.ndarray:
         if not specs:
@@ -211,11 +221,24 @@ class SensorSearch:
         return np.column_stack([self.columns.column(spec, cache=cache) for spec in specs])
 
     def in_sample_sse(self, specs: list[Spec], *, cache: bool = True) -> float:
-        y, x = self.judge.fitting_rows(self.y, self.design(specs, cache=cache))
-        if x.shape[1] == 0:
+        """The residual sum of squares of ``specs`` fitted where the fit may look (normal equations:
+        a handful of columns; the columns' fitting rows are kept between calls)."""
+        if self._y_fit is None:
+            self._y_fit, _x = self.judge.fitting_rows(self.y, self.design([]))
+        y = self._y_fit
+        columns = [self.columns.fitting_one(spec, cache=cache) for spec in specs]
+        if not self.judge.per_run:
+            columns.insert(0, np.ones(len(y)))
+        if not columns:
             return float(y @ y)
-        residual = y - x @ stats.least_squares(x, y)
-        return float(residual @ residual)
+        x = np.column_stack(columns)
+        gram, cross = _products(x, x), _products(x, y)
+        try:
+            coef = np.linalg.solve(gram, cross)
+        except np.linalg.LinAlgError:
+            coef = stats.least_squares(x, y)
+        residual = y - np.einsum("ij,j->i", x, coef)
+        return float(np.einsum("i,i->", residual, residual))
 
     def unphysical(self, specs: list[Spec]) -> str:
         """Why a design's fitted gains are none a machine can have ("" when they are): a sensor passes on
@@ -277,7 +300,7 @@ class SensorSearch:
                 closest = f"{best[2]}: {best[5]}" if best is not None else ""
                 break
             _rms, _ok, _family, new_specs, verdict, _why = passing[0]
-            polished = polish(self, polish(self, list(new_specs)))
+            polished = polish(self, polish(self, list(new_specs))) if s.polish else new_specs
             if polished != new_specs:   # the earlier terms' time constants again, given the new one
                 again = self.judge.judge(self.y, self.design(polished))
                 if again.rms <= verdict.rms and not self.unphysical(polished):
@@ -300,7 +323,8 @@ class SensorSearch:
                 added = [spec for spec in second[3] if spec not in first[3]]
                 if not added or any(a.kind == b.kind == "spindle" for a in added for b in first[3] if b not in specs):
                     continue
-                tries.append((f"{first[2]} + {second[2]}", polish(self, list(first[3]) + added)))
+                merged = list(first[3]) + added
+                tries.append((f"{first[2]} + {second[2]}", polish(self, merged) if self.settings.polish else merged))
         passing = []
         for family, merged in tries:
             verdict = self.judge.judge(self.y, self.design(merged))
