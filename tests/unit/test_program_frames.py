@@ -162,3 +162,14 @@ def test_a_circle_under_an_uneven_scale_is_an_ellipse_of_chords() -> None:
     points = [(move.target_mm["X"], move.target_mm["Y"]) for move in result.moves[2:]]
     assert all((x / 20) ** 2 + (y / 10) ** 2 == pytest.approx(1.0) for x, y in points)
     assert points[-1] == pytest.approx((-20.0, 0.0)) and max(y for _, y in points) == pytest.approx(10.0, abs=0.01)
+
+
+def test_a_circle_after_a_frame_change_starts_where_the_tool_is() -> None:
+    # the tool at machine X10; TRANS X5 makes that work X5: the circle runs from there round (10, 0)
+    result = run("G0 X10 Y0\nTRANS X5\nG2 X15 Y0 I5 J0 F100\nROT Z90\nG3 X20 Y0 CR=20\nM30")
+    assert result.alarm is None, result.alarm
+    first, second = [move for move in result.moves if isinstance(move, Arc)]
+    assert first.target_mm == {"X": 20.0, "Y": 0.0} and first.centre_mm == pytest.approx({"X": 15.0, "Y": 0.0})
+    # ROT Z90 (TRANS deleted): the tool at machine (20, 0) is work (0, -20); a quarter round work (0, 0)
+    assert second.target_mm == pytest.approx({"X": 0.0, "Y": 20.0}) and not second.clockwise
+    assert second.centre_mm == pytest.approx({"X": 0.0, "Y": 0.0})

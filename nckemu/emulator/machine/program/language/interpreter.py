@@ -139,6 +139,9 @@ class Interpreter:
         self.paths = MotionBuilder(self)  # the motion job: a block's axis words into moves and circles
         self._r_count = int(env.r_count)
         self._cycles = CycleRunner(self)
+        # Machine positions of axes that have not moved since a frame change: the tool stays where the
+        # old frame put it (a circle starts there), while the work position keeps the programmed value.
+        self._stale_mm: dict[str, float] = {}
         self._reset_modal()
 
     # --- modal state ------------------------------------------------------------------------------
@@ -156,6 +159,7 @@ class Interpreter:
         self.preselected: int | str | None = None
         self.tool_length_mm = 0.0
         self.work_pos: dict[str, float] = {}
+        self._stale_mm = {}
         for axis in self._axes:
             try:
                 self.work_pos[axis] = float(env.machine_position_mm(axis))
@@ -186,7 +190,25 @@ class Interpreter:
         self._update_shift()
         self.env.set_programmable_frame(self._programmable())
 
+    def _machine_now(self) -> dict[str, float]:
+        """Where the last motions left every axis (machine mm), under the frames they ran in."""
+        machine = self._machine_of_work()
+        machine.update(self._stale_mm)
+        return machine
+
+    def _machine_of_work(self) -> dict[str, float]:
+        """The work positions through the frames active now (machine mm)."""
+        modal, work_pos = self.modal, self.work_pos
+        infeed = _PLANES[modal.plane][2]
+        if modal.chain is None:
+            return {axis: value + modal.shift.get(axis, 0.0) for axis, value in work_pos.items()}
+        machine = {**work_pos, **modal.chain.apply(work_pos)}
+        if infeed in machine:
+            machine[infeed] += modal.shift.get(infeed, 0.0) - modal.chain.translation.get(infeed, 0.0)
+        return machine
+
     def _update_shift(self) -> None:
+        before = self._machine_now() if getattr(self, "work_pos", None) else None
         chain = framing.chain(self.modal.settable, self._programmable())
         self.modal.chain = None if chain.is_translation else chain
         shift = dict(chain.translation)
@@ -194,6 +216,14 @@ class Interpreter:
             infeed = _PLANES[self.modal.plane][2]
             shift[infeed] = shift.get(infeed, 0.0) + self.tool_length_mm
         self.modal.shift = shift
+        if before is not None:  # the axes the change moves keep, until they move, where the old frames put them
+            after = self._machine_of_work()
+            stale = self._stale_mm
+            for axis, value in before.items():
+                if abs(after.get(axis, value) - value) > 1e-12:
+                    stale[axis] = value
+                else:
+                    stale.pop(axis, None)
 
     def _update_tool_length(self) -> None:
         length = 0.0
@@ -601,6 +631,9 @@ class Interpreter:
             for axis, value in axis_words:
                 work_pos[axis] = value
                 targets[axis] = value + shift[axis] if axis in shift else value
+            if self._stale_mm:
+                for axis, _ in axis_words:
+                    self._stale_mm.pop(axis, None)
             if motion == 0:
                 events = [Move(targets, None, self.modal.feed_mode, self.modal.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
             else:

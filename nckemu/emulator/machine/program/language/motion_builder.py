@@ -12,7 +12,7 @@ import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-from nckemu.emulator.machine.nck.frame_math import Frame
+from nckemu.emulator.machine.nck.frame_math import GEOMETRY, Frame
 
 from ..motions import (
     ALARM_CIRCLE_END_POINT,
@@ -77,6 +77,7 @@ class MotionBuilder:
         work_pos = self.it.work_pos
         unit_mm = INCH_MM if self.it.modal.inch_geometry else 1.0
         start = dict(work_pos)
+        now = self.it._machine_now()
         programmed: dict[str, float] = {}
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
@@ -87,6 +88,8 @@ class MotionBuilder:
             work_pos[axis] = work
         moving = chain.coupled(set(programmed)) & set(work_pos)
         work_targets = {axis: work_pos[axis] for axis in moving}
+        for axis in moving:
+            self.it._stale_mm.pop(axis, None)
         tool = {PLANES[self.it.modal.plane][2]: self.it.tool_length_mm} if self.it.tool_length_mm else {}
         exact_stop = self.it.modal.exact_stop or bool(flags.get("g9"))
         if self.it.modal.motion > 1:
@@ -96,7 +99,11 @@ class MotionBuilder:
             try:
                 first, second, _ = PLANES[self.it.modal.plane]
                 # a circle starts where the tool is: that point in the work system of this frame
-                plane_start = {axis: self.it._work_position(axis) for axis in (first, second) if axis in start}
+                infeed = PLANES[self.it.modal.plane][2]
+                if infeed in now:
+                    now[infeed] -= self.it.tool_length_mm
+                here = chain.inverse_apply({axis: now[axis] for axis in now if axis in GEOMETRY})
+                plane_start = {axis: here[axis] for axis in (first, second) if axis in here}
                 arc = self.arc(work_targets, programmed, plane_start, address, {}, exact_stop)
             finally:
                 self.it.modal.shift = saved_shift
@@ -128,8 +135,15 @@ class MotionBuilder:
         absolute = self.it.modal.absolute
         targets: dict[str, float] = {}
         programmed: dict[str, float] = {}
-        start_machine = {axis: work_pos[axis] + shift.get(axis, 0.0) for axis in PLANES[self.it.modal.plane][:2]
-                         if axis in work_pos}
+        stale = self.it._stale_mm
+        if stale:  # axes a frame change left where the old frames put them
+            now = self.it._machine_now()
+            start_machine = {axis: now[axis] for axis in PLANES[self.it.modal.plane][:2] if axis in now}
+            for axis, _, _ in axis_words:
+                stale.pop(axis, None)
+        else:
+            start_machine = {axis: work_pos[axis] + shift.get(axis, 0.0) for axis in PLANES[self.it.modal.plane][:2]
+                             if axis in work_pos}
         rules = self.it.modal.feed_rules
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
