@@ -173,3 +173,10 @@ def test_a_circle_after_a_frame_change_starts_where_the_tool_is() -> None:
     # ROT Z90 (TRANS deleted): the tool at machine (20, 0) is work (0, -20); a quarter round work (0, 0)
     assert second.target_mm == pytest.approx({"X": 0.0, "Y": 20.0}) and not second.clockwise
     assert second.centre_mm == pytest.approx({"X": 0.0, "Y": 0.0})
+
+
+def test_supa_and_g53_suppress_a_rotated_frame_for_their_block() -> None:
+    env = DictEnvironment(offsets={"G54": {"X": 100.0}})
+    moves = targets("G54 ROT Z90\nG0 SUPA X10 Y5\nG53 G0 X20\nG0 X1 Y0\nM30", env)
+    assert moves[:2] == [{"X": 10.0, "Y": 5.0}, {"X": 20.0}]
+    assert moves[2] == pytest.approx({"X": 100.0, "Y": 1.0})     # the frame again: work X along machine Y
