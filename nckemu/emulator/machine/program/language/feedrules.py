@@ -20,7 +20,7 @@ of the motion events (``Move.fgroup``, ``Move.css``, ``Move.thread``), never as 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ..motions import ALARM_SYNTAX, ConstantCuttingSpeed, ProgramAlarm
@@ -42,11 +42,13 @@ class FeedRules:
     limit_rpm: float = 0.0                 # LIMS (0: the spindle's own limit)
     diameter: str = "DIAMOF"
     pitch_mm: float = 0.0                  # the last thread pitch
+    # nothing of this record changes a move (the interpreter's fast path then builds moves alone); a
+    # field, not a property: the fast path reads it for every block
+    plain: bool = field(init=False, compare=False, default=True)
 
-    @property
-    def plain(self) -> bool:
-        """Nothing of this record changes a move (the interpreter's fast path then builds moves alone)."""
-        return self.fgroup is None and not self.constant_speed and self.diameter == "DIAMOF"
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "plain", self.fgroup is None and not self.constant_speed
+                           and self.diameter == "DIAMOF")
 
     def word(self, name: str, args: list | None, names_of: Any) -> FeedRules:
         """DIAMON/DIAMOF/DIAM90 and FGROUP(...) (``names_of`` turns FGROUP's arguments into axis names)."""
