@@ -26,6 +26,7 @@ def test_the_manifest_names_40_programs_of_8_repositories_each_at_a_commit() -> 
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(3600)  # 55 programs of up to 30 s of real time each
 def test_no_program_of_the_corpus_crashes() -> None:
     if not CORPUS.is_dir():
         pytest.skip("NCKEMU_CORPUS is not a directory: fetch the corpus with bench/corpus_fetch.py (needs GitHub)")
