@@ -184,3 +184,13 @@ def test_a_users_cycle_under_mcall_is_not_called_again_by_its_own_moves() -> Non
                                                               b"G1 Z=DP F500\nG0 Z=RTP\nR5=R5+1\nM17\n")
     _run(emulator, "HOLES", b"G0 X10 Y10 Z-10\nMCALL CYCLE82(-10, -30)\nX20\nX30 Y20\nMCALL\nX40\nM30\n")
     assert emulator.nck.store.read_lines(emulator.nck.store.spec("R"), 1, 6, 1)[0] == 2.0
+
+
+def test_positions_feed_and_time_a_program_reads_after_a_move() -> None:
+    emulator = _emulator()
+    _run(emulator, "READS", b"G0 X10 Y5\nG1 X20 F600\nR30=$AA_IM[X] R31=$P_EP[X] R32=$P_F R33=$AA_IW[X]\n"
+                            b"G4 F2\nR34=$AC_TIME R35=$P_TOOLNO\nM30\n")
+    store = emulator.nck.store
+    r = store.read_lines(store.spec("R"), 1, 31, 6)
+    assert r[:4] == [pytest.approx(20.0), 20.0, 600.0, pytest.approx(20.0)]
+    assert 0.0 <= r[4] < 1.0 and r[5] >= 0  # $AC_TIME: since the block's start; no tool changed
