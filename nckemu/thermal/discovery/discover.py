@@ -34,7 +34,7 @@ from nckemu.thermal import stats
 from nckemu.thermal.model.terms import Term, ThermalModel
 from nckemu.thermal.recordings.recording import Recording
 
-from . import explain, unusable
+from . import explain, regimes, unusable
 from .findings import Closest, Finding, GuardFigure, Likely, Withdrawn
 from .library import Library
 from .problem import Problem
@@ -189,10 +189,11 @@ class Discoverer:
         self.sensor_noise_C = readings.sensor_noise_C
         self.problem = Problem([(recording.source, readings)], axis, model)
         self.splitter: Splitter = splitter or Blocks(self.settings.folds)
+        self.group_by: str | None = None
 
     @classmethod
     def for_runs(cls, runs: list[Recording], axis: str, model: ThermalModel | None,
-                 settings: Settings | None = None) -> Discoverer:
+                 settings: Settings | None = None, group_by: str | None = None) -> Discoverer:
         """Several runs of one machine: each its own offset, held out one at a time."""
         self = cls.__new__(cls)
         self.settings = _with_structure(settings or Settings(), model)
@@ -216,6 +217,7 @@ class Discoverer:
             prepared.append((name, coarse))
         self.problem = Problem(prepared, axis, model, per_run_offset=True)
         self.splitter = LeaveOneRunOut()
+        self.group_by = group_by
         return self
 
     @property
@@ -300,6 +302,7 @@ class Discoverer:
         setup = self.baseline()
         selector = Selector(self.y, self.problem.t_s, Library(self.problem, self.settings), self.settings, setup)
         recalibrate = selector.search(gain_mode=False)
+        regimes.split_runs(selector, recalibrate, self.group_by)
         chosen, preferred = recalibrate, explain.recalibration_words(
             [d.effect for d in recalibrate.discovered], setup.calibrated_here, None)
         if selector.gain_eligible():
@@ -519,7 +522,9 @@ class Discoverer:
             records = discovered
         for term, coefficient, record in zip(added, coefficients, records, strict=False):
             updated = term.with_coefficient(float(coefficient))
-            terms.append(updated)
+            regime = getattr(record.evidence, "regime", None)
+            if regime is None or not regime.apart:  # a model file holds one relation: the larger group's
+                terms.append(updated)
             record.parameters[updated.spec.coefficient] = round(float(coefficient), 6)
         return terms
 
@@ -541,12 +546,14 @@ def _heldout_residual(design: np.ndarray, y: np.ndarray, folds: list[np.ndarray]
 
 
 def discover_runs(runs: list[Recording], axis: str | None = None, model: ThermalModel | None = None,
-                  settings: Settings | None = None) -> Discovery:
+                  settings: Settings | None = None, group_by: str | None = None) -> Discovery:
     """Discovery over several runs of one machine. Each run has its own constant offset, always in
     the baseline and fitted on that run; everything else (coefficients, time constants, the physics
     named) is fitted on the other runs: the held-out figures are leave-one-run-out, per run and
     their medians. Without a model (and without a ``sim_`` column in every run) the baseline is
-    each run's offset alone."""
+    each run's offset alone. ``group_by``: a regular expression on the run names (its first group)
+    whose two groups a term may be fitted apart on (``regimes``); without it, groups are found from
+    the residual's relation."""
     if not runs:
         raise NckConfigError("no runs to discover on")
     axis = axis or (model.axis if model is not None else None)
@@ -570,4 +577,4 @@ def discover_runs(runs: list[Recording], axis: str | None = None, model: Thermal
         return discover(runs[0], axis, model, settings)
     if model is None and not all(axis in run.simulated_um for run in runs):
         model = ThermalModel(axis, [], "<each run's own offset>")
-    return Discoverer.for_runs(runs, axis, model, settings).run()
+    return Discoverer.for_runs(runs, axis, model, settings, group_by).run()

@@ -77,6 +77,27 @@ class MoveEvidence:
 
 
 @dataclass
+class RegimeGroup:
+    """A group of runs a term was fitted on apart (issue 51): its runs, its coefficient and both
+    models' figures on them (the median over its runs of held-out RMS before, with one coefficient for
+    all runs, and with one per group; its worst run)."""
+    runs_words: str
+    runs: list[str]
+    coefficient: float
+    median_before_um: float
+    median_one_coefficient_um: float
+    median_after_um: float
+    worst_after_um: float
+    apart: bool                     # the group that follows the other relation
+
+    def to_json(self) -> dict[str, Any]:
+        return {"runs_words": self.runs_words, "runs": self.runs, "coefficient": self.coefficient,
+                "median_before_um": self.median_before_um,
+                "median_one_coefficient_um": self.median_one_coefficient_um,
+                "median_after_um": self.median_after_um, "worst_after_um": self.worst_after_um, "apart": self.apart}
+
+
+@dataclass
 class Window:
     t_start_s: float
     t_end_s: float
@@ -105,6 +126,8 @@ class Evidence:
     note: str | None = None
     # A sensor named at two time constants in two rounds: this one's share of what the two improve.
     twin_share: float | None = None
+    # Fitted on a group of runs apart (issue 51): the group, its coefficient and both models' figures.
+    regime: RegimeGroup | None = None
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -124,6 +147,8 @@ class Evidence:
             out["note"] = self.note
         if self.twin_share is not None:
             out["twin_share"] = self.twin_share
+        if self.regime is not None:
+            out["regime"] = self.regime.to_json()
         return out
 
 
@@ -237,4 +262,4 @@ def finding(effect: str, parameters: dict[str, Any], evidence: Evidence | GainEv
 
 
 __all__ = ["AdmissionRuns", "Alternative", "Closest", "Evidence", "Finding", "GainEvidence", "GuardFigure", "Likely",
-           "LikelyEvidence", "MoveAlternative", "MoveEvidence", "Window", "Withdrawn", "finding"]
+           "LikelyEvidence", "MoveAlternative", "MoveEvidence", "RegimeGroup", "Window", "Withdrawn", "finding"]

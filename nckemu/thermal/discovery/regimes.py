@@ -1,0 +1,198 @@
+"""Runs that follow another relation (issue 51): no run made worse in silence.
+
+When the search has named what it can, a candidate of its last round may still act on every run, with
+one sign on some and the other sign on the rest (a fixture mounted the other way round for ten days,
+another cycle type). Fitted on all runs at once its coefficient is the difference of the two and helps
+no one; fitted per group of runs (each run held out, its group's coefficient from the other runs of
+its group), it may. The groups are the user's (``--group-by``: a part of the run names, a date or a
+cycle name) or found from the residual's relation: the sign of the candidate's slope on each run,
+when the runs of one sign are one stretch of dates (``consecutive``).
+
+A split is named only when it clears what a term must (the runs' paired test, the held-out bar for its
+parameters) and leaves no run worse than the harm tolerance; the report then names the group, its
+runs, and both models' figures (one coefficient for all runs, one per group).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from nckemu.thermal import stats
+from nckemu.thermal.model.terms import Term
+
+from . import explain, shapes
+from .findings import Evidence, RegimeGroup, finding
+from .selector import Evaluation, Path, Selector, runs_improve
+
+MIN_GROUP_RUNS = 3
+
+
+@dataclass
+class Split:
+    evaluation: Evaluation
+    groups: np.ndarray                  # per run: 0 the larger group, 1 the other
+    cv: stats.CrossValidation
+    coefficients: tuple[float, float]
+
+
+def groups_by_names(names: list[str], pattern: str) -> np.ndarray | None:
+    """Run groups from a part of each run's name (``pattern``: a regular expression, its first group
+    if it has one): two labels only (the most common and the rest). None when all runs agree."""
+    compiled = re.compile(pattern)
+    labels = []
+    for name in names:
+        found = compiled.search(name)
+        labels.append("" if found is None else (found.group(1) if compiled.groups else found.group(0)))
+    values, counts = np.unique(labels, return_counts=True)
+    if len(values) < 2:
+        return None
+    common = values[int(np.argmax(counts))]
+    return np.array([0 if label == common else 1 for label in labels])
+
+
+def slopes(selector: Selector, feature: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """Each run's least-squares slope of the residual on the feature (both centred per run)."""
+    groups = selector.library.problem.groups
+    runs = len(selector.library.problem.runs)
+    moment = np.bincount(groups, weights=feature * residual, minlength=runs)
+    gram = np.bincount(groups, weights=feature * feature, minlength=runs)
+    return np.where(gram > 0, moment / np.maximum(gram, 1e-300), 0.0)
+
+
+def by_sign(run_slopes: np.ndarray) -> np.ndarray | None:
+    """Runs grouped by the sign of their slope: the larger group 0. None when a group is too small."""
+    negative = run_slopes < 0
+    if min(negative.sum(), (~negative).sum()) < MIN_GROUP_RUNS:
+        return None
+    minority = negative if negative.sum() < (~negative).sum() else ~negative
+    return minority.astype(int)
+
+
+def consecutive(names: list[str], groups: np.ndarray) -> bool:
+    """Is the smaller group one stretch of runs in name order (a date range, as runs are named by
+    date)? A grouping found from the data alone is named only then: signs that scatter over the runs
+    are what noise gives, and a held-out run's group must be one a user can know beforehand (its
+    date); a cycle type is the user's to give (``--group-by``)."""
+    order = np.argsort(names, kind="stable")
+    positions = np.flatnonzero(groups[order] == 1)
+    return len(positions) > 0 and int(positions[-1] - positions[0]) == len(positions) - 1
+
+
+def grouped_columns(selector: Selector, feature: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    sample_groups = groups[selector.library.problem.groups]
+    return np.column_stack([feature * (sample_groups == 0), feature * (sample_groups == 1)])
+
+
+def best_split(selector: Selector, path: Path, given: np.ndarray | None) -> Split | None:
+    """The last round's candidate whose split over the groups lowers the in-sample residual most,
+    cross-validated (each run held out, its group's coefficient from the others of its group)."""
+    y, design = selector.y, path.design
+    names = [run.name for run in selector.library.problem.runs]
+    coefficients = stats.least_squares(design, y) if design.shape[1] else np.zeros(0)
+    residual = y - design @ coefficients if design.shape[1] else y
+    best: tuple[float, Evaluation, np.ndarray] | None = None
+    for evaluation in path.rejected:
+        if evaluation.candidate.runs_with is not None:
+            continue
+        feature = evaluation.candidate.feature
+        groups = given if given is not None else by_sign(slopes(selector, feature, residual))
+        if groups is None or (given is None and not consecutive(names, groups)):
+            continue
+        columns = grouped_columns(selector, feature, groups)
+        full = np.column_stack([design, columns])
+        left = stats.rms(y - full @ stats.least_squares(full, y))
+        if best is None or left < best[0]:
+            best = (left, evaluation, groups)
+    if best is None:
+        return None
+    _left, evaluation, groups = best
+    full = np.column_stack([design, grouped_columns(selector, evaluation.candidate.feature, groups)])
+    cv = selector.baseline.cross_validate(full, y, selector.baseline.folds)
+    fitted = stats.least_squares(full, y)
+    return Split(evaluation, groups, cv, (float(fitted[-2]), float(fitted[-1])))
+
+
+def judged(selector: Selector, path: Path, split: Split) -> bool:
+    """A split clears what a term with its parameters must: the runs' paired test, the held-out bar
+    for its parameters (two coefficients and the term's time constants) and no run harmed."""
+    s = selector.settings
+    term = split.evaluation.candidate.term
+    bar = shapes.parameter_bar(selector.bar, shapes.parameters_of(term) + 1)
+    gain = selector.heldout_gain(split.cv, path.base_cv)
+    before = np.square(np.asarray(path.base_cv.fold_rms_um))
+    after = np.square(np.asarray(split.cv.fold_rms_um))
+    improves = runs_improve(before, after, s.runs_alpha, s.min_fold_share, s.runs_test_min)
+    one_sign_each = split.coefficients[0] * split.coefficients[1] < 0
+    return gain >= bar and improves and one_sign_each \
+        and not selector.harms_runs(path.base_cv.fold_rms_um, split.cv.fold_rms_um)
+
+
+def describe(names: list[str], members: list[int]) -> str:
+    """A group of runs in words: a stretch of consecutive runs (in name order: dates) or a list."""
+    order = sorted(range(len(names)), key=lambda i: names[i])
+    positions = sorted(order.index(i) for i in members)
+    if positions == list(range(positions[0], positions[-1] + 1)):
+        return f"the {len(members)} consecutive runs {names[order[positions[0]]]} .. {names[order[positions[-1]]]}"
+    shown = ", ".join(names[i] for i in sorted(members, key=lambda i: names[i])[:6])
+    return f"{len(members)} runs ({shown}{', ...' if len(members) > 6 else ''})"
+
+
+def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bool:
+    """Name a group of runs that follows another relation, when one clears the guards (module doc).
+    True when it was named: the path then carries the candidate's term twice, one per group."""
+    problem = selector.library.problem
+    if not selector.paired_runs or path.gain_mode or not path.rejected:
+        return False
+    names = [run.name for run in problem.runs]
+    given = groups_by_names(names, pattern) if pattern else None
+    if pattern and given is None:
+        return False
+    split = best_split(selector, path, given)
+    if split is None or not judged(selector, path, split):
+        return False
+    evaluation = split.evaluation
+    term = evaluation.candidate.term
+    members = [list(np.flatnonzero(split.groups == g)) for g in (0, 1)]
+    before, pooled, after = (np.asarray(cv.fold_rms_um) for cv in (path.base_cv, evaluation.cv, split.cv))
+    label = explain.label_with_time_constants(term)
+    found_by = f"the runs' names ({pattern})" if pattern else f"the sign of {label}'s slope on each run"
+    records = []
+    for group, runs in enumerate(members):
+        coefficient = split.coefficients[group]
+        records.append(RegimeGroup(
+            describe(names, runs), [names[i] for i in runs], round(coefficient, 6),
+            round(float(np.median(before[runs])), 4), round(float(np.median(pooled[runs])), 4),
+            round(float(np.median(after[runs])), 4), round(float(np.max(after[runs])), 4), group == 1))
+    other = records[1]
+    why = (f"{other.runs_words} follow another relation: {label} {split.coefficients[1]:+.3g} um/K there against "
+           f"{split.coefficients[0]:+.3g} um/K in the other {len(members[0])} runs (grouped by {found_by}); "
+           f"fitted apart (each run held out, its group's coefficient from the other runs of its group)")
+    design = np.column_stack([path.design, grouped_columns(selector, evaluation.candidate.feature, split.groups)])
+    noise_columns = grouped_columns(selector, evaluation.candidate.noise, split.groups)
+    gain = selector.heldout_gain(split.cv, path.base_cv)
+    for group, record in enumerate(records):
+        named = term.with_coefficient(split.coefficients[group])
+        evidence = Evidence(
+            heldout_rms_before_um=round(path.base_cv.rms_um, 4), heldout_rms_after_um=round(split.cv.rms_um, 4),
+            heldout_rms_without_sensor_noise_um=round(split.cv.rms_um, 4), t_value_ar1_corrected=None,
+            t_critical=round(path.rejected_t_critical, 3) if math.isfinite(path.rejected_t_critical) else 0.0,
+            folds_improved=f"{int(np.sum(after < before))}/{len(before)}", window=None,
+            equivalent=[], why=why, preferred=(f"{label} per group of runs: the median over runs of held-out RMS "
+                                               f"{float(np.median(before)):.3f} -> {float(np.median(after)):.3f} um "
+                                               f"({gain:.1%}; one coefficient for all runs "
+                                               f"{float(np.median(pooled)):.3f} um)"))
+        evidence.regime = record
+        path.discovered.append(finding(named.effect, named.parameters, evidence))
+        path.added.append(named)
+    path.design = design
+    path.noise = np.column_stack([path.noise, noise_columns])
+    path.base_cv = split.cv
+    path.final = stats.fit(path.design, selector.y)
+    return True
+
+
+__all__ = ["Split", "groups_by_names", "split_runs"]
