@@ -22,7 +22,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from nckemu.thermal import stats
-from nckemu.thermal.model.terms import Term
 
 from . import explain, shapes
 from .findings import Evidence, RegimeGroup, finding

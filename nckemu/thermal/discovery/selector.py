@@ -333,9 +333,16 @@ class Selector:
         if self.per_run:  # ... and it must not leave the worst run worse
             figures = self.run_figures(cv, base_cv, runs_with)
             limit = (1 + s.equivalence) * figures.worst_before_um
-            out.append(Guard("worst run", figures.worst_after_um <= limit,
+            # No run made worse in silence (issue 51): none beyond the harm tolerance either.
+            counted = np.ones(len(cv.fold_rms_um), dtype=bool) if runs_with is None else np.asarray(runs_with)
+            harmed = [self.library.problem.runs[i].name for i in self.harms_runs(
+                self.reference_folds(base_cv), cv.fold_rms_um) if counted[i]]
+            harm_words = (f"; {len(harmed)} run{'s' if len(harmed) > 1 else ''} worse by more than "
+                          f"{s.run_harm_share:.0%} and {s.run_harm_floor_um:g} um: {', '.join(harmed[:4])}"
+                          f"{', ...' if len(harmed) > 4 else ''}" if harmed else "")
+            out.append(Guard("worst run", figures.worst_after_um <= limit and not harmed,
                              f"the worst run ({figures.worst_run}) {figures.worst_before_um:.3f} -> "
-                             f"{figures.worst_after_um:.3f} um (at most {limit:.3f})"))
+                             f"{figures.worst_after_um:.3f} um (at most {limit:.3f}){harm_words}"))
         before_um, after_um, gain, figure = self.heldout_figures(cv, base_cv, runs_with)
         # A candidate only a few runs can judge (its columns missing in the others) clears the bar of a few.
         bar = self.bar if judged_by_pairs or not self.per_run else s.min_improvement
