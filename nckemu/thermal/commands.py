@@ -53,6 +53,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     find.add_argument("--split-runs", action="store_true",
                       help="cut each recording into runs at spindle-speed blocks and gaps over 1 h, then "
                            "discover over the runs")
+    find.add_argument("--group-by", metavar="REGEX",
+                      help="several runs: a part of the run names (a regular expression, its first group: a date "
+                           "'(2017-0[23])', a cycle name '_(light|heavy)') whose groups a term may be fitted apart "
+                           "on; without it, discover finds a stretch of dates that follows another relation")
     find.add_argument("--map", metavar="MAP.toml", help="read foreign files (workbooks, other column names) "
                                                         "through this map (docs/recordings.md)")
     find.add_argument("--json", action="store_true", help="print the findings as JSON on stdout")
@@ -215,7 +219,7 @@ def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, d
             print(f"nckemu discover: {len(runs)} runs after splitting: {', '.join(r.name for r in runs)}",
                   file=sys.stderr)
     with working("discover", enabled=not args.json):
-        result = discover_runs(runs, axis=args.axis, model=model)
+        result = discover_runs(runs, axis=args.axis, model=model, group_by=getattr(args, "group_by", None))
     args.discovery = result
     document = result.to_json()
     write_json(document, args.json_out)
@@ -227,6 +231,10 @@ def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, d
     text = _write_model_and_json(args, document, result, note)
     if text is None:
         return 0
+    from nckemu.thermal.discovery.wording import headline_lines
+
+    for line in headline_lines(result):
+        print(line, file=text)
     print(f"axis {result.axis} over {len(runs)} runs: RMS as given {result.baseline_rms_um:.3f} um, held-out "
           f"(each run left out, median over runs) {result.heldout_rms_before_um:.3f} -> "
           f"{result.heldout_rms_after_um:.3f} um (before: {result.before_is})", file=text)

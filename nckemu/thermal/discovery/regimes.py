@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nckemu.errors import NckConfigError
 from nckemu.thermal import stats
 
 from . import explain, shapes
@@ -41,7 +42,10 @@ class Split:
 def groups_by_names(names: list[str], pattern: str) -> np.ndarray | None:
     """Run groups from a part of each run's name (``pattern``: a regular expression, its first group
     if it has one): two labels only (the most common and the rest). None when all runs agree."""
-    compiled = re.compile(pattern)
+    try:
+        compiled = re.compile(pattern)
+    except re.error as exc:
+        raise NckConfigError(f"--group-by {pattern!r} is not a regular expression: {exc}", field="--group-by") from None
     labels = []
     for name in names:
         found = compiled.search(name)

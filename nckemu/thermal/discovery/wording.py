@@ -9,6 +9,7 @@ import numpy as np
 
 from nckemu.thermal import stats
 from nckemu.thermal.model.families import family
+from nckemu.thermal.model.terms import Term
 
 from . import explain
 from .discover import Discovery
@@ -105,6 +106,57 @@ def attribution_lines(discovery: Discovery) -> list[str]:
         lines.append(f"why {' + '.join(move.terms)} (held-out {move.heldout_rms_after_um:.3f} um): {move.why}; "
                      f"weighed: {weighed}")
     return lines
+
+
+def _size(parameters: dict[str, Any]) -> str:
+    value = next((v for k, v in parameters.items() if k.startswith(("coeff", "slope", "um_per", "value", "gain"))), None)
+    unit = next((k.split("_", 1)[1] for k in parameters if k.startswith(("coeff", "slope"))), "")
+    return f" {value:+.3g} {unit.replace('_per_', '/').replace('um/K2', 'um/K^2')}" if isinstance(value, float) else ""
+
+
+def headline_lines(discovery: Discovery) -> list[str]:
+    """At most four lines an engineer can act on (issue 51): each term named, its size and what it
+    means physically (a group of runs fitted apart on one line with its own size), then the figure
+    per run group. The evidence follows them."""
+    terms: list[str] = []
+    done: set[int] = set()
+    physics = discovery.missing_physics
+    for index, m in enumerate(physics):
+        if index in done:
+            continue
+        regime = getattr(m.evidence, "regime", None)
+        label = explain.label_with_time_constants(Term(m.effect, m.parameters))
+        line = f"{label}{_size(m.parameters)}"
+        if regime is not None:
+            others = [j for j, o in enumerate(physics) if j != index and getattr(o.evidence, "regime", None) is not None
+                      and o.effect == m.effect and o.parameters.get("sensor") == m.parameters.get("sensor")
+                      and o.parameters.get("sensors") == m.parameters.get("sensors")]
+            done.update(others)
+            for j in others:
+                line += f", but{_size(physics[j].parameters)} on {physics[j].evidence.regime.runs_words}"
+        line += f": {family(m.effect).description}"
+        note = getattr(m.evidence, "note", None)
+        if note and "one shape" in note:
+            line += " (named as one shape with the sensor's temperature)"
+        terms.append(line)
+    if not terms:
+        terms = ["nothing to add: " + ("what is left is structure no term of the vocabulary explains"
+                                       if discovery.residual_is_structure else "the model explains what the data show")]
+    if len(terms) > 3:
+        terms = terms[:2] + [f"and {len(terms) - 2} more terms (below)"]
+    figures = discovery.run_figures
+    if figures:
+        line = (f"held-out, each run left out: median {figures['median_before_um']:.3f} -> "
+                f"{figures['median_after_um']:.3f} um, worst run {figures['worst_after_um']:.3f} um")
+        for m in physics:
+            regime = getattr(m.evidence, "regime", None)
+            if regime is not None and regime.apart:
+                line += (f"; on {regime.runs_words}: median {regime.median_before_um:.3f} -> {regime.median_after_um:.3f} "
+                         f"um (one coefficient for all runs: {regime.median_one_coefficient_um:.3f} um), worst "
+                         f"{regime.worst_after_um:.3f} um")
+    else:
+        line = f"held-out RMS {discovery.heldout_rms_before_um:.3f} -> {discovery.heldout_rms_after_um:.3f} um"
+    return [*terms, line]
 
 
 def finding_lines(discovery: Discovery) -> list[str]:

@@ -1,0 +1,69 @@
+"""Runs that follow another relation (issue 51): a stretch of dates with the rear's effect reversed is
+found from the residual's relation (or given by the run names), fitted apart with each run held out,
+and named with its runs and both models' figures; a null names nothing; a bad --group-by is an error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nckemu.errors import NckConfigError
+from nckemu.thermal.discovery.discover import Discovery, discover_runs
+from nckemu.thermal.discovery.regimes import consecutive, groups_by_names
+from nckemu.thermal.discovery.wording import headline_lines
+from nckemu.thermal.synthetic.scenarios import (
+    AXIS,
+    REGIME_RUNS,
+    REGIME_UM_PER_K,
+    SHAPE_SENSOR,
+    RunFamily,
+    make_shape_family,
+)
+
+
+@pytest.fixture(scope="module")
+def regime() -> tuple[RunFamily, Discovery]:
+    family = make_shape_family("regime_days", 1)
+    return family, discover_runs(family.runs, AXIS, family.model)
+
+
+def test_the_reversed_stretch_is_found_and_fitted_apart(regime: tuple[RunFamily, Discovery]) -> None:
+    family, result = regime
+    groups = [m for m in result.missing_physics if m.evidence.regime is not None]
+    assert len(groups) == 2 and all(m.parameters["sensor"] == SHAPE_SENSOR for m in groups)
+    apart = next(m for m in groups if m.evidence.regime.apart)
+    usual = next(m for m in groups if not m.evidence.regime.apart)
+    assert set(apart.evidence.regime.runs) == {family.runs[i].name for i in REGIME_RUNS}
+    assert abs(apart.parameters["coeff_um_per_K"] + REGIME_UM_PER_K) <= 0.25 * REGIME_UM_PER_K
+    assert abs(usual.parameters["coeff_um_per_K"] - REGIME_UM_PER_K) <= 0.25 * REGIME_UM_PER_K
+    # both models' figures: one coefficient for all runs leaves the reversed runs far worse
+    assert apart.evidence.regime.median_after_um < apart.evidence.regime.median_one_coefficient_um / 2
+    assert "10 consecutive runs" in apart.evidence.why and "fitted apart" in apart.evidence.why
+    # the improved model holds one relation: the larger group's
+    kept = [t.coefficient for t in result.improved_model.terms if t.parameters.get("sensor") == SHAPE_SENSOR]
+    assert kept == pytest.approx([usual.parameters["coeff_um_per_K"]], abs=1e-6)
+    lines = headline_lines(result)
+    assert len(lines) <= 4 and "but" in lines[0] and "one coefficient for all runs" in lines[-1]
+    assert result.to_json()["missing_physics"][0]["evidence"]["regime"]["runs"]
+
+
+def test_groups_from_the_run_names() -> None:
+    names = ["2017-01-05_TM1", "2017-02-25_TM7", "2017-03-02_TM10", "2017-01-20_TM3"]
+    assert list(groups_by_names(names, r"2017-0([23])")) == [0, 1, 1, 0]  # "" twice, "2" and "3" apart
+    assert groups_by_names(names, r"TM") is None
+    with pytest.raises(NckConfigError, match="not a regular expression"):
+        groups_by_names(names, "(")
+    assert consecutive(["a", "b", "c", "d", "e"], np.array([0, 1, 1, 0, 0]))
+    assert not consecutive(["a", "b", "c", "d", "e"], np.array([1, 0, 1, 0, 0]))
+
+
+def test_given_groups_name_the_same_stretch() -> None:
+    family = make_shape_family("regime_days", 2)
+    result = discover_runs(family.runs, AXIS, family.model, group_by=r"2026-03-(1[1-9]|20)")
+    apart = [m for m in result.missing_physics if m.evidence.regime is not None and m.evidence.regime.apart]
+    assert apart and "the runs' names" in apart[0].evidence.why
+
+
+def test_the_null_names_no_group() -> None:
+    family = make_shape_family("null_shape_days", 1)
+    assert not discover_runs(family.runs, AXIS, family.model).missing_physics
