@@ -52,6 +52,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     compare.add_argument("recording", nargs="+", help="recordings (CSV or Parquet)")
     compare.add_argument("--machine", required=True, help="machine TOML with fitted responses")
     compare.add_argument("--figure", metavar="FILE.png", help="recorded against simulated per sensor (first run)")
+    compare.add_argument("--model", metavar="MODEL.toml",
+                         help="an error model (discover --write-model): the recorded err_<axis>_um against the "
+                              "model fed the recorded temperatures and fed the twin's")
     compare.add_argument("--json", action="store_true", help="print the comparison as JSON on stdout")
     compare.set_defaults(func=run_compare)
 
@@ -139,11 +142,16 @@ def run_fit(args: argparse.Namespace) -> int:
 def run_compare(args: argparse.Namespace) -> int:
     from nckemu.emulator.machine.machine_file import load_machine
     from nckemu.heat_response import PATH, SENSOR, SPINDLE
-    from nckemu.thermal.heat.compare import compare, comparison_lines, write_figure
+    from nckemu.thermal.heat.compare import compare, comparison_lines, error_lines, write_figure
     from nckemu.thermal.heat.table import load_heat_runs
 
     check_output(args.figure, "--figure")
     machine = load_machine(args.machine)
+    model = None
+    if args.model:
+        from nckemu.thermal.model.terms import load_model
+
+        model = load_model(args.model)
     responses = {sensor.name: sensor.response for sensor in machine.sensors if sensor.response}
     if not responses:
         raise NckConfigError("no [[sensor.response]] in this machine: fit one with `nckemu machine fit`",
@@ -163,10 +171,13 @@ def run_compare(args: argparse.Namespace) -> int:
     if args.figure:
         write_atomically(args.figure, lambda path: write_figure(path, runs, result))
     document = {"machine": args.machine, "runs": [run.name for run in runs], "sensors": [r.to_json() for r in result.rows]}
+    errors = error_lines(runs, result, model) if model is not None else []
+    if errors:
+        document["error"] = errors
     if args.json:
         write_json(document, "-")
         return 0
-    for line in comparison_lines(result):
+    for line in comparison_lines(result) + errors:
         print(line)
     if args.figure:
         print(f"wrote {args.figure}", file=sys.stderr)

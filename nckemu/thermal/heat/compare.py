@@ -9,9 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from nckemu.heat_response import HeatTerm, simulate
+from nckemu.heat_response import SPINDLE, HeatTerm, simulate
 from nckemu.thermal import stats
 from nckemu.thermal.discovery import explain
+from nckemu.thermal.model.terms import ThermalModel
+from nckemu.thermal.recordings.recording import Recording
 
 from .table import HeatRun
 from .words import _phase
@@ -62,6 +64,50 @@ def compare(runs: Sequence[HeatRun], base_C: Mapping[str, float],
                                    f"{mean_K:+.2f} K against the recording ({_phase(run, sensor, inside)})")
             rows.append(row)
     return Comparison(rows, simulated)
+
+
+# Where the error the model gives from the twin's temperatures and from the recorded ones differ by more
+# than this, the twin's heat costs the error there (µm).
+PART_UM = 1.0
+
+
+def _model_error(model: ThermalModel, run: HeatRun, sensors_C: Mapping[str, np.ndarray]) -> np.ndarray:
+    recording = Recording(run.name, run.t_s, {f"temp_{name}_C": values for name, values in sensors_C.items()},
+                          spindle_rpm=run.inputs.get(SPINDLE))
+    return model.predict_um(recording)
+
+
+def error_lines(runs: Sequence[HeatRun], comparison: Comparison, model: ThermalModel) -> list[str]:
+    """The recorded error against the error model (a discovered one) fed the recorded temperatures and
+    fed the twin's: what the twin's heat costs in µm, and where. Each run keeps its own offset (the
+    model's offset is no part of the heat)."""
+    axis = model.axis
+    lines = []
+    for run in runs:
+        measured = run.errors_um.get(axis)
+        if measured is None or not np.isfinite(measured).any():
+            lines.append(f"err_{axis}_um: not in {run.name}; the model's error from the twin is not judged there")
+            continue
+        read = np.isfinite(measured)
+        from_recorded = _model_error(model, run, run.sensors_C)
+        from_twin = _model_error(model, run, comparison.simulated[run.name])
+
+        def rms_within(predicted: np.ndarray, read: np.ndarray = read, measured: np.ndarray = measured) -> float:
+            residual = measured[read] - predicted[read]
+            return stats.rms(residual - np.mean(residual))
+
+        where = f" in {run.name}" if len(runs) > 1 else ""
+        lines.append(f"err_{axis}_um{where} through {model.source}: from the recorded temperatures RMS "
+                     f"{rms_within(from_recorded):.2f} um, from the twin's {rms_within(from_twin):.2f} um")
+        difference = from_twin - from_recorded
+        t0 = float(run.t_s[0])
+        for start_s, end_s in explain.structured_windows(run.t_s, difference, limit=2):
+            inside = (run.t_s >= start_s) & (run.t_s <= end_s)
+            mean_um = float(np.mean(difference[inside]))
+            if abs(mean_um) >= PART_UM and inside.sum() >= 2:
+                lines.append(f"  from {(start_s - t0) / 3600:.2f} h to {(end_s - t0) / 3600:.2f} h the twin's heat "
+                             f"gives the error {mean_um:+.2f} um beside what the recorded temperatures give")
+    return lines
 
 
 def comparison_lines(comparison: Comparison) -> list[str]:

@@ -30,6 +30,9 @@ class HeatRun:
     t_s: np.ndarray
     sensors_C: dict[str, np.ndarray]
     inputs: dict[str, np.ndarray] = field(default_factory=dict)
+    # The gauge's err_<axis>_um columns where recorded (NaN where it was not read): what `machine compare
+    # --model` judges the twin's temperatures by.
+    errors_um: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def duration_s(self) -> float:
@@ -39,7 +42,7 @@ class HeatRun:
         """The first ``share`` of the run's samples."""
         cut = int(round(len(self.t_s) * share))
         return HeatRun(self.name, self.t_s[:cut], {k: v[:cut] for k, v in self.sensors_C.items()},
-                       {k: v[:cut] for k, v in self.inputs.items()})
+                       {k: v[:cut] for k, v in self.inputs.items()}, {k: v[:cut] for k, v in self.errors_um.items()})
 
 
 def _columns(path: Path) -> dict[str, np.ndarray]:
@@ -71,10 +74,11 @@ def _path_speed_m_min(t_s: np.ndarray, positions: list[np.ndarray]) -> np.ndarra
 
 
 def to_grid(name: str, t_s: np.ndarray, sensors: dict[str, np.ndarray], inputs: dict[str, np.ndarray],
-            step_s: float) -> HeatRun:
+            step_s: float, errors: dict[str, np.ndarray] | None = None) -> HeatRun:
     """The run on a uniform grid of ``step_s`` (as recorded when it is sampled that coarsely already)."""
+    errors = errors or {}
     if len(t_s) < 3 or float(np.median(np.diff(t_s))) * 1.5 >= step_s:
-        return HeatRun(name, t_s, sensors, inputs)
+        return HeatRun(name, t_s, sensors, inputs, errors)
     bins = np.floor((t_s - t_s[0]) / step_s).astype(np.int64)
     count = int(bins[-1]) + 1
     grid = t_s[0] + step_s * (np.arange(count) + 1.0)   # each step's end: what the inputs held up to
@@ -83,9 +87,16 @@ def to_grid(name: str, t_s: np.ndarray, sensors: dict[str, np.ndarray], inputs: 
     def mean(values: np.ndarray) -> np.ndarray:
         return np.bincount(bins, weights=values, minlength=count) / counts
 
+    def gauge(values: np.ndarray) -> np.ndarray:   # the readings in each step, NaN where none
+        read = np.isfinite(values)
+        sums = np.bincount(bins[read], weights=values[read], minlength=count)
+        counts = np.bincount(bins[read], minlength=count)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
+
     keep = np.bincount(bins, minlength=count) > 0
     return HeatRun(name, grid[keep], {k: np.interp(grid, t_s, v)[keep] for k, v in sensors.items()},
-                   {k: mean(v)[keep] for k, v in inputs.items()})
+                   {k: mean(v)[keep] for k, v in inputs.items()}, {k: gauge(v)[keep] for k, v in errors.items()})
 
 
 def load_heat_runs(specs: list[str], input_names: list[str], step_s: float = DEFAULT_STEP_S) -> list[HeatRun]:
@@ -122,7 +133,9 @@ def load_heat_runs(specs: list[str], input_names: list[str], step_s: float = DEF
             if not np.all(np.isfinite(values)):
                 raise NckConfigError("empty or non-finite cells in an input", path=source, field=name)
             inputs[name] = values
-        runs.append(to_grid(path.stem, t_s, sensors, inputs, step_s))
+        errors = {name[4:-3]: values for name, values in columns.items()
+                  if name.startswith("err_") and name.endswith("_um")}
+        runs.append(to_grid(path.stem, t_s, sensors, inputs, step_s, errors))
     names = [run.name for run in runs]
     if len(set(names)) != len(names):
         raise NckConfigError(f"two runs named {sorted({n for n in names if names.count(n) > 1})[0]!r}: "

@@ -71,3 +71,37 @@ def test_fl_thermal_fitted_on_the_first_60_percent(shared_dir, tmp_path, capsys)
     assert hottest["sensor"] == "t5" and hottest["heldout_rms_after_K"] <= 1.5
     assert hottest["left"]   # above 1 K: what the residual follows where it still fails
     assert all(s["terms"] for s in document["sensors"] if s["sensor"] != "t15")
+
+
+def test_a_fit_onto_a_fitted_machine_replaces_its_sensors(tmp_path, capsys):
+    """--machine names the base: its [[sensor]] tables of the fitted names go, with their responses;
+    the others (the built-in bed) stay."""
+    recording = _write(tmp_path / "table.csv", "coolant", seed=1)
+    first, second = tmp_path / "first.toml", tmp_path / "second.toml"
+    assert main(["machine", "fit", str(recording), "--inputs", "spindle_rpm,coolant", "--out", str(first)]) == 0
+    assert main(["machine", "fit", str(recording), "--inputs", "spindle_rpm,coolant", "--machine", str(first),
+                 "--out", str(second)]) == 0
+    capsys.readouterr()
+    names = [s.name for s in load_machine(second).sensors]
+    assert sorted(names) == ["ambient", "bed", "cabinet", "table"]
+    assert second.read_text().count("[[sensor]]") == 4
+
+
+def test_compare_judges_the_twin_by_an_error_model(tmp_path, capsys):
+    """--model: the recorded err_Z_um against the model fed the recorded temperatures and the twin's."""
+    run = generate("coolant", 2).run
+    error_um = 3.0 * (run.sensors_C["table"] - 20.0)
+    names = ["t_s", "spindle_rpm", "coolant", "err_Z_um", *(f"temp_{name}_C" for name in run.sensors_C)]
+    columns = [run.t_s, run.inputs["spindle_rpm"], run.inputs["coolant"], error_um, *run.sensors_C.values()]
+    recording = tmp_path / "table.csv"
+    np.savetxt(recording, np.column_stack(columns), delimiter=",", header=",".join(names), comments="", fmt="%.6g")
+    model = tmp_path / "model.toml"
+    model.write_text('axis = "Z"\n[[term]]\neffect = "temperature"\nsensor = "table"\nt_ref_C = 20.0\n'
+                     'coeff_um_per_K = 3.0\n')
+    fitted = tmp_path / "fitted.toml"
+    assert main(["machine", "fit", str(recording), "--inputs", "spindle_rpm,coolant", "--out", str(fitted)]) == 0
+    capsys.readouterr()
+    assert main(["machine", "compare", str(recording), "--machine", str(fitted), "--model", str(model)]) == 0
+    line = next(row for row in capsys.readouterr().out.splitlines() if row.startswith("err_Z_um"))
+    recorded, twin = (float(part.split(" um")[0].split()[-1]) for part in line.split(", from the twin's"))
+    assert recorded < 0.01 and twin < 0.3, line
