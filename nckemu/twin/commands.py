@@ -27,7 +27,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                     "room (a reference sensor) and a neighbour's heat, each term admitted on held-out data. "
                     "Writes the machine file (--machine, or the built-in machine) with the fitted [[sensor]] "
                     "tables.")
-    fit.add_argument("recording", nargs="+", help="recordings (CSV or Parquet; several: runs of one machine)")
+    fit.add_argument("recording", nargs="*", help="recordings (CSV or Parquet; several: runs of one machine)")
+    fit.add_argument("--fleet", metavar="ROOT", help="one folder per machine under ROOT: each machine's fit as a "
+                     "Dask task, the heat terms tabulated across the fleet (no --out)")
+    fit.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="with --fleet: a running Dask cluster")
+    fit.add_argument("--workers", type=int, metavar="N", help="with --fleet: the local cluster's processes")
     fit.add_argument("--inputs", default="spindle_rpm", metavar="NAMES",
                      help="the machine's inputs, comma-separated: spindle_rpm, axes (path speed from pos_ "
                           "columns), or a column's name such as coolant (spindle_rpm)")
@@ -108,6 +112,12 @@ def run_fit(args: argparse.Namespace) -> int:
     from nckemu.thermal.heat.table import load_heat_runs
     from nckemu.thermal.heat.words import explain_left, fit_lines, machine_section
 
+    if args.fleet:
+        return _run_fit_fleet(args)
+    if args.scheduler or args.workers:
+        raise NckConfigError("--scheduler and --workers go with --fleet ROOT")
+    if not args.recording:
+        raise NckConfigError("give recordings, or --fleet ROOT")
     check_output(args.out, "--out")
     if not 0.2 <= args.train <= 0.9:
         raise NckConfigError(f"--train {args.train:g}: expected a share 0.2..0.9")
@@ -137,6 +147,43 @@ def run_fit(args: argparse.Namespace) -> int:
     if args.out:
         print(f"wrote {args.out} (the sensors of {base_source} replaced by the fitted ones)")
     return 0
+
+
+def _run_fit_fleet(args: argparse.Namespace) -> int:
+    from nckemu.cliutil import progress
+    from nckemu.thermal.fleet.discover import scan_root
+    from nckemu.thermal.fleet.heat import fit_fleet
+
+    if args.recording or args.out or args.machine:
+        raise NckConfigError("--fleet fits each machine folder: give no recordings, --out or --machine with it")
+    if args.scheduler and args.workers:
+        raise NckConfigError("--workers sizes the local cluster; a --scheduler's cluster has its own workers")
+    if args.workers is not None and args.workers < 1:
+        raise NckConfigError(f"--workers {args.workers}: at least 1")
+    machines = scan_root(args.fleet)
+
+    def bar(finished: object, total: int) -> object:
+        return progress(finished, total=total, description="machines", enabled=not args.json, unit="machine")
+
+    document = fit_fleet(machines, _names(args.inputs), scheduler=args.scheduler, workers=args.workers, progress=bar)
+    if args.json:
+        print(json.dumps(document))
+    else:
+        for machine in document["machines"]:
+            if "error" in machine:
+                print(f"{machine['machine']}: failed: {machine['error']}")
+                continue
+            named = sum(1 for s in machine["sensors"] if s["terms"])
+            print(f"{machine['machine']}: {named} of {len(machine['sensors'])} sensors with heat terms")
+        print(f"fleet of {len(document['machines'])} on {document['engine']}:")
+        for row in document["table"]:
+            k, tau = row["K"], row["tau_s"]
+            print(f"  {row['sensor']}: {row['term']} on {row['machines']} of {row['of']} machines; K {k['median']:.3g} "
+                  f"({k['min']:.3g}..{k['max']:.3g}), tau {tau['median'] / 60:.0f} min "
+                  f"({tau['min'] / 60:.0f}..{tau['max'] / 60:.0f})")
+    for name, error in document["failed"].items():
+        print(f"nckemu machine fit: machine {name}: {error}", file=sys.stderr)
+    return 1 if document["failed"] else 0
 
 
 def run_compare(args: argparse.Namespace) -> int:

@@ -105,3 +105,20 @@ def test_compare_judges_the_twin_by_an_error_model(tmp_path, capsys):
     line = next(row for row in capsys.readouterr().out.splitlines() if row.startswith("err_Z_um"))
     recorded, twin = (float(part.split(" um")[0].split()[-1]) for part in line.split(", from the twin's"))
     assert recorded < 0.01 and twin < 0.3, line
+
+
+@pytest.mark.slow
+def test_fit_a_fleet_as_dask_tasks(tmp_path, capsys):
+    """--fleet ROOT: each machine folder's fit as a task on a local cluster, the terms tabulated."""
+    for folder, seed in (("mill1", 0), ("mill2", 1)):
+        (tmp_path / folder).mkdir()
+        _write(tmp_path / folder / "day1.csv", "coolant", seed)
+    assert main(["machine", "fit", "--fleet", str(tmp_path), "--inputs", "spindle_rpm,coolant", "--workers", "1",
+                 "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert [m["machine"] for m in document["machines"]] == ["mill1", "mill2"] and document["failed"] == {}
+    rows = {(row["sensor"], row["term"]): row for row in document["table"]}
+    assert rows[("table", "coolant")]["machines"] == 2 and rows[("table", "spindle")]["machines"] == 2
+    assert rows[("table", "coolant")]["K"]["max"] < 0
+    assert main(["machine", "fit", "--fleet", str(tmp_path), "--out", "x.toml"]) == 1
+    assert "give no recordings, --out or --machine" in capsys.readouterr().err
