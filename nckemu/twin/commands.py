@@ -108,7 +108,8 @@ def without_sensors(text: str, names: set[str]) -> str:
 
 def run_fit(args: argparse.Namespace) -> int:
     from nckemu.emulator.machine.machine_file import parse_machine
-    from nckemu.thermal.heat.fit import Settings, fit_heat
+    from nckemu.thermal.heat.fit import fit_heat
+    from nckemu.thermal.heat.judge import Settings
     from nckemu.thermal.heat.table import load_heat_runs
     from nckemu.thermal.heat.words import explain_left, fit_lines, machine_section
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from scipy.signal import lfilter
@@ -30,7 +30,24 @@ from nckemu.thermal.model.lags import first_order_lag
 from .table import HeatRun, hours, switch_inputs
 
 if TYPE_CHECKING:
-    from .fit import Judge, SensorSearch, Settings
+    from .judge import Judge, Settings
+
+
+class Search(Protocol):
+    """What the families ask of one sensor's search (fit.SensorSearch is it; named here so that the
+    families do not import the search that imports them)."""
+
+    sensor: str
+    runs: list[HeatRun]
+    columns: Columns
+    judge: Judge
+    settings: Settings
+    neighbours: bool
+    y: np.ndarray
+
+    def design(self, specs: list[Spec], *, cache: bool = True) -> np.ndarray: ...
+
+    def in_sample_sse(self, specs: list[Spec], *, cache: bool = True) -> float: ...
 
 AMBIENT_WORDS = ("ambient", "room", "hall", "air", "reference", "environment", "outside")
 REFINE_TAU = tuple(float(v) for v in np.geomspace(0.8, 1.25, 9))
@@ -169,7 +186,7 @@ class Columns:
 class Scorer:
     """How much a column lowers the in-sample residual beyond the current design's span."""
 
-    def __init__(self, search: SensorSearch, specs: list[Spec]) -> None:
+    def __init__(self, search: Search, specs: list[Spec]) -> None:
         y, x = search.judge.fitting_rows(search.y, search.design(specs))
         self.q = np.linalg.qr(x)[0] if x.shape[1] else np.zeros((len(y), 0))
         self.residual = y - self.q @ (self.q.T @ y)
@@ -185,7 +202,7 @@ class Scorer:
         return float(gain[index]), specs[index]
 
 
-def _refine(search: SensorSearch, specs: list[Spec], index: int, options: list[Spec]) -> list[Spec]:
+def _refine(search: Search, specs: list[Spec], index: int, options: list[Spec]) -> list[Spec]:
     """``specs`` with the term at ``index`` replaced by the option of least in-sample residual."""
     best, best_sse = specs, search.in_sample_sse(specs)
     for option in options:
@@ -217,7 +234,7 @@ def _with_power(specs: list[Spec], index: int, power: float) -> list[Spec]:
     return [replace(s, power=power) if s.kind == "spindle" and s.power == old else s for s in specs]
 
 
-def _spindle(search: SensorSearch, specs: list[Spec], columns: Columns) -> list[Spec] | None:
+def _spindle(search: Search, specs: list[Spec], columns: Columns) -> list[Spec] | None:
     """The speed law's best (next) part: a power of the speed, or running at all (power 0)."""
     scorer = Scorer(search, specs)
     taken = [s.power for s in specs if s.kind == "spindle"]
@@ -241,7 +258,7 @@ def _spindle(search: SensorSearch, specs: list[Spec], columns: Columns) -> list[
     return out
 
 
-def _second_time_constant(search: SensorSearch, specs: list[Spec], index: int,
+def _second_time_constant(search: Search, specs: list[Spec], index: int,
                           columns: Columns) -> list[Spec] | None:
     """The spindle term at ``index`` as two lags of its input (same power) at least ``tau_ratio`` apart:
     every pair of the grid at once against the other terms, then the polish (fit.py) refines them."""
@@ -270,7 +287,7 @@ def _second_time_constant(search: SensorSearch, specs: list[Spec], index: int,
     return rest[:index] + [pair[0]] + rest[index:] + [pair[1]]
 
 
-def _lagged(search: SensorSearch, specs: list[Spec], columns: Columns, shapes: list[Spec],
+def _lagged(search: Search, specs: list[Spec], columns: Columns, shapes: list[Spec],
             lagless: bool = False) -> list[Spec] | None:
     """The best of ``shapes`` (one input each) at its best time constant."""
     scorer = Scorer(search, specs)
@@ -284,7 +301,7 @@ def _lagged(search: SensorSearch, specs: list[Spec], columns: Columns, shapes: l
     return out
 
 
-def polish(search: SensorSearch, specs: list[Spec]) -> list[Spec]:
+def polish(search: Search, specs: list[Spec]) -> list[Spec]:
     """Every term's time constant (and a spindle law's power) once more, given all the others, by a
     continuous in-sample search from where the grid left it (the grid's steps are a few per cent)."""
     from scipy.optimize import minimize
@@ -340,7 +357,7 @@ def polish(search: SensorSearch, specs: list[Spec]) -> list[Spec]:
     return out
 
 
-def family_candidates(search: SensorSearch, specs: list[Spec], only: str = "") -> list[tuple[str, list[Spec]]]:
+def family_candidates(search: Search, specs: list[Spec], only: str = "") -> list[tuple[str, list[Spec]]]:
     """Each family's best next design (label, specs) for this round (``only="spindle"``: a single lag of
     the spindle alone)."""
     if only == "spindle":
@@ -349,7 +366,7 @@ def family_candidates(search: SensorSearch, specs: list[Spec], only: str = "") -
     return list(_candidates(search, specs))
 
 
-def _candidates(search: SensorSearch, specs: list[Spec]) -> Iterator[tuple[str, list[Spec]]]:
+def _candidates(search: Search, specs: list[Spec]) -> Iterator[tuple[str, list[Spec]]]:
     columns: Columns = search.columns
     runs = search.runs
     kinds = [s.kind for s in specs]

@@ -14,7 +14,8 @@ from nckemu.heat_response import SPINDLE, HeatTerm
 from nckemu.thermal.discovery import explain
 from nckemu.thermal.recordings.recording import Recording
 
-from .fit import HeatFit, Judge, SensorHeat
+from .fit import HeatFit, SensorHeat
+from .judge import Judge
 from .table import HeatRun
 
 # A sensor whose held-out RMS stays above this is said to still fail (K).
