@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 from nckemu.emulator.machine.nck.frame_math import GEOMETRY, Frame
 
@@ -29,7 +29,25 @@ from .expressions import number
 from .feedrules import THREAD_MOTIONS, TRANSVERSE_AXIS
 
 if TYPE_CHECKING:
-    from .interpreter import Interpreter
+    from .modal import ModalState
+
+
+class MotionSource(Protocol):
+    """What the motion job reads and keeps of the interpreter (the Interpreter is it): named here, so that
+    the job does not import the interpreter that imports it."""
+
+    modal: ModalState
+    feed_mm: float
+    spindle_speed: dict[int, float]
+    tool_length_mm: float
+    work_pos: dict[str, float]
+    _stale_mm: dict[str, float]
+
+    def _machine_now(self) -> dict[str, float]: ...
+
+    def _is_rotary(self, axis: str) -> bool: ...
+
+    def _axis_name(self, value: Any) -> str: ...
 
 INCH_MM = 25.4
 # The circle end-point tolerance: MD21000 CIRCLE_ERROR_CONST (mm) and MD21010 CIRCLE_ERROR_FACTOR
@@ -43,9 +61,9 @@ CENTRE_WORD = {"X": "I", "Y": "J", "Z": "K"}
 
 
 class MotionBuilder:
-    """The motion job of ``it`` (an :class:`Interpreter`)."""
+    """The motion job of ``it`` (the interpreter, as a :class:`MotionSource`)."""
 
-    def __init__(self, it: Interpreter) -> None:
+    def __init__(self, it: MotionSource) -> None:
         self.it = it
 
     def polar(self, axis_words: list, address: dict, flags: dict) -> list:
