@@ -62,7 +62,7 @@ def strongly_connected(graph: grimp.ImportGraph) -> list[list[str]]:
 
 
 def test_no_import_circles_at_run_time() -> None:
-    graph = grimp.build_graph("nckemu", exclude_type_checking_imports=True)
+    graph = grimp.build_graph("nckemu", exclude_type_checking_imports=True, cache_dir=None)
     assert strongly_connected(graph) == []
 
 
@@ -78,7 +78,7 @@ def test_the_walk_finds_a_circle() -> None:
 
 def test_the_opcua_face_parts_form_no_circle_even_under_type_checking() -> None:
     """Each part of the OPC UA face is typed against a protocol of ``parts.py``, never the face itself."""
-    graph = grimp.build_graph("nckemu", exclude_type_checking_imports=False)
+    graph = grimp.build_graph("nckemu", exclude_type_checking_imports=False, cache_dir=None)
     package = "nckemu.emulator.faces.opcua"
     circles = [component for component in strongly_connected(graph)
                if any(module.startswith(package + ".") for module in component)]
@@ -101,7 +101,7 @@ KNOWN_TYPE_CIRCLES: dict[str, tuple[int, str]] = {
 
 def test_no_circle_with_type_imports_but_the_known_ones() -> None:
     """core and saves imported each other until saves asked for a protocol (RetainedSource)."""
-    found = strongly_connected(grimp.build_graph("nckemu", exclude_type_checking_imports=False))
+    found = strongly_connected(grimp.build_graph("nckemu", exclude_type_checking_imports=False, cache_dir=None))
     known = {name: next((c for c in found if name in c), None) for name in KNOWN_TYPE_CIRCLES}
     new = [circle for circle in found if circle not in known.values()]
     grown = [circle for name, circle in known.items() if circle and len(circle) > KNOWN_TYPE_CIRCLES[name][0]]
