@@ -68,7 +68,7 @@ class CycleRunner:
             if arg is None:
                 out.append(None)
                 continue
-            value = evaluate(arg, self.interpreter)
+            value = evaluate(arg, self.interpreter.names)
             if isinstance(value, str):
                 raise ProgramAlarm(cycles.ALARM_CYCLE_PARAMETER, f"{name}: a text where a number belongs")
             out.append(float(number(value)))
@@ -80,7 +80,7 @@ class CycleRunner:
         out: list[Any] = []
         for arg in args or ():
             try:
-                out.append(None if arg is None else evaluate(arg, self.interpreter))
+                out.append(None if arg is None else evaluate(arg, self.interpreter.names))
             except ProgramAlarm as alarm:
                 if alarm.number != ALARM_NAME_NOT_DEFINED:
                     raise
@@ -126,10 +126,10 @@ class CycleRunner:
     def _pattern(self, name: str, values: list[float | None]) -> list[Event]:
         it = self.interpreter
         first, second, _ = _PLANES[it.modal.plane]
-        modal = it._modal_call
+        modal = it.modal_call
         cycle = None
         if modal is not None:
-            cycle = evaluate(modal[0], it)
+            cycle = evaluate(modal[0], it.names)
             cycle = cycle.upper() if isinstance(cycle, str) else None
             if cycle not in cycles.DRILLING:
                 raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} with the modal call of {cycle} (a program, not a "

@@ -1,7 +1,8 @@
 """Expressions of the SINUMERIK language compiled to Python closures.
 
-A compiled expression is either a constant (int, float, bool, str) or a function of the interpreter
-(``expr(ev)``); :func:`is_dynamic` tells them apart. Constant sub-expressions are folded when the
+A compiled expression is either a constant (int, float, bool, str) or a function of the names it reads
+(``expr(ev)``, ``ev`` a :class:`Names`: the running program's, names.py); :func:`is_dynamic` tells them
+apart. Constant sub-expressions are folded when the
 block is compiled, so a CAM block ``X10.5`` costs no evaluation at all.
 
 Operator priority (SINUMERIK programming manual, job planning, "priority of operators"), highest
@@ -16,20 +17,45 @@ from __future__ import annotations
 import math
 import operator
 from types import FunctionType
-from typing import Any
+from typing import Any, Protocol
 
 from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, ProgramAlarm
 from .alarms import ALARM_ARITHMETIC, ALARM_DIVISION_BY_ZERO, ALARM_TYPE
 from .lexer import NAME, NUM, OP, STR
 
-Expr = Any  # a constant or a FunctionType taking the interpreter
+Expr = Any  # a constant or a FunctionType taking the Names
+
+
+class Names(Protocol):
+    """What a compiled expression reads when it runs: the closures the parser's resolver builds and the
+    parser's own index items call only these (the interpreter's ProgramNames is one)."""
+
+    def read_r(self, index: Any) -> float:
+        """R parameter ``index`` (R1, R[expr], $R[expr])."""
+        ...
+
+    def read_variable(self, name: str, indices: tuple) -> Any:
+        """A variable (DEF, PROC parameter, GUD) or an element of an array variable; an axis name as itself."""
+        ...
+
+    def read_system(self, name: str, indices: tuple) -> Any:
+        """A system variable ($AA_IM[X], $P_F ...)."""
+        ...
+
+    def read_setting(self, name: str, indices: tuple) -> Any:
+        """An axis setting word as a value (ACC[X])."""
+        ...
+
+    def name_or_value(self, name: str) -> Any:
+        """An index written as a bare name: a variable's value, else the name itself (an axis)."""
+        ...
 
 
 def is_dynamic(expr: Expr) -> bool:
     return type(expr) is FunctionType
 
 
-def evaluate(expr: Expr, ev: Any) -> Any:
+def evaluate(expr: Expr, ev: Names) -> Any:
     return expr(ev) if type(expr) is FunctionType else expr
 
 

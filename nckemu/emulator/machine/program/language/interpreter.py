@@ -16,7 +16,7 @@ from typing import Any
 
 from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame
 
-from ..environment import ProgramEnvironment, UndefinedName
+from ..environment import ProgramEnvironment
 from ..motions import (
     ALARM_FEED_ZERO,
     ALARM_JUMP_TARGET,
@@ -54,16 +54,15 @@ from .feedrules import DIAMETER_WORDS, TRANSVERSE_AXIS
 from .gfunctions import (
     BY_NUMBER,
     G_FUNCTIONS,
-    GROUP_DEFAULTS,
     GROUP_TITLES,
     NOT_SUPPORTED,
     RUN,
-    number_in_group,
 )
 from .lexer import strip_comment, tokenize
 from .modal import ModalState
 from .motion_builder import INCH_MM, MotionBuilder
 from .motion_builder import PLANES as _PLANES
+from .names import ProgramNames
 from .radius_compensation import RadiusCompensation
 from .source import ProgramSource, decode_program, normalized
 from .variables import Variable
@@ -122,12 +121,9 @@ class Interpreter:
         self._main = ProgramSource(path, _as_text(text))
         self._sources: dict[str, ProgramSource] = {path: self._main}
         self._axes = tuple(axis.upper() for axis in env.axes)
-        self._compiler = BlockCompiler(self._axes, self._resolve)
-        # GUD of the NCK's definition files (the same Variable objects: values outlive the run);
-        # DEF NCK/CHAN in a program adds to this run's copy of the table only.
-        self._globals: dict[str, Variable] = dict(env.global_variables())
+        self.names = ProgramNames(self, self._axes)  # the expressions' environment: variables, R, $...
+        self._compiler = BlockCompiler(self._axes, self.names.resolve)
         self._macros: dict[str, str] = env.macros()
-        self._settings: dict[tuple[str, str], Any] = {}
         self._logged: set[str] = set()
         self._stack: list[_Frame] = []
         self._frame: _Frame | None = None
@@ -137,7 +133,6 @@ class Interpreter:
         self._modal_depth: int | None = None
         self._compensation: RadiusCompensation | None = None  # G41/G42 active (radius_compensation.py)
         self.paths = MotionBuilder(self)  # the motion job: a block's axis words into moves and circles
-        self._r_count = int(env.r_count)
         self._cycles = CycleRunner(self)
         # Machine positions of axes that have not moved since a frame change: the tool stays where the
         # old frame put it (a circle starts there), while the work position keeps the programmed value.
@@ -178,17 +173,22 @@ class Interpreter:
             if offset:
                 settable[axis] = offset
         self.modal.settable = settable
-        self._update_shift()
+        self.update_shift()
 
-    def _programmable(self) -> Frame:
+    @property
+    def modal_call(self) -> Any:
+        """The modal call (MCALL name and arguments) or None."""
+        return self._modal_call
+
+    def programmable_frame(self) -> Frame:
         """The frames a program has put on the settable frame: CYCLE800's swivel, then TRANS/ROT/..."""
         return self.modal.pframe if self.swivel is IDENTITY_FRAME else self.swivel.after(self.modal.pframe)
 
     def set_swivel_frame(self, frame: Frame) -> None:
         """CYCLE800 sets (identity: deselects) the swivel frame."""
         self.swivel = frame
-        self._update_shift()
-        self.env.set_programmable_frame(self._programmable())
+        self.update_shift()
+        self.env.set_programmable_frame(self.programmable_frame())
 
     def _machine_now(self) -> dict[str, float]:
         """Where the last motions left every axis (machine mm), under the frames they ran in."""
@@ -207,9 +207,9 @@ class Interpreter:
             machine[infeed] += modal.shift.get(infeed, 0.0) - modal.chain.translation.get(infeed, 0.0)
         return machine
 
-    def _update_shift(self) -> None:
+    def update_shift(self) -> None:
         before = self._machine_now() if getattr(self, "work_pos", None) else None
-        chain = framing.chain(self.modal.settable, self._programmable())
+        chain = framing.chain(self.modal.settable, self.programmable_frame())
         self.modal.chain = None if chain.is_translation else chain
         shift = dict(chain.translation)
         if self.tool_length_mm:
@@ -233,7 +233,7 @@ class Interpreter:
             except Exception:
                 length = 0.0
         self.tool_length_mm = length
-        self._update_shift()
+        self.update_shift()
 
     def _is_rotary(self, axis: str) -> bool:
         try:
@@ -263,12 +263,13 @@ class Interpreter:
     def _run(self) -> Iterator[Event]:
         if self._stack:  # events() called again: the program from its start, the modal state reset
             self._reset_modal()
-            self._settings.clear()
+            self.names.settings.clear()
             self._modal_call = None
             self._modal_depth = None
         frame = _Frame(self._main, 0, 1, 0)
         self._stack = [frame]
         self._frame = frame
+        self.names.locals = frame.vars
         try:
             self._main_proc(frame)
         except ProgramAlarm as alarm:  # the PROC line is the faulty block on the display
@@ -352,221 +353,8 @@ class Interpreter:
         return self._compiler.compile_simple(text) or self._compiler.compile(text, tokenize(text))
 
     # --- names ------------------------------------------------------------------------------------
-    def _resolve(self, parser: Parser, name: str) -> Any:
-        """A name in an expression as a closure (called by the expression parser)."""
-        r_match = re.fullmatch(r"\$?R(\d+)", name)
-        if r_match:
-            index = int(r_match.group(1))
-            fn = lambda ev: ev._read_r(index)  # noqa: E731
-            fn.lvalue = ("R", index, [])  # type: ignore[attr-defined]
-            return fn
-        if parser.at_op("["):
-            indices = parser.indices()
-            if name in ("R", "$R"):
-                index_expr = indices[0]
-                return lambda ev: ev._read_r(evaluate(index_expr, ev))
-            if name.startswith("$"):
-                return lambda ev: ev._read_system(name, tuple(evaluate(i, ev) for i in indices))
-            if name in b.AXIS_SETTINGS:
-                return lambda ev: ev._read_setting(name, tuple(evaluate(i, ev) for i in indices))
-            fn = lambda ev: ev._read_var(name, tuple(evaluate(i, ev) for i in indices))  # noqa: E731
-            fn.lvalue = ("VAR", name, indices)  # type: ignore[attr-defined]
-            return fn
-        if name.startswith("$"):
-            return lambda ev: ev._read_system(name, ())
-        if parser.at_op("("):
-            raise undefined(name)
-        fn = lambda ev: ev._read_var(name, ())  # noqa: E731
-        fn.lvalue = ("VAR", name, [])  # type: ignore[attr-defined]
-        return fn
-
-    def _variable(self, name: str) -> Variable | None:
-        variable = self._frame.vars.get(name) if self._frame is not None else None  # type: ignore[union-attr]
-        if variable is None:
-            variable = self._globals.get(name)
-        return variable
-
-    def _read_var(self, name: str, indices: tuple) -> Any:
-        variable = self._frame.vars.get(name)  # type: ignore[union-attr]
-        if variable is None:
-            variable = self._globals.get(name)
-            if variable is None:
-                if name in self._axes and not indices:  # an axis as a value: _AX=(C), AXIS variables
-                    return name
-                raise undefined(name)
-        if not indices:
-            if variable.dims:
-                return variable.get(())
-            return variable.value
-        return variable.get(indices)
-
-    def name_or_value(self, name: str) -> Any:
-        """An index written as a bare name: a variable's value, else the name itself (an axis)."""
-        variable = self._variable(name)
-        if variable is not None and not variable.dims:
-            return variable.value
-        return name
-
-    def _r_index(self, index: Any) -> int:
-        position = number(index)
-        if position.__class__ is float:
-            position = int(position)
-        if not 0 <= position < self._r_count:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name R{position} not defined")
-        return position
-
-    def _read_r(self, index: Any) -> float:
-        return self.env.r_parameter(self._r_index(index))
-
-    def _axis_name(self, value: Any) -> str:
-        if value.__class__ is str:
-            axis = value.upper()
-        else:
-            position = int(number(value))
-            if not 1 <= position <= len(self._axes):
-                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"no axis with index {position}")
-            axis = self._axes[position - 1]
-        if axis not in self._axes:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {axis} not defined (no such axis)")
-        return axis
-
-    def _read_system(self, name: str, indices: tuple) -> Any:
-        try:
-            value = self.env.system_variable(name, indices)
-        except UndefinedName:
-            try:
-                value = self._builtin_system(name, indices)
-            except ProgramAlarm:
-                raise
-            except Exception as exc:
-                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined ({exc})") from None
-        except ProgramAlarm:
-            raise
-        except Exception as exc:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined ({exc})") from None
-        if isinstance(value, bool | int | float | str):
-            return value
-        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined")
-
-    def _builtin_system(self, name: str, indices: tuple) -> Any:
-        """System variables the interpreter itself knows when the environment does not."""
-        if name == "$R" and len(indices) == 1:
-            return self._read_r(indices[0])
-        if name in ("$AA_IM", "$AA_IW", "$P_EP", "$AA_IB") and len(indices) == 1:
-            axis = self._axis_name(indices[0])
-            if name == "$P_EP":
-                return self.work_pos[axis]
-            machine = float(self.env.machine_position_mm(axis))
-            if name != "$AA_IW":
-                return machine
-            if self.modal.chain is None:
-                return machine - self.modal.shift.get(axis, 0.0)
-            return self._work_position(axis)
-        if name in framing.FRAME_VARIABLES:
-            return self._frame_variable(name, indices)
-        if name == "$P_GG" and len(indices) == 1:  # the active G function of a group, as its number in it
-            group = int(number(indices[0]))
-            active = f"G{self.modal.motion}" if group == 1 else self.modal.g_groups.get(group)
-            return number_in_group(group, active or GROUP_DEFAULTS.get(group))
-        if not indices:
-            if name in ("$P_AXN1", "$P_AXN2", "$P_AXN3"):  # the plane's abscissa, ordinate, applicate
-                return _PLANES[self.modal.plane][int(name[-1]) - 1]
-            if name == "$P_MC":  # a modal call (MCALL) is active: cycles ask before they position
-                return self._modal_call is not None
-            if name == "$P_F":
-                return self.feed_mm
-            if name == "$P_TOOLNO":
-                return self.tool if self.tool is not None else 0
-            if name == "$P_TOOL":
-                return self.edge or 0
-            if name == "$P_S":
-                return self.spindle_speed.get(1, 0.0)
-        raise undefined(name)
-
-    def _work_position(self, axis: str) -> float:
-        """Where ``axis`` is now in the work system, back through the frame chain (and the tool)."""
-        chain = self.modal.chain or Frame(self.modal.shift)
-        infeed = _PLANES[self.modal.plane][2]
-        point = {}
-        for name in self._axes:
-            try:
-                point[name] = float(self.env.machine_position_mm(name))
-            except Exception:
-                point[name] = 0.0
-            if name == infeed:
-                point[name] -= self.tool_length_mm
-        return chain.inverse_apply(point)[axis]
-
-    def _frame_variable(self, name: str, indices: tuple) -> float:
-        """$P_PFRAME[X,TR], $P_IFRAME[..], $P_ACTFRAME[..], $P_BFRAME[..] and $P_UIFR[n,X,TR]."""
-        if name == "$P_UIFR":
-            if len(indices) != 3:
-                raise ProgramAlarm(ALARM_SYNTAX, "$P_UIFR[frame, axis, component]")
-            frame_name = framing.settable_name(indices[0])
-            if str(indices[2]).upper() == "TR":
-                return float(self.env.work_offset_mm(frame_name, self._axis_name(indices[1])))
-            return framing.read_component(IDENTITY_FRAME, indices[1:], name)
-        frame = {"$P_PFRAME": self.modal.pframe, "$P_IFRAME": Frame(dict(self.modal.settable)),
-                 "$P_BFRAME": IDENTITY_FRAME}.get(name) or framing.chain(self.modal.settable, self._programmable())
-        return framing.read_component(frame, indices, name)
-
-    def _write_frame_variable(self, name: str, indices: tuple, value: float) -> None:
-        """$P_PFRAME[X,RT]=.. changes the programmable frame; $P_UIFR[n,X,TR]=.. the stored settable
-        frame n (active with its next selection, as on the control); $P_IFRAME[X,TR]=.. the active
-        settable frame at once (and its stored data, which is what the NCK's faces read)."""
-        if name == "$P_PFRAME":
-            self.modal.pframe = framing.with_component(self.modal.pframe, indices, name, value)
-        elif name in ("$P_UIFR", "$P_IFRAME") and len(indices) == (3 if name == "$P_UIFR" else 2):
-            frame_name = framing.settable_name(indices[0]) if name == "$P_UIFR" else self.modal.frame_name
-            axis, kind = self._axis_name(indices[-2]), str(indices[-1]).upper()
-            if kind != "TR":
-                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}[..,{kind}]: the NCK's settable frames are "
-                                                           "translations; other components are not supported "
-                                                           "by the emulator")
-            try:
-                self.env.set_work_offset_mm(frame_name, axis, value)
-            except UndefinedName:
-                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}: no settable frame {frame_name}") from None
-            if name == "$P_UIFR":
-                return
-            self.modal.settable = {**self.modal.settable, axis: value}
-        else:
-            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} cannot be written with these indices")
-        self._update_shift()
-        self.env.set_programmable_frame(self._programmable())
-
-    def _read_setting(self, name: str, indices: tuple) -> Any:
-        if len(indices) != 1:
-            raise ProgramAlarm(ALARM_SYNTAX, f"{name}[axis]")
-        axis = self._axis_name(indices[0])
-        return self._settings.get((name, axis), 100 if name == "ACC" else 0)
-
-    def _assign(self, target: tuple, value: Any) -> None:
-        kind, name, indices = target
-        if kind == "R":
-            self.env.set_r_parameter(self._r_index(evaluate(name, self)), float(number(value)))
-            return
-        if kind == "SYS":
-            evaluated = tuple(evaluate(i, self) for i in indices)
-            if name == "$R" and len(evaluated) == 1:
-                self.env.set_r_parameter(self._r_index(evaluated[0]), float(number(value)))
-                return
-            if name in framing.FRAME_VARIABLES:
-                self._write_frame_variable(name, evaluated, float(number(value)))
-                return
-            try:
-                self.env.set_system_variable(name, evaluated, value)
-            except UndefinedName:
-                raise undefined(name) from None
-            except ProgramAlarm:
-                raise
-            except Exception as exc:
-                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} cannot be written ({exc})") from None
-            return
-        variable = self._variable(name)
-        if variable is None:
-            raise undefined(name)
-        variable.set(tuple(evaluate(i, self) for i in indices), value)
+    def _axis_name(self, value: Any) -> str:  # the motion job's (MotionSource)
+        return self.names.axis_name(value)
 
     def _log_once(self, what: str, message: str) -> None:
         if what not in self._logged:
@@ -598,7 +386,7 @@ class Interpreter:
         direction = {"GOTOF": "F", "GOTOB": "B"}.get(kind, "")
         offset = frame.source.find_target(target, pos, direction)
         if offset is None:
-            variable = self._variable(target)
+            variable = self.names.variable(target)
             if variable is not None and variable.value.__class__ is str and variable.value:
                 offset = frame.source.find_target(variable.value.upper(), pos, direction)
         if offset is None:
@@ -670,13 +458,13 @@ class Interpreter:
         if kind == b.IF:
             if pos in source.bad_nesting or pos not in source.partner:
                 raise ProgramAlarm(ALARM_NESTING, "IF without ENDIF")
-            if not truth(evaluate(compiled.items, self)):
+            if not truth(evaluate(compiled.items, self.names)):
                 else_at = source.else_of.get(pos)
                 self._go_after(frame, else_at if else_at is not None else source.partner[pos])
         elif kind == b.ELSE:
             self._go_after(frame, self._partner(frame, pos, "ELSE"))
         elif kind == b.WHILE:
-            if not truth(evaluate(compiled.items, self)):
+            if not truth(evaluate(compiled.items, self.names)):
                 self._go_after(frame, self._partner(frame, pos, "WHILE"))
             elif pos in source.bad_nesting:
                 raise ProgramAlarm(ALARM_NESTING, "WHILE without ENDWHILE")
@@ -685,11 +473,11 @@ class Interpreter:
         elif kind == b.FOR:
             target, start, end = compiled.items
             closer = self._partner(frame, pos, "FOR")
-            start_value = evaluate(start, self)
-            end_value = number(evaluate(end, self))
-            self._assign(target, start_value)
+            start_value = evaluate(start, self.names)
+            end_value = number(evaluate(end, self.names))
+            self.names.assign(target, start_value)
             frame.for_state[pos] = (target, end_value)
-            if number(self._read_target(target)) > end_value:
+            if number(self.names.read_target(target)) > end_value:
                 self._go_after(frame, closer)
         elif kind == b.ENDFOR:
             opener = self._partner(frame, pos, "ENDFOR")
@@ -697,16 +485,16 @@ class Interpreter:
             if state is None:
                 raise ProgramAlarm(ALARM_NESTING, "ENDFOR without its FOR having run")
             target, end_value = state
-            value = number(self._read_target(target)) + 1
-            self._assign(target, value)
-            if number(self._read_target(target)) <= end_value:
+            value = number(self.names.read_target(target)) + 1
+            self.names.assign(target, value)
+            if number(self.names.read_target(target)) <= end_value:
                 self._go_after(frame, opener)
         elif kind == b.REPEAT or kind == b.LOOP:
             if pos in source.bad_nesting or pos not in source.partner:
                 raise ProgramAlarm(ALARM_NESTING, "REPEAT/LOOP not closed")
         elif kind == b.UNTIL:
             opener = self._partner(frame, pos, "UNTIL")
-            if not truth(evaluate(compiled.items, self)):
+            if not truth(evaluate(compiled.items, self.names)):
                 self._go_after(frame, opener)
         elif kind == b.ENDLOOP:
             self._go_after(frame, self._partner(frame, pos, "ENDLOOP"))
@@ -715,12 +503,12 @@ class Interpreter:
                 raise ProgramAlarm(ALARM_NESTING, "ENDIF without IF")
         elif kind == b.IF_JUMP:
             for condition, (jump_kind, target) in compiled.items:
-                if truth(evaluate(condition, self)):
+                if truth(evaluate(condition, self.names)):
                     self._jump(frame, jump_kind, target, pos)
                     break
         elif kind == b.CASE:
             selector, branches, default = compiled.items
-            value = evaluate(selector, self)
+            value = evaluate(selector, self.names)
             for candidate, (jump_kind, target) in branches:
                 if (candidate.__class__ is str) == (value.__class__ is str) and candidate == value:
                     self._jump(frame, jump_kind, target, pos)
@@ -729,7 +517,7 @@ class Interpreter:
                 if default is not None:
                     self._jump(frame, default[0], default[1], pos)
         elif kind == b.DEF:
-            self._define(compiled.items, frame)
+            self.names.define(compiled.items, frame.vars)
         elif kind == b.PROC:
             if frame.depth == 0 and frame.source is self._main:
                 return None
@@ -737,7 +525,7 @@ class Interpreter:
 
     def _repeat_section(self, section: b.Section, frame: _Frame, pos: int) -> None:
         """REPEAT/REPEATB: find the section's lines and run them ``count`` times from here."""
-        count = int(number(evaluate(section.count, self)))
+        count = int(number(evaluate(section.count, self.names)))
         if count < 1:
             return
         source = frame.source
@@ -770,34 +558,9 @@ class Interpreter:
             frame.sections.pop()
             frame.pos, frame.line = section.back_pos, section.back_line
 
-    def _read_target(self, target: tuple) -> Any:
-        kind, name, indices = target
-        if kind == "R":
-            return self._read_r(evaluate(name, self))
-        if kind == "SYS":
-            return self._read_system(name, tuple(evaluate(i, self) for i in indices))
-        return self._read_var(name, tuple(evaluate(i, self) for i in indices))
-
-    def _define(self, declarations: list, frame: _Frame) -> None:
-        for name, kind, dims, init, shared in declarations:
-            if name in self._axes or len(name) == 1 or re.fullmatch(r"R\d+", name) or name in b.WORD_ADDRESSES:
-                raise ProgramAlarm(ALARM_SYNTAX, f"DEF {name}: the name is taken by the control")
-            variable = Variable(name, kind, dims)
-            if init is not None:
-                which, value = init
-                if which == "value":
-                    evaluated = evaluate(value, self)
-                    if dims:
-                        variable.fill((), [evaluated], repeat=True)
-                    else:
-                        variable.set((), evaluated)
-                else:
-                    variable.fill((), [evaluate(item, self) for item in value], repeat=which == "REP")
-            (self._globals if shared else frame.vars)[name] = variable
-
     # --- subprograms ------------------------------------------------------------------------------
     def _call(self, name_expr: Any, args: list | None, repeat: Any, frame: _Frame) -> list[Event] | None:
-        name = evaluate(name_expr, self)
+        name = evaluate(name_expr, self.names)
         if name.__class__ is not str or not name:
             raise ProgramAlarm(ALARM_SYNTAX, "CALL needs a program name")
         name = name.upper()
@@ -820,9 +583,9 @@ class Interpreter:
         if source is None or source.text != normalized(text):
             source = ProgramSource(path, text, subprogram=True)
             self._sources[path] = source
-        values = tuple(None if arg is None else evaluate(arg, self) for arg in (args or ()))
+        values = tuple(None if arg is None else evaluate(arg, self.names) for arg in (args or ()))
         refs = tuple(getattr(arg, "lvalue", None) for arg in (args or ()))
-        count = 1 if repeat is None else int(number(evaluate(repeat, self)))
+        count = 1 if repeat is None else int(number(evaluate(repeat, self.names)))
         if count < 1:
             return None
         self._enter(source, values, refs, count - 1)
@@ -849,6 +612,7 @@ class Interpreter:
         frame.call_args = (values, refs)
         self._stack.append(frame)
         self._frame = frame
+        self.names.locals = frame.vars
 
     def _proc_line(self, source: ProgramSource, frame: _Frame) -> tuple[list, bool]:
         """The parameters and SAVE of the program's PROC line (none without one); ``frame`` starts
@@ -858,7 +622,7 @@ class Interpreter:
         end = source.text.find("\n", source.proc_offset)
         header = source.text[source.proc_offset: len(source.text) if end < 0 else end]
         tokens = tokenize(strip_comment(header).strip())
-        parser = Parser(tokens, self._resolve)
+        parser = Parser(tokens, self.names.resolve)
         while not parser.at_name("PROC"):
             if parser.at_end():  # the line the scan took for a PROC line holds no PROC word
                 raise ProgramAlarm(ALARM_SYNTAX, "PROC line without PROC")
@@ -887,13 +651,14 @@ class Interpreter:
     def _return(self) -> None:
         frame = self._stack.pop()
         self._frame = self._stack[-1]
+        self.names.locals = self._frame.vars
         if frame.depth == self._modal_depth:
             self._modal_depth = None
         for ref, param in frame.back_refs:
-            self._assign(ref, frame.vars[param].get(()))
+            self.names.assign(ref, frame.vars[param].get(()))
         if frame.saved_modal is not None:
             self.modal = frame.saved_modal
-            self.env.set_programmable_frame(self._programmable())
+            self.env.set_programmable_frame(self.programmable_frame())
         if frame.repeat_left > 0 and frame.source.has_blocks:  # repeating an empty one would never yield
             values, refs = frame.call_args
             self._enter(frame.source, values, refs, frame.repeat_left - 1)
@@ -925,7 +690,7 @@ class Interpreter:
     def _g_plane(self, code: int, flags: dict) -> None:            # group 6
         self.modal.plane = f"G{code}"
         if self.tool_length_mm:
-            self._update_shift()
+            self.update_shift()
 
     def _g_settable_frame(self, code: int, flags: dict) -> None:   # group 8
         self._load_settable(f"G{code}")
@@ -967,6 +732,7 @@ class Interpreter:
             flags["css"] = code == 96
 
     def _words(self, items: list, frame: _Frame, pos: int) -> list[Event] | None:
+        names = self.names
         flags: dict[str, Any] = {}
         axis_words: list[tuple[str, Any, Any]] = []
         address: dict[str, Any] = {}
@@ -979,11 +745,11 @@ class Interpreter:
             kind = item.__class__
             if kind is w.AxisWord:
                 value = item.value
-                axis_words.append((item.axis, value(self) if value.__class__ is FunctionType else value, item.mode))
+                axis_words.append((item.axis, value(names) if value.__class__ is FunctionType else value, item.mode))
             elif kind is w.IndirectAxisWord:
                 value = item.value
-                axis_words.append((self._axis_name(evaluate(item.axis, self)),
-                                   value(self) if value.__class__ is FunctionType else value, item.mode))
+                axis_words.append((names.axis_name(evaluate(item.axis, names)),
+                                   value(names) if value.__class__ is FunctionType else value, item.mode))
             elif kind is w.GWord:
                 self._g(item.code, flags)
                 if item.spline is not None:
@@ -992,7 +758,7 @@ class Interpreter:
                 letter = item.letter
                 value = item.value
                 if value.__class__ is FunctionType:
-                    value = value(self)
+                    value = value(names)
                 if letter == "M":
                     m_codes.append((item.extension, _m_code(value)))
                 elif letter == "S":
@@ -1005,14 +771,14 @@ class Interpreter:
                     address[letter] = value
             elif kind is w.CentreWord:
                 value = item.value
-                address[item.letter] = (value(self) if value.__class__ is FunctionType else value, item.mode)
+                address[item.letter] = (value(names) if value.__class__ is FunctionType else value, item.mode)
             elif kind is w.Assign:
                 value = item.value
-                self._assign(item.target, value(self) if value.__class__ is FunctionType else value)
+                names.assign(item.target, value(names) if value.__class__ is FunctionType else value)
             elif kind is w.Suppress:
                 flags["supa"] = True
             elif kind is w.Msg:
-                message = to_text(evaluate(item.text, self))
+                message = to_text(evaluate(item.text, names))
             elif kind is w.Jump:
                 jump = (item.kind, item.target)
             elif kind is w.Call:
@@ -1022,23 +788,23 @@ class Interpreter:
             elif kind is w.FrameWord:
                 self._frame_instruction(item.word, item.pairs)
             elif kind is w.AxisSetting:
-                indices = tuple(evaluate(i, self) for i in item.indices)
+                indices = tuple(evaluate(i, names) for i in item.indices)
                 if len(indices) != 1:
                     raise ProgramAlarm(ALARM_SYNTAX, f"{item.name}[axis]=value")
-                self._settings[(item.name, self._axis_name(indices[0]))] = evaluate(item.value, self)
+                names.settings[(item.name, names.axis_name(indices[0]))] = evaluate(item.value, names)
             elif kind is w.Fill:
                 target_kind, name, indices = item.target
-                variable = self._variable(name) if target_kind == "VAR" else None
+                variable = names.variable(name) if target_kind == "VAR" else None
                 if variable is None:
                     raise undefined(name if isinstance(name, str) else "R")
-                variable.fill(tuple(evaluate(i, self) for i in indices),
-                              [evaluate(v, self) for v in item.values], repeat=item.which == "REP")
+                variable.fill(tuple(evaluate(i, names) for i in indices),
+                              [evaluate(v, names) for v in item.values], repeat=item.which == "REP")
             elif kind is w.ModalCall:
                 self._modal_call = None if item.name is None else (item.name, item.args)
             elif kind is w.Spos:
                 spos.append(item.spindle)
             elif kind is w.Setal:
-                self._setal(evaluate(item.number, self))
+                self._setal(evaluate(item.number, names))
             elif kind is w.NoOp:
                 entry = G_FUNCTIONS.get(item.name)
                 if entry is not None and entry.modal:
@@ -1169,13 +935,13 @@ class Interpreter:
     def _frame_instruction(self, word: str, pairs: list) -> None:
         values: list[tuple[str, float]] = []
         for axis, raw in pairs:
-            value = float(number(evaluate(raw, self)))
+            value = float(number(evaluate(raw, self.names)))
             if word.endswith("TRANS") and not self._is_rotary(axis) and self.modal.inch_geometry:
                 value *= INCH_MM
             values.append((axis, value))
         self.modal.pframe = framing.programmed_frame(self.modal.pframe, word, values, self.modal.plane)
-        self._update_shift()
-        self.env.set_programmable_frame(self._programmable())
+        self.update_shift()
+        self.env.set_programmable_frame(self.programmable_frame())
 
 
 _G_GROUP_HANDLERS: dict[int, Any] = {
