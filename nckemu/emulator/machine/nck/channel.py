@@ -42,7 +42,7 @@ from nckemu.emulator.machine.nck.channel_states import (  # noqa: F401 (also imp
     PROG_WAITING,
 )
 from nckemu.emulator.machine.nck.programs import program_text
-from nckemu.emulator.machine.program.motions import ProgramAlarm
+from nckemu.emulator.machine.program.motions import Block, ProgramAlarm
 from nckemu.emulator.machine.program.planner import SpindleRamp
 from nckemu.errors import NckAddressOutOfRange, NckError, NckItemError, NckNoSuchFile, NckPiStateError
 
@@ -58,6 +58,10 @@ COMMAND_RESET, COMMAND_START, COMMAND_STOP, COMMAND_END_PROGRAM = 0, 1, 2, 3
 TURN_STOPPED, TURN_CW, TURN_CCW = 0, 1, 2
 # What on_change listeners are told.
 CHANGES = ("selected", "unselected", "started", "interrupted", "resumed", "ended", "aborted")
+# The figures of ChannelState others may set (a client through the catalogue, a program through its
+# system variables): the part counters, the overrides and the commanded feed.
+SETTABLE_FIGURES = frozenset({"required_parts", "total_parts", "actual_parts", "specified_parts",
+                              "feed_override_pct", "rapid_override_pct", "commanded_feed_mm_min"})
 
 
 @dataclass
@@ -392,6 +396,46 @@ class Channel:
             self._net_s += elapsed
             self.state.cutting_time_s += elapsed
             self._running_since = None
+
+    # ------------------------------------------------------------------ what a run shows
+    # The program run and the NCK tell the channel what it reports through these; only the channel
+    # assigns ChannelState's fields (tests/unit/emulator/test_channel_life.py checks it).
+    def show_block(self, block: Block) -> None:
+        """The block now executing: its program, line, block number and text (SPARP, S columns)."""
+        state = self.state
+        state.program, state.line_number, state.block_number = block.program, block.line, block.number
+        state.block_text = block.text
+
+    def show_message(self, text: str) -> None:
+        """MSG("..."): the operator message the channel shows until the next one or the next start."""
+        self.state.message = text
+
+    def set_path_feed(self, path_mm_min: float) -> None:
+        """The path speed of the motion under way (0 when none)."""
+        self.state.path_feed_mm_min = path_mm_min
+
+    def set_commanded_feed(self, feed_mm_min: float) -> None:
+        """The feed the block programs (0 for a rapid move)."""
+        self.state.commanded_feed_mm_min = feed_mm_min
+
+    def set_tool(self, t_number: int | None = None, ident: str = "", d_number: int | None = None) -> None:
+        """A tool (T, with its ident) and a cutting edge (D) active in the channel; None leaves one as it is."""
+        if t_number is not None:
+            self.state.t_number, self.state.tool_ident = t_number, ident
+        if d_number is not None:
+            self.state.d_number = d_number
+
+    def figure(self, name: str) -> float:
+        """One of :data:`SETTABLE_FIGURES`."""
+        if name not in SETTABLE_FIGURES:
+            raise KeyError(name)
+        return float(getattr(self.state, name))
+
+    def set_figure(self, name: str, value: float) -> None:
+        """A part counter, an override or the commanded feed, as a client or a program writes it."""
+        if name not in SETTABLE_FIGURES:
+            raise KeyError(f"{name} is not a figure of the channel others may set")
+        setattr(self.state, name, float(value))
 
     # ------------------------------------------------------------------ values
     @property

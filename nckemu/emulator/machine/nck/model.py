@@ -238,9 +238,7 @@ class NckModel:
             raise NckConfigError(f"no tool T{t_number}", field="t_number")
         if d_number and not self.tools.has_edge(t_number, d_number):
             raise NckConfigError(f"T{t_number} has no cutting edge D{d_number}", field="d_number")
-        state = self.channels[channel].state
-        state.t_number, state.d_number = t_number, d_number
-        state.tool_ident = self.tools.idents.get(t_number, "")
+        self.channels[channel].set_tool(t_number, self.tools.idents.get(t_number, ""), d_number)
 
     def select_frame(self, index: int, channel: int = 1) -> None:
         """G500 (0), G54 (1), G55 (2) ...: the settable frame the channel's work position uses."""

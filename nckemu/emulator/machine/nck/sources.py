@@ -139,7 +139,7 @@ def _program_name(model: NckParts, unit: int, _line: int) -> object:
 
 def _set_state(attribute: str, kind: type) -> Writer:
     def write(model: NckParts, unit: int, _line: int, value: object) -> None:
-        setattr(_channel(model, unit).state, attribute, kind(value))
+        _channel(model, unit).set_figure(attribute, kind(value))
     return write
 
 

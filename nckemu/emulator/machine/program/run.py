@@ -254,7 +254,7 @@ class NckEnvironment(ProgramEnvironment):
             # the actual machine position, with the compensation ($P_EP, $AA_IW: the interpreter's own)
             return self._parts.actual_position_mm(self._axes[str(indices[0]).upper()])
         if key in PART_COUNTERS:
-            return getattr(state, PART_COUNTERS[key])
+            return self._channel.figure(PART_COUNTERS[key])
         if key == "$AC_PROG":
             return self._channel.ac_prog
         if key == "$P_TOOLNO":
@@ -291,7 +291,7 @@ class NckEnvironment(ProgramEnvironment):
         attribute = PART_COUNTERS.get(key)
         if attribute is None:
             raise UndefinedName(name)
-        setattr(self._channel.state, attribute, float(value))  # type: ignore[arg-type]
+        self._channel.set_figure(attribute, float(value))  # type: ignore[arg-type]
 
     def _data_address(self, key: str, indices: tuple[object, ...]) -> tuple[VariableSpec, int, int]:
         """The catalogue entry, unit and line of ``$MA_MAX_AX_VELO[X]``, ``$MN_..[2]``, ``$SA_..[AX4]``:
@@ -439,19 +439,19 @@ class ProgramRun:
         if self._paused_at is not None or self.ended:
             return "ended" if self.ended else "running"
         blocks = 0
-        state = self.channel.state
+        channel = self.channel
         self.parts.axes.catch_up(self._numbers)  # once a cycle, not once a move: the clock stands meanwhile
         while True:
             motion = self._motion
             if motion is not None:
                 if motion.end_s > until_s:
                     self._move_axes(until_s, caught_up=True)
-                    state.path_feed_mm_min = motion.feed_mm_min if until_s >= motion.start_s else 0.0
+                    channel.set_path_feed(motion.feed_mm_min if until_s >= motion.start_s else 0.0)
                     return "running"
                 self._arrive(motion)
                 self.t_s = motion.end_s
                 self._motion = None
-                state.path_feed_mm_min = 0.0
+                channel.set_path_feed(0.0)
             if blocks >= max_blocks:
                 # Blocks take no simulated time of their own: a long computation runs on in the next
                 # cycle at the same simulated time (so the time does not depend on the cycle), and the
@@ -486,7 +486,7 @@ class ProgramRun:
             elif kind is CycleCall:
                 self._cycle(event)  # type: ignore[arg-type]
             elif isinstance(event, Message):
-                state.message = event.text
+                channel.show_message(event.text)
             elif isinstance(event, ProgramEnd):
                 if self.record is not None and event.code and event.code not in self.record.m_codes:
                     self.record.m_codes.append(event.code)
@@ -514,10 +514,8 @@ class ProgramRun:
 
     def _begin_block(self, block: Block) -> None:
         self._finish_record(self.t_s)
-        state = self.channel.state
         self.block_start_s = self.t_s
-        state.program, state.line_number, state.block_number = block.program, block.line, block.number
-        state.block_text = block.text
+        self.channel.show_block(block)
         if self.channel.block_listeners:
             self.record = BlockRecord(self.t_s, block.program, block.line, block.number, block.text, block.depth)
 
@@ -592,7 +590,7 @@ class ProgramRun:
         self._motion = _Motion(start_s, start_s + duration_s, moving, feed_mm_min, law, arc)
         if self.record is not None:
             self.record.feed_mm_min = feed or 0.0
-        state.commanded_feed_mm_min = feed if feed_move else 0.0
+        self.channel.set_commanded_feed(feed if feed_move else 0.0)
         return True
 
     def _axis_name(self, axis: str) -> str:
@@ -721,13 +719,10 @@ class ProgramRun:
         return end_s
 
     def _tool(self, event: ToolSelect) -> None:
-        state = self.channel.state
-        number = self.env._tool_number(event.tool) if event.tool is not None else state.t_number
+        number = ident = None
         if event.tool is not None:
-            state.t_number = number
-            state.tool_ident = self.parts.tools.idents.get(number, str(event.tool) if isinstance(event.tool, str)
-                                                           else "")
-        if event.edge is not None:
-            state.d_number = event.edge
+            number = self.env._tool_number(event.tool)
+            ident = self.parts.tools.idents.get(number, str(event.tool) if isinstance(event.tool, str) else "")
+        self.channel.set_tool(number, ident or "", event.edge)
 
 
