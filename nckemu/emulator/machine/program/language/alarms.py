@@ -6,6 +6,8 @@ user with the Siemens diagnostics manual can correct them in one place.
 
 from __future__ import annotations
 
+from ..motions import ProgramAlarm
+
 # UNCONFIRMED (no source at hand; "arithmetic error in part program" as we remember the Siemens list):
 # division by zero, and SQRT(-1), ASIN(2), an overflow to infinity under the same number.
 ALARM_DIVISION_BY_ZERO = 14051
@@ -32,3 +34,11 @@ MAX_M_PER_BLOCK = 5
 # UNCONFIRMED ("frame instruction not permissible", as we remember the 18310 group): a frame that
 # scales an axis by 0, a rotation about an axis that is no geometry axis.
 ALARM_FRAME = 18311
+
+
+def located(alarm: ProgramAlarm, program: str, line: int, block: str) -> ProgramAlarm:
+    """``alarm`` naming ``program``, ``line`` and ``block`` unless it names a program already (one
+    raised inside a subprogram, located there)."""
+    if alarm.program:
+        return alarm
+    return ProgramAlarm(alarm.number, alarm.args[0], program=program, line=line, block=block.strip())

@@ -19,9 +19,7 @@ from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame
 from ..environment import ProgramEnvironment
 from ..motions import (
     ALARM_FEED_ZERO,
-    ALARM_JUMP_TARGET,
     ALARM_NAME_NOT_DEFINED,
-    ALARM_PROGRAM_NOT_FOUND,
     ALARM_SYNTAX,
     Block,
     Dwell,
@@ -40,16 +38,16 @@ from . import words as w
 from .alarms import (
     ALARM_ARITHMETIC,
     ALARM_AUXILIARY,
-    ALARM_CALL_DEPTH,
-    ALARM_NESTING,
     ALARM_UNKNOWN_G,
-    MAX_CALL_DEPTH,
     MAX_M_PER_BLOCK,
+    located,
 )
 from .blocks import BlockCompiler, Compiled
-from .cycle_runner import CycleRunner, is_standard_cycle
+from .calls import Calls, as_text
+from .control_flow import ControlFlow, ProgramLevel
+from .cycle_runner import CycleRunner
 from .definitions import expand_macros
-from .expressions import NAME, Parser, evaluate, number, to_text, truth, undefined
+from .expressions import evaluate, number, to_text, undefined
 from .feedrules import DIAMETER_WORDS, TRANSVERSE_AXIS
 from .gfunctions import (
     BY_NUMBER,
@@ -64,52 +62,13 @@ from .motion_builder import INCH_MM, MotionBuilder
 from .motion_builder import PLANES as _PLANES
 from .names import ProgramNames
 from .radius_compensation import RadiusCompensation
-from .source import ProgramSource, decode_program, normalized
-from .variables import Variable
+from .source import ProgramSource
 
 log = logging.getLogger(__name__)
 
 MAX_CACHED_BLOCKS = 50_000
-_STANDARD_CYCLE = re.compile(r"(CYCLE\d+[A-Z]?|POCKET\d+|SLOT\d+|LONGHOLE|HOLES\d|WORKPIECE|[EF]_[A-Z0-9_]+)")
 _BLOCK_NUMBER = re.compile(r"(?:/\d?\s*)?(N\d+)", re.IGNORECASE)
 _END_CODES = frozenset({0, 1, 2, 17, 30})
-# a line that is a block: not blank, not only a comment, not a % header
-_BLOCK_LINE = re.compile(r"^[ \t]*[^ \t;%\n]", re.MULTILINE)
-
-
-class _Frame:
-    """One program level: the main program (depth 0) or a subprogram call."""
-
-    __slots__ = ("source", "pos", "line", "depth", "vars", "for_state", "back_refs", "saved_modal",
-                 "repeat_left", "call_args", "sections")
-
-    def __init__(self, source: ProgramSource, pos: int, line: int, depth: int) -> None:
-        self.source = source
-        self.pos = pos
-        self.line = line
-        self.depth = depth
-        self.vars: dict[str, Variable] = {}
-        self.for_state: dict[int, tuple[Any, Any]] = {}
-        self.back_refs: list[tuple[Any, str]] = []
-        self.saved_modal: ModalState | None = None   # PROC ... SAVE: the caller's, put back on return
-        self.repeat_left = 0
-        self.call_args: tuple[Any, ...] = ()
-        # program section repetitions under way (REPEAT LABEL P=n), innermost last
-        self.sections: list[_Repetition] = []
-
-
-class _Repetition:
-    """A REPEAT of a program section under way: lines ``start``..``last`` (offsets of line starts),
-    ``left`` more passes, then on at ``back_pos``/``back_line`` (the line after the REPEAT)."""
-
-    __slots__ = ("start", "last", "left", "back_pos", "back_line")
-
-    def __init__(self, start: int, last: int, left: int, back_pos: int, back_line: int) -> None:
-        self.start = start
-        self.last = last
-        self.left = left
-        self.back_pos = back_pos
-        self.back_line = back_line
 
 
 class Interpreter:
@@ -118,22 +77,17 @@ class Interpreter:
     def __init__(self, env: ProgramEnvironment, path: str, text: str | bytes) -> None:
         self.env = env
         self.path = path
-        self._main = ProgramSource(path, _as_text(text))
-        self._sources: dict[str, ProgramSource] = {path: self._main}
+        self._main = ProgramSource(path, as_text(text))
         self._axes = tuple(axis.upper() for axis in env.axes)
         self.names = ProgramNames(self, self._axes)  # the expressions' environment: variables, R, $...
         self._compiler = BlockCompiler(self._axes, self.names.resolve)
         self._macros: dict[str, str] = env.macros()
         self._logged: set[str] = set()
-        self._stack: list[_Frame] = []
-        self._frame: _Frame | None = None
-        self._modal_call: tuple[Any, Any] | None = None
-        # The depth of the subprogram a modal call entered while it runs: its own motion blocks do not
-        # call it again (a user's CYCLE82.SPF under MCALL CYCLE82 would otherwise call itself forever).
-        self._modal_depth: int | None = None
         self._compensation: RadiusCompensation | None = None  # G41/G42 active (radius_compensation.py)
         self.paths = MotionBuilder(self)  # the motion job: a block's axis words into moves and circles
         self._cycles = CycleRunner(self)
+        self.flow = ControlFlow(self.names)  # the control-flow job: IF, loops, jumps, REPEAT
+        self.calls = Calls(self, self.names, self._compiler, self._cycles)  # the call stack, MCALL
         # Machine positions of axes that have not moved since a frame change: the tool stays where the
         # old frame put it (a circle starts there), while the work position keeps the programmed value.
         self._stale_mm: dict[str, float] = {}
@@ -178,7 +132,7 @@ class Interpreter:
     @property
     def modal_call(self) -> Any:
         """The modal call (MCALL name and arguments) or None."""
-        return self._modal_call
+        return self.calls.modal_call
 
     def programmable_frame(self) -> Frame:
         """The frames a program has put on the settable frame: CYCLE800's swivel, then TRANS/ROT/..."""
@@ -245,7 +199,7 @@ class Interpreter:
     def programs_in_use(self) -> frozenset[str]:
         """The NC paths of the programs being executed: the main program and each subprogram called
         and not yet returned from (a control refuses to replace them)."""
-        return frozenset(frame.source.path for frame in self._stack)
+        return frozenset(frame.source.path for frame in self.calls.stack)
 
     def events(self) -> Iterator[Event]:
         """The program's events in execution order (a Block before each executed block)."""
@@ -255,39 +209,37 @@ class Interpreter:
             raise
         except Exception as exc:  # a fault of ours must still reach the user as an alarm
             log.exception("interpreter fault")
-            frame = self._frame
+            frame = self.calls.frame
             raise ProgramAlarm(ALARM_SYNTAX, f"cannot interpret the block ({type(exc).__name__})",
                                program=frame.source.path if frame else self.path,
                                line=max(frame.line - 1, 1) if frame else 0) from None
 
     def _run(self) -> Iterator[Event]:
-        if self._stack:  # events() called again: the program from its start, the modal state reset
+        calls, flow = self.calls, self.flow
+        if calls.stack:  # events() called again: the program from its start, the modal state reset
             self._reset_modal()
             self.names.settings.clear()
-            self._modal_call = None
-            self._modal_depth = None
-        frame = _Frame(self._main, 0, 1, 0)
-        self._stack = [frame]
-        self._frame = frame
-        self.names.locals = frame.vars
+            calls.modal_call = None
+            calls.modal_depth = None
+        frame = calls.start(self._main)
         try:
-            self._main_proc(frame)
+            calls.main_proc(frame)
         except ProgramAlarm as alarm:  # the PROC line is the faulty block on the display
             yield Block(self._main.path, alarm.line, "", alarm.block, 0)
             raise
         while True:
-            frame = self._frame
+            frame = calls.frame
             source = frame.source
             text = source.text
             pos = frame.pos
             if frame.sections and pos > frame.sections[-1].last:
-                self._section_pass_done(frame)
+                flow.section_pass_done(frame)
                 continue
             if pos >= len(text):
                 if frame.depth == 0:
                     yield ProgramEnd(0)
                     return
-                self._return()
+                calls.leave()
                 continue
             end = text.find("\n", pos)
             if end < 0:
@@ -309,7 +261,7 @@ class Interpreter:
                     text_only = strip_comment(raw).strip()
                     number = _BLOCK_NUMBER.match(text_only)
                     yield Block(source.path, line, number.group(1).upper() if number else "", text_only, frame.depth)
-                    raise self._located(alarm, source, line, raw) from None
+                    raise located(alarm, source.path, line, raw) from None
                 if compiled is None:
                     continue
                 if source.subprogram or source.has_jumps or source.in_loop(pos):
@@ -323,26 +275,21 @@ class Interpreter:
             try:
                 events = self._execute(compiled, frame, pos)
             except ProgramAlarm as alarm:
-                raise self._located(alarm, source, line, compiled.text) from None
+                raise located(alarm, source.path, line, compiled.text) from None
             except ArithmeticError as exc:  # an overflow deep in a conversion is still arithmetic
                 alarm = ProgramAlarm(ALARM_ARITHMETIC, f"arithmetic error ({exc})")
-                raise self._located(alarm, source, line, compiled.text) from None
+                raise located(alarm, source.path, line, compiled.text) from None
             if self._compensation is not None:  # G41/G42: a contour element waits for the next one
                 try:
                     events = self._compensation.take(block, events or [])
                 except ProgramAlarm as alarm:
-                    raise self._located(alarm, source, line, compiled.text) from None
+                    raise located(alarm, source.path, line, compiled.text) from None
                 if self._compensation.done:
                     self._compensation = None
             if events:
                 yield from events
                 if events[-1].__class__ is ProgramEnd:
                     return
-
-    def _located(self, alarm: ProgramAlarm, source: ProgramSource, line: int, block: str) -> ProgramAlarm:
-        if alarm.program:
-            return alarm
-        return ProgramAlarm(alarm.number, alarm.args[0], program=source.path, line=line, block=block.strip())
 
     def _compile(self, raw: str) -> Compiled | None:
         text = strip_comment(raw).strip()
@@ -362,40 +309,7 @@ class Interpreter:
             log.info("%s: %s", self.path, message)
 
     # --- control flow -----------------------------------------------------------------------------
-    def _go_after(self, frame: _Frame, offset: int) -> None:
-        """Continue with the line after the line starting at ``offset``."""
-        text = frame.source.text
-        end = text.find("\n", offset)
-        frame.pos = len(text) if end < 0 else end + 1
-        frame.line = frame.source.line_number(offset) + 1
-
-    def _go_to(self, frame: _Frame, offset: int) -> None:
-        frame.pos = offset
-        frame.line = frame.source.line_number(offset)
-
-    def _partner(self, frame: _Frame, pos: int, what: str) -> int:
-        partner = frame.source.partner.get(pos)
-        if partner is None or partner < 0 or pos in frame.source.bad_nesting:
-            raise ProgramAlarm(ALARM_NESTING, f"{what}: control structure not closed or nested wrongly")
-        return partner
-
-    def _jump(self, frame: _Frame, kind: str, target: str, pos: int) -> None:
-        if kind == "GOTOS":
-            frame.pos, frame.line = 0, 1
-            return
-        direction = {"GOTOF": "F", "GOTOB": "B"}.get(kind, "")
-        offset = frame.source.find_target(target, pos, direction)
-        if offset is None:
-            variable = self.names.variable(target)
-            if variable is not None and variable.value.__class__ is str and variable.value:
-                offset = frame.source.find_target(variable.value.upper(), pos, direction)
-        if offset is None:
-            if kind == "GOTOC":
-                return
-            raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {target} not found")
-        self._go_to(frame, offset)
-
-    def _straight(self, compiled: Compiled, frame: _Frame) -> list[Event] | None:
+    def _straight(self, compiled: Compiled, frame: ProgramLevel) -> list[Event] | None:
         """A block of constant axis words, F and modal G only (most CAM blocks), the short way."""
         g_codes, axis_words, feed = compiled.items
         for code in g_codes:
@@ -429,239 +343,20 @@ class Interpreter:
                     raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
                 events = [Move(targets, self.feed_mm, self.modal.feed_mode, self.modal.exact_stop,  # type: ignore[arg-type]
                                dict(axis_words))]
-        if self._modal_call is not None and self._modal_may_call(frame):
-            events += self._call_modal(frame)
+        calls = self.calls
+        if calls.modal_call is not None and calls.may_call_modal(frame):
+            events += calls.call_modal(frame)
         return events
 
-    def _modal_may_call(self, frame: _Frame) -> bool:
-        return self._modal_depth is None or frame.depth < self._modal_depth
-
-    def _call_modal(self, frame: _Frame) -> list[Event]:
-        """The modal call after a motion block; the subprogram it enters does not call it again."""
-        events = self._call(self._modal_call[0], self._modal_call[1], None, frame) or []  # type: ignore[index]
-        if self._frame is not frame and self._modal_depth is None:
-            self._modal_depth = self._frame.depth  # type: ignore[union-attr]
-        return list(events)
-
-    def _execute(self, compiled: Compiled, frame: _Frame, pos: int) -> list[Event] | None:
+    def _execute(self, compiled: Compiled, frame: ProgramLevel, pos: int) -> list[Event] | None:
         kind = compiled.kind
         if kind == b.STRAIGHT:
             return self._straight(compiled, frame)
         if kind == b.WORDS:
             return self._words(compiled.items, frame, pos)
-        if kind == b.NOTHING or kind == b.EXTERN:
-            return None
-        if kind == b.SECTION:
-            self._repeat_section(compiled.items, frame, pos)
-            return None
-        source = frame.source
-        if kind == b.IF:
-            if pos in source.bad_nesting or pos not in source.partner:
-                raise ProgramAlarm(ALARM_NESTING, "IF without ENDIF")
-            if not truth(evaluate(compiled.items, self.names)):
-                else_at = source.else_of.get(pos)
-                self._go_after(frame, else_at if else_at is not None else source.partner[pos])
-        elif kind == b.ELSE:
-            self._go_after(frame, self._partner(frame, pos, "ELSE"))
-        elif kind == b.WHILE:
-            if not truth(evaluate(compiled.items, self.names)):
-                self._go_after(frame, self._partner(frame, pos, "WHILE"))
-            elif pos in source.bad_nesting:
-                raise ProgramAlarm(ALARM_NESTING, "WHILE without ENDWHILE")
-        elif kind == b.ENDWHILE:
-            self._go_to(frame, self._partner(frame, pos, "ENDWHILE"))
-        elif kind == b.FOR:
-            target, start, end = compiled.items
-            closer = self._partner(frame, pos, "FOR")
-            start_value = evaluate(start, self.names)
-            end_value = number(evaluate(end, self.names))
-            self.names.assign(target, start_value)
-            frame.for_state[pos] = (target, end_value)
-            if number(self.names.read_target(target)) > end_value:
-                self._go_after(frame, closer)
-        elif kind == b.ENDFOR:
-            opener = self._partner(frame, pos, "ENDFOR")
-            state = frame.for_state.get(opener)
-            if state is None:
-                raise ProgramAlarm(ALARM_NESTING, "ENDFOR without its FOR having run")
-            target, end_value = state
-            value = number(self.names.read_target(target)) + 1
-            self.names.assign(target, value)
-            if number(self.names.read_target(target)) <= end_value:
-                self._go_after(frame, opener)
-        elif kind == b.REPEAT or kind == b.LOOP:
-            if pos in source.bad_nesting or pos not in source.partner:
-                raise ProgramAlarm(ALARM_NESTING, "REPEAT/LOOP not closed")
-        elif kind == b.UNTIL:
-            opener = self._partner(frame, pos, "UNTIL")
-            if not truth(evaluate(compiled.items, self.names)):
-                self._go_after(frame, opener)
-        elif kind == b.ENDLOOP:
-            self._go_after(frame, self._partner(frame, pos, "ENDLOOP"))
-        elif kind == b.ENDIF:
-            if pos in source.bad_nesting:
-                raise ProgramAlarm(ALARM_NESTING, "ENDIF without IF")
-        elif kind == b.IF_JUMP:
-            for condition, (jump_kind, target) in compiled.items:
-                if truth(evaluate(condition, self.names)):
-                    self._jump(frame, jump_kind, target, pos)
-                    break
-        elif kind == b.CASE:
-            selector, branches, default = compiled.items
-            value = evaluate(selector, self.names)
-            for candidate, (jump_kind, target) in branches:
-                if (candidate.__class__ is str) == (value.__class__ is str) and candidate == value:
-                    self._jump(frame, jump_kind, target, pos)
-                    break
-            else:
-                if default is not None:
-                    self._jump(frame, default[0], default[1], pos)
-        elif kind == b.DEF:
-            self.names.define(compiled.items, frame.vars)
-        elif kind == b.PROC:
-            if frame.depth == 0 and frame.source is self._main:
-                return None
+        if kind != b.NOTHING and kind != b.EXTERN and kind != b.PROC:
+            self.flow.execute(compiled, frame, pos)
         return None
-
-    def _repeat_section(self, section: b.Section, frame: _Frame, pos: int) -> None:
-        """REPEAT/REPEATB: find the section's lines and run them ``count`` times from here."""
-        count = int(number(evaluate(section.count, self.names)))
-        if count < 1:
-            return
-        source = frame.source
-        start = source.find_target(section.start, pos, "B")
-        if start is None:
-            start = source.find_target(section.start, pos, "F")
-        if start is None:
-            raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {section.start} not found")
-        if section.single:
-            last: int | None = start
-        elif section.end is None:  # from the label up to the line before the REPEAT
-            last = source.text.rfind("\n", 0, max(pos - 1, 0)) + 1 if pos > 0 else -1
-            if start >= pos or last is None or last < start:
-                raise ProgramAlarm(ALARM_JUMP_TARGET, f"REPEAT {section.start}: the label is not before the REPEAT")
-        elif section.end == section.start:
-            last = start
-        else:
-            last = source.find_target(section.end, start, "F")
-            if last is None:
-                raise ProgramAlarm(ALARM_JUMP_TARGET, f"jump destination {section.end} not found")
-        frame.sections.append(_Repetition(start, last, count - 1, frame.pos, frame.line))
-        self._go_to(frame, start)
-
-    def _section_pass_done(self, frame: _Frame) -> None:
-        section = frame.sections[-1]
-        if section.left > 0:
-            section.left -= 1
-            self._go_to(frame, section.start)
-        else:
-            frame.sections.pop()
-            frame.pos, frame.line = section.back_pos, section.back_line
-
-    # --- subprograms ------------------------------------------------------------------------------
-    def _call(self, name_expr: Any, args: list | None, repeat: Any, frame: _Frame) -> list[Event] | None:
-        name = evaluate(name_expr, self.names)
-        if name.__class__ is not str or not name:
-            raise ProgramAlarm(ALARM_SYNTAX, "CALL needs a program name")
-        name = name.upper()
-        try:
-            found = self.env.find_program(name, frame.source.path)
-        except Exception:
-            found = None
-        if found is None:
-            if is_standard_cycle(name):
-                return self._cycles.call(name, args)
-            if _STANDARD_CYCLE.fullmatch(name):
-                raise ProgramAlarm(ALARM_PROGRAM_NOT_FOUND, f"{name}: no standard cycle and no program of that name")
-            if args is None:
-                raise undefined(name)
-            raise ProgramAlarm(ALARM_PROGRAM_NOT_FOUND, f"program {name} not existing")
-        path, text = found[0], _as_text(found[1])
-        if frame.depth + 1 > MAX_CALL_DEPTH:
-            raise ProgramAlarm(ALARM_CALL_DEPTH, f"{name}: subprograms nested deeper than {MAX_CALL_DEPTH} levels")
-        source = self._sources.get(path)
-        if source is None or source.text != normalized(text):
-            source = ProgramSource(path, text, subprogram=True)
-            self._sources[path] = source
-        values = tuple(None if arg is None else evaluate(arg, self.names) for arg in (args or ()))
-        refs = tuple(getattr(arg, "lvalue", None) for arg in (args or ()))
-        count = 1 if repeat is None else int(number(evaluate(repeat, self.names)))
-        if count < 1:
-            return None
-        self._enter(source, values, refs, count - 1)
-        return None
-
-    def _enter(self, source: ProgramSource, values: tuple, refs: tuple, repeat_left: int) -> None:
-        depth = self._frame.depth + 1  # type: ignore[union-attr]
-        frame = _Frame(source, 0, 1, depth)
-        params, save = self._proc_line(source, frame)
-        if len(values) > len(params):
-            raise ProgramAlarm(ALARM_SYNTAX, f"{len(values)} parameters given, the program takes {len(params)}")
-        for index, (param, kind, by_reference, dims) in enumerate(params):
-            variable = Variable(param, kind, tuple(d for d in dims if isinstance(d, int)))
-            value = values[index] if index < len(values) else None
-            if value is not None:
-                if variable.dims:
-                    raise ProgramAlarm(ALARM_SYNTAX, f"{param}: arrays are passed with VAR")
-                variable.set((), value)
-            frame.vars[param] = variable
-            if by_reference and index < len(refs) and refs[index] is not None:
-                frame.back_refs.append((refs[index], param))
-        frame.saved_modal = self.modal.copy() if save else None
-        frame.repeat_left = repeat_left
-        frame.call_args = (values, refs)
-        self._stack.append(frame)
-        self._frame = frame
-        self.names.locals = frame.vars
-
-    def _proc_line(self, source: ProgramSource, frame: _Frame) -> tuple[list, bool]:
-        """The parameters and SAVE of the program's PROC line (none without one); ``frame`` starts
-        after that line."""
-        if source.proc_offset < 0:
-            return [], False
-        end = source.text.find("\n", source.proc_offset)
-        header = source.text[source.proc_offset: len(source.text) if end < 0 else end]
-        tokens = tokenize(strip_comment(header).strip())
-        parser = Parser(tokens, self.names.resolve)
-        while not parser.at_name("PROC"):
-            if parser.at_end():  # the line the scan took for a PROC line holds no PROC word
-                raise ProgramAlarm(ALARM_SYNTAX, "PROC line without PROC")
-            parser.pos += 1
-        parser.pos += 1
-        _, params = self._compiler.proc_header(parser)
-        save = any(token[0] == NAME and token[1] == "SAVE" for token in tokens[parser.pos:])
-        frame.pos = len(source.text) if end < 0 else end + 1
-        frame.line = source.line_number(source.proc_offset) + 1
-        return params, save
-
-    def _main_proc(self, frame: _Frame) -> None:
-        """A main program that starts with ``PROC NAME(...)`` (as a subprogram does): its parameters
-        are its variables, 0 (empty) as nobody passes them. A PROC line after blocks is left where it is."""
-        source = self._main
-        if source.proc_offset < 0 or _BLOCK_LINE.search(source.text, 0, source.proc_offset):
-            return
-        try:
-            params, _ = self._proc_line(source, frame)
-        except ProgramAlarm as alarm:
-            raise self._located(alarm, source, source.line_number(source.proc_offset),
-                                source.text[source.proc_offset:].split("\n", 1)[0]) from None
-        for param, kind, _by_reference, dims in params:
-            frame.vars[param] = Variable(param, kind, tuple(d for d in dims if isinstance(d, int)))
-
-    def _return(self) -> None:
-        frame = self._stack.pop()
-        self._frame = self._stack[-1]
-        self.names.locals = self._frame.vars
-        if frame.depth == self._modal_depth:
-            self._modal_depth = None
-        for ref, param in frame.back_refs:
-            self.names.assign(ref, frame.vars[param].get(()))
-        if frame.saved_modal is not None:
-            self.modal = frame.saved_modal
-            self.env.set_programmable_frame(self.programmable_frame())
-        if frame.repeat_left > 0 and frame.source.has_blocks:  # repeating an empty one would never yield
-            values, refs = frame.call_args
-            self._enter(frame.source, values, refs, frame.repeat_left - 1)
 
     # --- the words of a block ---------------------------------------------------------------------
     def _g(self, code: int, flags: dict) -> None:
@@ -731,7 +426,7 @@ class Interpreter:
         if code in (96, 97):
             flags["css"] = code == 96
 
-    def _words(self, items: list, frame: _Frame, pos: int) -> list[Event] | None:
+    def _words(self, items: list, frame: ProgramLevel, pos: int) -> list[Event] | None:
         names = self.names
         flags: dict[str, Any] = {}
         axis_words: list[tuple[str, Any, Any]] = []
@@ -800,7 +495,7 @@ class Interpreter:
                 variable.fill(tuple(evaluate(i, names) for i in indices),
                               [evaluate(v, names) for v in item.values], repeat=item.which == "REP")
             elif kind is w.ModalCall:
-                self._modal_call = None if item.name is None else (item.name, item.args)
+                self.calls.modal_call = None if item.name is None else (item.name, item.args)
             elif kind is w.Spos:
                 spos.append(item.spindle)
             elif kind is w.Setal:
@@ -849,19 +544,20 @@ class Interpreter:
                 events.append(MFunction(m_code, extension))
                 if m_code in (2, 30, 17):
                     end_code = m_code
-        modal = moved and self._modal_call is not None and call is None and self._modal_may_call(frame)
+        calls = self.calls
+        modal = moved and calls.modal_call is not None and call is None and calls.may_call_modal(frame)
         if end_code is not None or ret:
             if frame.depth == 0 or (end_code in (2, 30) and not self.env.subprogram_end_returns):
                 events.append(ProgramEnd(end_code if end_code is not None else 0))
                 return events
-            self._return()
+            calls.leave()
             return events
         if modal:
-            events += self._call_modal(frame)
+            events += calls.call_modal(frame)
         elif call is not None:
-            events += self._call(call[0], call[1], call[2], frame) or ()
+            events += calls.call(call[0], call[1], call[2], frame) or ()
         if jump is not None:
-            self._jump(frame, jump[0], jump[1], pos)
+            self.flow.jump(frame, jump[0], jump[1], pos)
         return events
 
     def _motion(self, axis_words: list, address: dict, flags: dict) -> Event | list[Event]:
@@ -955,13 +651,6 @@ _G_GROUP_HANDLERS: dict[int, Any] = {
 # G53/G153 frames suppressed, G9 exact stop in this block
 _G_FLAGS = {4: "dwell", 25: "limit", 26: "limit", 53: "supa", 153: "supa", 9: "g9", 110: "pole", 111: "pole",
             112: "pole"}
-
-
-def _as_text(text: str | bytes) -> str:
-    """A program's text; bytes (as the program store keeps them) are UTF-8 or else Latin-1."""
-    if isinstance(text, bytes | bytearray):
-        return decode_program(bytes(text))
-    return text
 
 
 def _m_code(value: Any) -> int:
