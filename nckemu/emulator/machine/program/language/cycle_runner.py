@@ -7,9 +7,9 @@ CYCLE800 positions the rotary axes and sets the swivel frame; CYCLE832 records i
 from __future__ import annotations
 
 import logging
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
-from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, rotation_rpy
+from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame, rotation_rpy
 
 from ..motions import (
     ALARM_NAME_NOT_DEFINED,
@@ -21,10 +21,32 @@ from ..motions import (
     SpindleCommand,
 )
 from . import cycles
-from .expressions import evaluate, number
+from .expressions import Names, evaluate, number
+
+if TYPE_CHECKING:
+    from .modal import ModalState
+    from .motion_builder import MotionBuilder
 
 log = logging.getLogger(__name__)
 _PLANES = {"G17": ("X", "Y", "Z"), "G18": ("Z", "X", "Y"), "G19": ("Y", "Z", "X")}
+
+
+class CycleHost(Protocol):
+    """What the cycles read and set of the interpreter (the Interpreter is it): named here, so that this
+    module does not import the interpreter that imports it."""
+
+    path: str
+    modal: ModalState
+    feed_mm: float
+    work_pos: dict[str, float]
+    spindle_speed: dict[int, float]
+    names: Names          # the cycle's parameters are expressions
+    paths: MotionBuilder  # the motion job: a cycle's steps become the interpreter's own moves
+
+    @property
+    def modal_call(self) -> Any: ...
+
+    def set_swivel_frame(self, frame: Frame) -> None: ...
 
 
 def is_standard_cycle(name: str) -> bool:
@@ -34,9 +56,8 @@ def is_standard_cycle(name: str) -> bool:
 class CycleRunner:
     """The standard cycles of one interpreter (what CYCLE832 and CYCLE800 set is kept here)."""
 
-    def __init__(self, interpreter: Any) -> None:
-        # the Interpreter that owns this runner (typed loosely: the interpreter imports this module)
-        self.interpreter = interpreter
+    def __init__(self, interpreter: CycleHost) -> None:
+        self.interpreter = interpreter  # the Interpreter that owns this runner
         self.tolerance_mm: float | None = None
 
     def call(self, name: str, args: list | None) -> list[Event]:
@@ -112,7 +133,7 @@ class CycleRunner:
                     words = [(axis, float(value), "AC") for axis, value in step.target.items()  # type: ignore[union-attr]
                              if axis in it.work_pos]
                     if words:
-                        events.append(it._motion(words, {}, {}))
+                        events.append(it.paths.motion(words, {}, {}))  # type: ignore[arg-type]
                 elif kind is cycles.Wait:
                     events.append(Dwell(step.seconds, step.revolutions))  # type: ignore[union-attr]
                 elif kind is cycles.Spindle:
