@@ -90,7 +90,7 @@ class Interpreter:
         self.calls = Calls(self, self.names, self._compiler, self._cycles)  # the call stack, MCALL
         # Machine positions of axes that have not moved since a frame change: the tool stays where the
         # old frame put it (a circle starts there), while the work position keeps the programmed value.
-        self._stale_mm: dict[str, float] = {}
+        self.stale_mm: dict[str, float] = {}
         self._reset_modal()
 
     # --- modal state ------------------------------------------------------------------------------
@@ -108,7 +108,7 @@ class Interpreter:
         self.preselected: int | str | None = None
         self.tool_length_mm = 0.0
         self.work_pos: dict[str, float] = {}
-        self._stale_mm = {}
+        self.stale_mm = {}
         for axis in self._axes:
             try:
                 self.work_pos[axis] = float(env.machine_position_mm(axis))
@@ -144,10 +144,10 @@ class Interpreter:
         self.update_shift()
         self.env.set_programmable_frame(self.programmable_frame())
 
-    def _machine_now(self) -> dict[str, float]:
+    def machine_now(self) -> dict[str, float]:
         """Where the last motions left every axis (machine mm), under the frames they ran in."""
         machine = self._machine_of_work()
-        machine.update(self._stale_mm)
+        machine.update(self.stale_mm)
         return machine
 
     def _machine_of_work(self) -> dict[str, float]:
@@ -162,7 +162,7 @@ class Interpreter:
         return machine
 
     def update_shift(self) -> None:
-        before = self._machine_now() if getattr(self, "work_pos", None) else None
+        before = self.machine_now() if getattr(self, "work_pos", None) else None
         chain = framing.chain(self.modal.settable, self.programmable_frame())
         self.modal.chain = None if chain.is_translation else chain
         shift = dict(chain.translation)
@@ -172,7 +172,7 @@ class Interpreter:
         self.modal.shift = shift
         if before is not None:  # the axes the change moves keep, until they move, where the old frames put them
             after = self._machine_of_work()
-            stale = self._stale_mm
+            stale = self.stale_mm
             for axis, value in before.items():
                 if abs(after.get(axis, value) - value) > 1e-12:
                     stale[axis] = value
@@ -189,7 +189,7 @@ class Interpreter:
         self.tool_length_mm = length
         self.update_shift()
 
-    def _is_rotary(self, axis: str) -> bool:
+    def is_rotary(self, axis: str) -> bool:
         try:
             return bool(self.env.axis_is_rotary(axis))
         except Exception:
@@ -300,7 +300,8 @@ class Interpreter:
         return self._compiler.compile_simple(text) or self._compiler.compile(text, tokenize(text))
 
     # --- names ------------------------------------------------------------------------------------
-    def _axis_name(self, value: Any) -> str:  # the motion job's (MotionSource)
+    def axis_name(self, value: Any) -> str:
+        """An axis by name or index (the motion job asks, as a MotionSource)."""
         return self.names.axis_name(value)
 
     def _log_once(self, what: str, message: str) -> None:
@@ -333,9 +334,9 @@ class Interpreter:
             for axis, value in axis_words:
                 work_pos[axis] = value
                 targets[axis] = value + shift[axis] if axis in shift else value
-            if self._stale_mm:
+            if self.stale_mm:
                 for axis, _ in axis_words:
-                    self._stale_mm.pop(axis, None)
+                    self.stale_mm.pop(axis, None)
             if motion == 0:
                 events = [Move(targets, None, self.modal.feed_mode, self.modal.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
             else:
@@ -632,7 +633,7 @@ class Interpreter:
         values: list[tuple[str, float]] = []
         for axis, raw in pairs:
             value = float(number(evaluate(raw, self.names)))
-            if word.endswith("TRANS") and not self._is_rotary(axis) and self.modal.inch_geometry:
+            if word.endswith("TRANS") and not self.is_rotary(axis) and self.modal.inch_geometry:
                 value *= INCH_MM
             values.append((axis, value))
         self.modal.pframe = framing.programmed_frame(self.modal.pframe, word, values, self.modal.plane)

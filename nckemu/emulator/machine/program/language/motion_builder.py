@@ -41,13 +41,13 @@ class MotionSource(Protocol):
     spindle_speed: dict[int, float]
     tool_length_mm: float
     work_pos: dict[str, float]
-    _stale_mm: dict[str, float]
+    stale_mm: dict[str, float]
 
-    def _machine_now(self) -> dict[str, float]: ...
+    def machine_now(self) -> dict[str, float]: ...
 
-    def _is_rotary(self, axis: str) -> bool: ...
+    def is_rotary(self, axis: str) -> bool: ...
 
-    def _axis_name(self, value: Any) -> str: ...
+    def axis_name(self, value: Any) -> str: ...
 
 INCH_MM = 25.4
 # The circle end-point tolerance: MD21000 CIRCLE_ERROR_CONST (mm) and MD21010 CIRCLE_ERROR_FACTOR
@@ -95,11 +95,11 @@ class MotionBuilder:
         work_pos = self.it.work_pos
         unit_mm = INCH_MM if self.it.modal.inch_geometry else 1.0
         start = dict(work_pos)
-        now = self.it._machine_now()
+        now = self.it.machine_now()
         programmed: dict[str, float] = {}
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
-            unit = unit_mm if not self.it._is_rotary(axis) else 1.0
+            unit = unit_mm if not self.it.is_rotary(axis) else 1.0
             incremental = mode == "IC" or (mode is None and not self.it.modal.absolute)
             work = (work_pos[axis] + value * unit) if incremental else value * unit
             programmed[axis] = work / unit
@@ -107,7 +107,7 @@ class MotionBuilder:
         moving = chain.coupled(set(programmed)) & set(work_pos)
         work_targets = {axis: work_pos[axis] for axis in moving}
         for axis in moving:
-            self.it._stale_mm.pop(axis, None)
+            self.it.stale_mm.pop(axis, None)
         tool = {PLANES[self.it.modal.plane][2]: self.it.tool_length_mm} if self.it.tool_length_mm else {}
         exact_stop = self.it.modal.exact_stop or bool(flags.get("g9"))
         if self.it.modal.motion > 1:
@@ -153,9 +153,9 @@ class MotionBuilder:
         absolute = self.it.modal.absolute
         targets: dict[str, float] = {}
         programmed: dict[str, float] = {}
-        stale = self.it._stale_mm
+        stale = self.it.stale_mm
         if stale:  # axes a frame change left where the old frames put them
-            now = self.it._machine_now()
+            now = self.it.machine_now()
             start_machine = {axis: now[axis] for axis in PLANES[self.it.modal.plane][:2] if axis in now}
             for axis, _, _ in axis_words:
                 stale.pop(axis, None)
@@ -165,7 +165,7 @@ class MotionBuilder:
         rules = self.it.modal.feed_rules
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
-            unit = INCH_MM if inch and not self.it._is_rotary(axis) else 1.0
+            unit = INCH_MM if inch and not self.it.is_rotary(axis) else 1.0
             incremental = mode == "IC" or (mode is None and not absolute)
             value = rules.radius_of(axis, value, incremental)
             offset = shift.get(axis, 0.0)
@@ -219,7 +219,7 @@ class MotionBuilder:
             lvalue = getattr(arg, "lvalue", None)
             if arg is None or lvalue is None or lvalue[0] != "VAR" or lvalue[2]:
                 raise ProgramAlarm(ALARM_SYNTAX, "FGROUP takes channel axis names: FGROUP(X, Y, C)")
-            names.append(self.it._axis_name(lvalue[1]))
+            names.append(self.it.axis_name(lvalue[1]))
         return names
 
     def arc(self, targets: dict, programmed: dict, start: dict, address: dict, flags: dict,
