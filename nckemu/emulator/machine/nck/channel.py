@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from nckemu.emulator.machine.clock import Clock
 from nckemu.emulator.machine.nck.channel_life import Event, Life, next_life
@@ -48,7 +48,7 @@ from nckemu.errors import NckAddressOutOfRange, NckError, NckItemError, NckNoSuc
 
 if TYPE_CHECKING:
     from nckemu.emulator.machine.nck.parts import NckParts
-    from nckemu.emulator.machine.program.run import BlockRecord, ProgramRun
+    from nckemu.emulator.machine.program.block_record import BlockRecord
 
 log = logging.getLogger("nckemu.emulator.nck.channel")
 
@@ -62,6 +62,32 @@ CHANGES = ("selected", "unselected", "started", "interrupted", "resumed", "ended
 # system variables): the part counters, the overrides and the commanded feed.
 SETTABLE_FIGURES = frozenset({"required_parts", "total_parts", "actual_parts", "specified_parts",
                               "feed_override_pct", "rapid_override_pct", "commanded_feed_mm_min"})
+
+
+class ChannelRun(Protocol):
+    """What the channel asks of its program run (program/run.py's ProgramRun). A protocol, and the run
+    handed in as a factory by the model, so the channel does not import the run, which is typed against
+    the whole NCK (issue 52: no circle through the channel)."""
+
+    t_s: float            # the simulated time the run has reached
+    ended: bool
+    blocks: int           # blocks executed so far
+    notes: list[str]      # what the run did other than programmed
+    not_simulated: dict[str, int]
+
+    def advance(self, until_s: float, max_blocks: int) -> str: ...
+
+    def pause(self, now_s: float) -> None: ...
+
+    def resume(self, now_s: float) -> None: ...
+
+    def close(self, now_s: float) -> None: ...
+
+    def programs_in_use(self) -> frozenset[str]: ...
+
+
+# (channel, the NCK's parts, program path, program text, start time) -> the run
+RunFactory = Callable[["Channel", "NckParts", str, str, float], ChannelRun]
 
 
 @dataclass
@@ -109,7 +135,7 @@ class ChannelState:
 class Channel:
     """One channel's run state on the emulator's clock, and its program run."""
 
-    def __init__(self, number: int, clock: Clock, spindles: int, parts: NckParts) -> None:
+    def __init__(self, number: int, clock: Clock, spindles: int, parts: NckParts, start_run: RunFactory) -> None:
         self.number = number
         self._clock = clock
         self.state = ChannelState(spindles={n: Spindle() for n in range(1, spindles + 1)})
@@ -120,7 +146,8 @@ class Channel:
         # The NC path a run without a program is shown under (a recording's run: progName and the
         # program of the current block name it); kept after its end, as a selection is, until a select.
         self.recorded_program = ""
-        self.run: ProgramRun | None = None
+        self._start_run = start_run       # makes a run of a selected program (the model hands ProgramRun)
+        self.run: ChannelRun | None = None
         self.last_run_blocks = 0          # blocks the last run executed (program run offline)
         # Where the program is (channel_life.py's table); state.status and state.program_status report it.
         self.life = Life.RESET
@@ -200,13 +227,11 @@ class Channel:
             text = self.parts.programs.read(self.selected)
         except NckNoSuchFile:
             self._refuse(settings.start_refused_alarm, f"NC start not possible: {self.selected} no longer exists")
-        from nckemu.emulator.machine.program.run import ProgramRun
-
-        self.run = ProgramRun(self, self.parts, self.selected, program_text(text), now)
+        self.run = self._start_run(self, self.parts, self.selected, program_text(text), now)
         self._run_key = (self.selected, hash(text))
         if self.number == 1:
             self.parts.programs.running = self.selected
-            self.parts.programs.called = self.run.interpreter.programs_in_use
+            self.parts.programs.called = self.run.programs_in_use
         self._net_s = 0.0
         self._begin_timing(now)
         self.state.message = ""

@@ -39,6 +39,7 @@ from nckemu.emulator.machine.nck.sources import SOURCES
 from nckemu.emulator.machine.nck.store import VariableStore
 from nckemu.emulator.machine.nck.tools import Tools
 from nckemu.emulator.machine.program.motions import ProgramAlarm
+from nckemu.emulator.machine.program.run import ProgramRun
 from nckemu.errors import NckAccessDenied, NckConfigError, NckTypeInconsistent
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType
 
@@ -91,7 +92,7 @@ class NckModel:
         spindles = sum(axis.spindle for axis in machine.axes)
         # The channels run programs with the NCK's parts (programs, axes, alarms, tools, frames, store),
         # read when a program runs: the tools and frames below come before any.
-        self.channels = {number: Channel(number, clock, spindles if number == 1 else 0, self)
+        self.channels = {number: Channel(number, clock, spindles if number == 1 else 0, self, ProgramRun)
                          for number in range(1, machine.channels + 1)}
         self.tools = Tools(machine)
         self.frames = Frames(machine, machine.channels)

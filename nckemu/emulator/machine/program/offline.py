@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.machine_file import Axis, Machine
 from nckemu.emulator.machine.nck.channel import CHAN_INTERRUPTED, CHAN_RESET
-from nckemu.emulator.machine.program.run import BlockRecord
+from nckemu.emulator.machine.program.block_record import BlockRecord
 from nckemu.errors import NckConfigError
 
 if TYPE_CHECKING:
