@@ -4,6 +4,12 @@ Lazy and without look-ahead: :meth:`Interpreter.events` is a generator, and the 
 is only prepared when the caller asks for the next event, so ``$AA_IM[X]`` in a block sees where the
 previous motion ended (the caller moves the machine in between). Every error is a
 :class:`~..motions.ProgramAlarm` naming program, line and block; nothing else escapes.
+
+The interpreter reads each block, runs its words and keeps the modal state, the frames and the tool;
+its jobs have their own modules, each asking the interpreter only for what a protocol of its own names:
+the names a program reads and writes (names.py, the expressions' environment), control flow
+(control_flow.py), subprogram calls and MCALL (calls.py), motion (motion_builder.py), the standard
+cycles (cycle_runner.py) and the radius compensation (radius_compensation.py).
 """
 
 from __future__ import annotations
