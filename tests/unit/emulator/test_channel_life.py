@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from nckemu.emulator.machine.nck.channel import ChannelState
+from nckemu.emulator.machine.nck.channel import ChannelState, Spindle
 from nckemu.emulator.machine.nck.channel_life import TRANSITIONS, Event, Life, LifeError, next_life
 from nckemu.emulator.machine.nck.channel_states import CHAN_RESET, PROG_ABORTED
 
@@ -59,8 +59,10 @@ def test_only_the_channel_writes_its_status() -> None:
 def _state_writes(tree: ast.AST) -> list[tuple[int, str]]:
     """(line, field) of every assignment to a ChannelState field in ``tree``: ``x.state.field = ...``
     (``+=``, tuple targets), through a name bound to ``x.state`` in the same function, and
-    ``setattr(x.state, ...)``."""
+    ``setattr(x.state, ...)``; and of a Spindle's field (the spindles are the channel's state too) on
+    anything but ``self``, by assignment or ``setattr(x, "field", ...)``."""
     fields = {field.name for field in dataclasses.fields(ChannelState)}
+    spindle_fields = {field.name for field in dataclasses.fields(Spindle)}
     found = []
     for function in ast.walk(tree):
         if not isinstance(function, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda):
@@ -80,17 +82,23 @@ def _state_writes(tree: ast.AST) -> list[tuple[int, str]]:
                     targets += target.elts if isinstance(target, ast.Tuple) else [target]
             elif isinstance(node, ast.AugAssign | ast.AnnAssign):
                 targets = [node.target]
-            elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "setattr"
-                  and node.args and is_state(node.args[0])):
-                found.append((node.lineno, "setattr"))
-            found += [(node.lineno, target.attr) for target in targets
-                      if isinstance(target, ast.Attribute) and target.attr in fields and is_state(target.value)]
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "setattr":
+                if node.args and is_state(node.args[0]):
+                    found.append((node.lineno, "setattr"))
+                elif len(node.args) > 1 and isinstance(node.args[1], ast.Constant) and node.args[1].value in spindle_fields:
+                    found.append((node.lineno, f"setattr {node.args[1].value}"))
+            for target in targets:
+                if not isinstance(target, ast.Attribute):
+                    continue
+                if (target.attr in fields and is_state(target.value)) or (
+                        target.attr in spindle_fields and not (isinstance(target.value, ast.Name) and target.value.id == "self")):
+                    found.append((node.lineno, target.attr))
     return found
 
 
 def test_only_the_channel_assigns_its_state() -> None:
-    """Runs, sources and the model tell the channel (show_block, set_tool, set_figure ...); none assigns
-    a field of ChannelState itself."""
+    """Runs, sources and the model tell the channel (show_block, set_tool, set_figure, command_spindle ...);
+    none assigns a field of ChannelState or of a spindle itself."""
     writers = {}
     for path in PACKAGE.rglob("*.py"):
         name = path.relative_to(PACKAGE).as_posix()
@@ -109,9 +117,11 @@ def f(channel, value):
     state.actual_parts += 1
     setattr(channel.state, "total_parts", value)
     channel.state.spindles[1].ramp = None
+    setattr(channel.spindle(1), "override_pct", value)
     other.message = "not a state"
+    self.direction = 1
 """
     assert sorted(field for _, field in _state_writes(ast.parse(code))) == [
-        "actual_parts", "d_number", "message", "setattr", "t_number"]
+        "actual_parts", "d_number", "message", "ramp", "setattr", "setattr override_pct", "t_number"]
     channel = _state_writes(ast.parse((PACKAGE / CHANNEL_MODULE).read_text(encoding="utf-8")))
     assert {"status", "program_status", "message", "t_number"} <= {field for _, field in channel}

@@ -450,6 +450,21 @@ class Channel:
         if d_number is not None:
             self.state.d_number = d_number
 
+    def command_spindle(self, line: int, *, rpm: float | None = None, direction: int | None = None) -> None:
+        """S (the commanded speed) and M3/M4/M5 (the turn state) of spindle ``line``; None leaves one as it is."""
+        spindle = self.spindle(line)
+        if rpm is not None:
+            spindle.commanded_rpm = rpm
+        if direction is not None:
+            spindle.direction = direction
+
+    def ramp_spindle(self, line: int, ramp: SpindleRamp) -> None:
+        """Spindle ``line``'s speed follows ``ramp`` (a program's acceleration, G96, the run-down at reset)."""
+        self.spindle(line).ramp = ramp
+
+    def set_spindle_override(self, line: int, override_pct: float) -> None:
+        self.spindle(line).override_pct = float(override_pct)
+
     def figure(self, name: str) -> float:
         """One of :data:`SETTABLE_FIGURES`."""
         if name not in SETTABLE_FIGURES:

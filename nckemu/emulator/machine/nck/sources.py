@@ -262,7 +262,7 @@ SOURCES: dict[str, Source] = {
     "channel.spindle_speed": Source(lambda model, unit, line: _channel(model, unit).spindle_speed_rpm(line)),
     "channel.spindle_override": Source(
         lambda model, unit, line: _spindle(model, unit, line).override_pct,
-        lambda model, unit, line, value: setattr(_spindle(model, unit, line), "override_pct", float(value))),  # type: ignore[arg-type]
+        lambda model, unit, line, value: _channel(model, unit).set_spindle_override(line, float(value))),  # type: ignore[arg-type]
     "channel.spindle_turn_state": Source(lambda model, unit, line: _spindle(model, unit, line).direction),
     # tool offsets (module TO: column = T number) and the active tool's compensation values
     "tools.edge_param": _by_column(lambda model, _unit, column, line: model.tools.edge_param(column, line),

@@ -120,10 +120,10 @@ class ProgramRun:
         close = getattr(self._events, "close", None)
         if close is not None:
             close()
-        for spindle in self.channel.state.spindles.values():
+        for line, spindle in self.channel.state.spindles.items():
             if spindle.ramp is not None or spindle.direction != TURN_STOPPED:
-                self._ramp_spindle(spindle, 0.0, now_s)
-                spindle.direction = TURN_STOPPED
+                self._ramp_spindle(line, spindle, 0.0, now_s)
+                self.channel.command_spindle(line, direction=TURN_STOPPED)
 
     def advance(self, until_s: float, max_blocks: int) -> str:
         """Execute up to ``until_s``: 'running', 'waiting' (feed override 0), 'stopped' (M0/M1) or 'ended'."""
@@ -305,10 +305,11 @@ class ProgramRun:
         limit = self.planner.limits.spindle_max_rpm
         begin_rpm = css_rpm(css, self.parts.axes.positions_mm[axis], limit)
         end_rpm = css_rpm(css, event.target_mm.get(css.axis, self.parts.axes.positions_mm[axis]), limit)
-        spindle.commanded_rpm = end_rpm
+        self.channel.command_spindle(css.spindle, rpm=end_rpm)
         if spindle.direction != TURN_STOPPED:
             scale = spindle.override_pct / 100.0
-            spindle.ramp = SpindleRamp(begin_rpm * scale, min(end_rpm * scale, limit), start_s, end_s)
+            self.channel.ramp_spindle(css.spindle, SpindleRamp(begin_rpm * scale, min(end_rpm * scale, limit),
+                                                               start_s, end_s))
 
     def _spindle(self, command: SpindleCommand) -> None:
         spindle = self.channel.state.spindles.get(command.spindle)
@@ -317,10 +318,11 @@ class ProgramRun:
         if command.css is not None:
             axis = self.axes.get(command.css.axis)
             position = self.parts.axes.positions_mm[axis] if axis is not None else 0.0
-            spindle.commanded_rpm = css_rpm(command.css, position, self.planner.limits.spindle_max_rpm)
+            self.channel.command_spindle(command.spindle,
+                                         rpm=css_rpm(command.css, position, self.planner.limits.spindle_max_rpm))
         elif command.speed_rpm is not None:
             limit = self.planner.limits.spindle_max_rpm
-            spindle.commanded_rpm = min(abs(command.speed_rpm), limit)
+            self.channel.command_spindle(command.spindle, rpm=min(abs(command.speed_rpm), limit))
             if abs(command.speed_rpm) > limit:
                 where = f" in {self.record.number or f'line {self.record.line}'}" if self.record is not None else ""
                 note = (f"S{abs(command.speed_rpm):g}{where} held at {limit:g} rpm by MD35100 SPIND_VELO_LIMIT "
@@ -328,15 +330,16 @@ class ProgramRun:
                 if note not in self.notes:
                     self.notes.append(note)
         if command.direction is not None:
-            spindle.direction = _DIRECTIONS[command.direction]
+            self.channel.command_spindle(command.spindle, direction=_DIRECTIONS[command.direction])
         target = 0.0 if spindle.direction == TURN_STOPPED else \
             self.planner.spindle_target_rpm(spindle.commanded_rpm, self._overrides())
-        self._spindle_ready_s = max(self._spindle_ready_s, self._ramp_spindle(spindle, target, self.t_s))
+        self._spindle_ready_s = max(self._spindle_ready_s,
+                                    self._ramp_spindle(command.spindle, spindle, target, self.t_s))
 
-    def _ramp_spindle(self, spindle: Spindle, target_rpm: float, t_s: float) -> float:
+    def _ramp_spindle(self, line: int, spindle: Spindle, target_rpm: float, t_s: float) -> float:
         current = spindle.ramp.rpm_at(t_s) if spindle.ramp is not None else 0.0
         end_s = t_s + self.planner.spindle_ramp_s(current, target_rpm)
-        spindle.ramp = SpindleRamp(current, target_rpm, t_s, end_s)
+        self.channel.ramp_spindle(line, SpindleRamp(current, target_rpm, t_s, end_s))
         return end_s
 
     def _tool(self, event: ToolSelect) -> None:
