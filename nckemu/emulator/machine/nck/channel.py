@@ -445,18 +445,15 @@ class Channel:
 
     def set_tool(self, t_number: int | None = None, ident: str = "", d_number: int | None = None) -> None:
         """A tool (T, with its ident) and a cutting edge (D) active in the channel; None leaves one as it is."""
-        if t_number is not None:
-            self.state.t_number, self.state.tool_ident = t_number, ident
-        if d_number is not None:
-            self.state.d_number = d_number
+        state = self.state
+        state.t_number, state.tool_ident = (state.t_number, state.tool_ident) if t_number is None else (t_number, ident)
+        state.d_number = state.d_number if d_number is None else d_number
 
     def command_spindle(self, line: int, *, rpm: float | None = None, direction: int | None = None) -> None:
         """S (the commanded speed) and M3/M4/M5 (the turn state) of spindle ``line``; None leaves one as it is."""
         spindle = self.spindle(line)
-        if rpm is not None:
-            spindle.commanded_rpm = rpm
-        if direction is not None:
-            spindle.direction = direction
+        spindle.commanded_rpm = spindle.commanded_rpm if rpm is None else rpm
+        spindle.direction = spindle.direction if direction is None else direction
 
     def ramp_spindle(self, line: int, ramp: SpindleRamp) -> None:
         """Spindle ``line``'s speed follows ``ramp`` (a program's acceleration, G96, the run-down at reset)."""
