@@ -132,7 +132,7 @@ def print_machine(doc: dict[str, Any]) -> None:
         print("  settings: " + ", ".join(f"{name} = {doc['settings'][name]}" for name in doc["settings_changed"]))
     blocks = doc["plc"]["data_blocks"]
     print("  PLC data blocks (number: bytes): " + ", ".join(f"DB{n}: {size}" for n, size in blocks.items())
-          + "; any other DB does not exist")
+          + "; no other DB (a read of one is refused)")
     print(f"  PLC inputs, outputs, flags: {AREA_BYTES} bytes each (I/Q/M 0..{AREA_BYTES - 1})")
     passwords = ", ".join(f"{name} -> {level}" for name, level in doc["passwords"].items())
     print(f"  access level of a new connection: {doc['connection_access_level']}; passwords: "

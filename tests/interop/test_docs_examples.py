@@ -61,6 +61,8 @@ SLOW_MARKERS = (
     "nckemu loop fixtures/plc/bed_only_z.awl --machine fixtures/machines/loop_mill.toml --inputs",
     "nckemu discover ../shared/data/fl_thermal/recording.csv --split-runs",  # 46 h of 16 sensors, 6 runs
     "nckemu recording check ../shared/data/fl_thermal/data.xlsx",  # reading a 46 h workbook twice
+    # the heat fit of FL_THERMAL's 16 sensors and the twin replayed over its 46 h
+    "nckemu machine fit ../shared/data/fl_thermal/recording.csv --inputs spindle_rpm --out fl.toml",
 )
 # Setting-up lines the runner stands for.
 SETUP = ("make serve", "make test")
