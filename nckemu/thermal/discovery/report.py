@@ -191,6 +191,15 @@ def _honest_section(discovery: Discovery) -> str:
     return "".join(parts)
 
 
+def _headline(discovery: Discovery) -> str:
+    """Several runs: the at most four lines an engineer can act on, before the evidence (issue 51)."""
+    if not discovery.runs:
+        return ""
+    from .wording import headline_lines
+
+    return "<ul>" + "".join(f"<li><b>{html.escape(line)}</b></li>" for line in headline_lines(discovery)) + "</ul>\n"
+
+
 def write_report(path: str | Path, discovery: Discovery, title: str,
                  findings: list[tuple[str, str]] | None = None) -> None:
     series = discovery.series
@@ -225,7 +234,7 @@ def write_report(path: str | Path, discovery: Discovery, title: str,
 <style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}td{{padding:4px 8px;vertical-align:top}}
 table{{border-collapse:collapse}}tr{{border-bottom:1px solid #ddd}}</style></head><body>
 <h1>{html.escape(title)}</h1>
-<p>Axis {html.escape(discovery.axis)}, {discovery.samples} measured samples. RMS as given
+{_headline(discovery)}<p>Axis {html.escape(discovery.axis)}, {discovery.samples} measured samples. RMS as given
 {discovery.baseline_rms_um:.3f} um; recalibrated {discovery.recalibrated_rms_um:.3f} um; held-out
 {discovery.heldout_rms_before_um:.3f} &rarr; {discovery.heldout_rms_after_um:.3f} um
 (before: {html.escape(discovery.before_is or "the baseline")}).</p>

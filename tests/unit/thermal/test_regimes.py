@@ -4,6 +4,8 @@ and named with its runs and both models' figures; a null names nothing; a bad --
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -67,3 +69,12 @@ def test_given_groups_name_the_same_stretch() -> None:
 def test_the_null_names_no_group() -> None:
     family = make_shape_family("null_shape_days", 1)
     assert not discover_runs(family.runs, AXIS, family.model).missing_physics
+
+
+def test_the_report_leads_with_the_headline(regime: tuple[RunFamily, Discovery], tmp_path: Path) -> None:
+    from nckemu.thermal.discovery.report import write_report
+
+    _family, result = regime
+    write_report(tmp_path / "r.html", result, "regime")
+    page = (tmp_path / "r.html").read_text(encoding="utf-8")
+    assert page.index("one coefficient for all runs") < page.index("Missing physics")
