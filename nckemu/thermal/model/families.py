@@ -330,7 +330,7 @@ for _family in (
            _per_sensor("quadratic_temperature", "coeff_um_per_K2"), plc_form="square"),
     Family("thermal_gradient", "coeff_um_per_K", ("sensors",), {}, 2, "bending from the difference of two sensors",
            lambda r, _a, p: r.sensor(p["sensors"][0]) - r.sensor(p["sensors"][1]), _gradient_candidates,
-           plc_form="difference", check=_two_sensors, stage=2, size_in_structures=3.0),
+           plc_form="difference", check=_two_sensors, stage=2, size_in_structures=1.5),
     Family("centrifugal_growth", "coeff_um_per_krpm2", (), {}, 2,
            "spindle growth with the square of the speed, without lag", _spindle, _spindle_candidates,
            plc_form="speed_square", uses_spindle=True, stage=0),
@@ -358,6 +358,6 @@ for _family in (
            "bending while heat crosses a structure (skin-core): a sensor minus its own lagged value, "
            "rising with the sensor, then straightening as the structure evens out",
            _transient, _transient_candidates, plc_form="skin_core", extends=("temperature",),
-           time_constants=("tau_s",), stage=4, searched_column="transient", size_in_structures=3.0),
+           time_constants=("tau_s",), stage=4, searched_column="transient", size_in_structures=1.5),
 ):
     register(_family)
