@@ -395,7 +395,8 @@ class Selector:
         so the held-out RMS of an effect that has one is optimistic; one more share per time constant."""
         return self.settings.equivalence * (1 + max(time_constants(e.candidate.term) for e in evaluations))
 
-    def equivalent(self, passing: list[Evaluation]) -> tuple[Evaluation, float, list[Evaluation]]:
+    def equivalent(self, passing: list[Evaluation], fitting: list[Evaluation] = ()  # type: ignore[assignment]
+                   ) -> tuple[Evaluation, float, list[Evaluation]]:
         """The best candidate on held-out RMS without the sensors' noise, its margin, and the candidates
         within that margin of it.
 
@@ -404,14 +405,18 @@ class Selector:
         shape alike, and then the sensors' noise is all the record tells them apart by. A candidate
         that predicts the gauge worse than another as measured, and whose features carry more of the
         noise than the pair's margin (a large coefficient on raw readings: held-out RMS with / without
-        the noise), ranks where it does on the correction, not on the record: it is set aside. The
-        best as measured always stays."""
+        the noise), ranks where it does on the correction, not on the record: it is set aside, also
+        against ``fitting`` candidates that were held back only by what a machine can have or by the bar
+        for their extra parameters (they still show what the record carries). The best as measured of
+        ``passing`` always stays."""
         def carried(e: Evaluation) -> float:
             return e.cv.rms_um / e.ranked_rms_um if e.ranked_rms_um > 0 else math.inf
 
+        against = passing + [e for e in fitting if e not in passing]
         pool = [e for e in passing
                 if not any(other.cv.rms_um < e.cv.rms_um
-                           and carried(e) > (1 + self.margin(e, other)) * carried(other) for other in passing)]
+                           and carried(e) > (1 + self.margin(e, other)) * carried(other) for other in against)] \
+            or [min(passing, key=lambda e: e.cv.rms_um)]
         best = min(pool, key=lambda e: e.ranked_rms_um)
         margin = self.margin(best)
         return best, margin, [e for e in pool if e.ranked_rms_um <= best.ranked_rms_um * (1 + margin)]
@@ -641,7 +646,7 @@ class Selector:
         evaluations, t_crit, tests = evaluated
         single_paired_tests = self.paired_tests  # pair_round counts its moves' own
         passing = [e for e in evaluations if self.passes(e, path.base_cv, t_crit)]
-        self.note_cannot_have(path, [e for e in evaluations if e not in passing], t_crit)
+        fitting = self.note_cannot_have(path, [e for e in evaluations if e not in passing], t_crit)
         passing = [e for e in passing if self.earned(e, evaluations, passing)]
         if not passing and s.pair_moves and len(path.added) + 2 <= s.max_effects \
                 and self.pair_round(path, evaluations, tests):
@@ -650,7 +655,7 @@ class Selector:
             path.rejected, path.rejected_t_critical = evaluations, t_crit
             path.rejected_paired_tests = single_paired_tests
             return False
-        best, margin, equivalent = self.equivalent(passing)
+        best, margin, equivalent = self.equivalent(passing, fitting)
         chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um))
         chosen = self.parsimonious(chosen, passing)
         if self.time_constant_moves(path, chosen, design, tests):
@@ -671,18 +676,22 @@ class Selector:
         path.base_cv = chosen.cv
         return True
 
-    def note_cannot_have(self, path: Path, refused: list[Evaluation], t_crit: float) -> None:
+    def note_cannot_have(self, path: Path, refused: list[Evaluation], t_crit: float) -> list[Evaluation]:
         """Candidates that pass every guard but what a machine can have: never named, listed with
-        their figures ("fits, but a machine cannot have it")."""
+        their figures ("fits, but a machine cannot have it"). Returns those, and those held back only
+        by the bar for their extra parameters: candidates that fit."""
+        fitting = []
         for evaluation in refused:
             label = explain.label_with_time_constants(evaluation.candidate.term)
-            if any(item[0] == label for item in path.cannot_have):
-                continue
             guards = self.guards_of(evaluation, path.base_cv, t_crit)
             failing = [g for g in guards if not g.passes]
-            if len(failing) == 1 and failing[0].figure.startswith(CANNOT_HAVE):
+            cannot = len(failing) == 1 and failing[0].figure.startswith(CANNOT_HAVE)
+            if cannot or (len(failing) == 1 and failing[0] is guards[-1] and guards[-1].gain >= self.bar):
+                fitting.append(evaluation)
+            if cannot and not any(item[0] == label for item in path.cannot_have):
                 term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
                 path.cannot_have.append((label, term, guards))
+        return fitting
 
     # ------------------------------------------------------------------ one sensor, two time constants
     def twin_of_one_sign(self, path: Path, evaluation: Evaluation) -> bool:

@@ -26,14 +26,16 @@ ROOM_WORDS = ("ambient", "room", "hall", "air")
 @dataclass(frozen=True)
 class Structure:
     expansion_um_per_m_K: float = MATERIALS_UM_PER_M_K["steel"]
-    length_m: float = 1.0
+    # None: the machine's structure was not declared, and sizes are not bounded (only the room's rule
+    # holds); a model file's [structure] table declares it.
+    length_m: float | None = None
     ambient_sensors: tuple[str, ...] = ()
     material: str = "steel"
 
     @property
     def um_per_K(self) -> float:
         """What a kelvin does to the whole structure: its expansion over its length."""
-        return self.expansion_um_per_m_K * self.length_m
+        return self.expansion_um_per_m_K * self.length_m if self.length_m is not None else math.inf
 
     def is_room(self, sensor: str) -> bool:
         if self.ambient_sensors:
@@ -41,7 +43,8 @@ class Structure:
         return any(word in sensor.lower() for word in ROOM_WORDS)
 
     def words(self) -> str:
-        return f"{self.length_m:g} m of {self.material.replace('_', ' ')} at {self.expansion_um_per_m_K:g} um/(m K)"
+        length = f"{self.length_m:g} m" if self.length_m is not None else "a structure of undeclared length"
+        return f"{length} of {self.material.replace('_', ' ')} at {self.expansion_um_per_m_K:g} um/(m K)"
 
 
 def parse_structure(table: Any, source: str) -> Structure:
@@ -58,7 +61,7 @@ def parse_structure(table: Any, source: str) -> Structure:
         raise NckConfigError(f"unknown material {material!r} (known: {', '.join(MATERIALS_UM_PER_M_K)}; or give "
                              f"expansion_um_per_m_K)", path=source, field="structure.material")
     expansion = table.get("expansion_um_per_m_K", MATERIALS_UM_PER_M_K.get(material, math.nan))
-    length = table.get("length_m", 1.0)
+    length = table.get("length_m", 1.0)  # a declared structure without its length: a metre
     for key, value in (("expansion_um_per_m_K", expansion), ("length_m", length)):
         if not isinstance(value, int | float) or isinstance(value, bool) or not value > 0:
             raise NckConfigError(f"{key} must be a positive number", path=source, field=f"structure.{key}")
@@ -72,5 +75,6 @@ def parse_structure(table: Any, source: str) -> Structure:
 def render_structure(structure: Structure) -> list[str]:
     rooms = ", ".join(f'"{r}"' for r in structure.ambient_sensors)
     return ["[structure]", f'material = "{structure.material}"',
-            f"expansion_um_per_m_K = {structure.expansion_um_per_m_K!r}", f"length_m = {structure.length_m!r}"] \
+            f"expansion_um_per_m_K = {structure.expansion_um_per_m_K!r}"] \
+        + ([f"length_m = {structure.length_m!r}"] if structure.length_m is not None else []) \
         + ([f"ambient_sensors = [{rooms}]"] if structure.ambient_sensors else [])

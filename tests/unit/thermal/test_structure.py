@@ -25,7 +25,8 @@ def test_a_room_sensor_never_carries_hysteresis() -> None:
 
 
 def test_sizes_follow_the_structure() -> None:
-    steel = Structure()
+    assert not family("temperature").cannot_have({"sensor": "spindle_rear"}, 40.0, Structure())  # undeclared
+    steel = Structure(length_m=1.0)
     assert not family("temperature").cannot_have({"sensor": "bed"}, 10.3, steel)
     assert "more than 11.5 um/K" in family("temperature").cannot_have({"sensor": "spindle_rear"}, 11.98, steel)
     longer = parse_model('axis = "Z"\n[structure]\nmaterial = "cast_iron"\nlength_m = 2.0\n').structure
