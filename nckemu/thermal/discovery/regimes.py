@@ -148,7 +148,7 @@ def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bo
     """Name a group of runs that follows another relation, when one clears the guards (module doc).
     True when it was named: the path then carries the candidate's term twice, one per group."""
     problem = selector.library.problem
-    if not selector.paired_runs or path.gain_mode or not path.rejected:
+    if not selector.settings.run_groups or not selector.paired_runs or path.gain_mode or not path.rejected:
         return False
     names = [run.name for run in problem.runs]
     given = groups_by_names(names, pattern) if pattern else None

@@ -524,7 +524,7 @@ class Selector:
     def withdrawal_bar(self, term: Term) -> float:
         """What a named term must still be worth at the end: the held-out bar, weighed by its
         parameters as admission weighs them (``Settings.runs_bar_per_parameter``)."""
-        if not self.settings.runs_bar_per_parameter:
+        if not self.settings.withdraw_per_parameter:
             return self.bar
         return shapes.parameter_bar(self.bar, shapes.parameters_of(term))
 
@@ -555,7 +555,7 @@ class Selector:
                 median_with, median_without = (float(np.median(cv.fold_rms_um)) for cv in (path.base_cv, without))
                 loss = 1.0 - median_with / median_without if median_without > 0 else 0.0
                 worst_with, worst_without = max(path.base_cv.fold_rms_um), max(without.fold_rms_um)
-                bar = self.withdrawal_bar(path.added[index]) if record.move is None or s.runs_bar_per_parameter \
+                bar = self.withdrawal_bar(path.added[index]) if record.move is None or s.withdraw_per_parameter \
                     else -math.inf
                 if loss < bar and worst_without <= (1 + s.equivalence) * worst_with \
                         and not self.harms_runs(path.base_cv.fold_rms_um, without.fold_rms_um) \
