@@ -116,6 +116,7 @@ def test_split_runs_on_a_recording_that_stays_one_run_is_as_without_it(tmp_path:
 
 
 @pytest.mark.skipif(not (SHARED / "sjtu_spindle" / "recording.csv").exists(), reason="../shared absent")
+@pytest.mark.slow  # discovery over sjtu's 78 h of 16 sensors: 20-40 s on two cores (make slow)
 def test_split_runs_on_sjtu_stays_one_run(tmp_path: Path, capsys) -> None:
     out = tmp_path / "o.json"
     assert main(["discover", str(SHARED / "sjtu_spindle" / "recording.csv"), "--split-runs",

@@ -119,6 +119,7 @@ def test_a_named_sensor_is_searched_again_away_from_its_time_constant() -> None:
                 if t.effect == "transient_gradient" and t.parameters["sensor"] == "front"]
 
 
+@pytest.mark.slow  # a 12-run family searched to its end twice: 10-80 s on two cores (make slow)
 def test_a_term_the_later_ones_explain_is_withdrawn(tmp_path: Path) -> None:
     from nckemu.thermal.discovery.report import write_report
 
@@ -204,6 +205,7 @@ def test_measured_partners_the_data_cannot_tell_apart_are_named_as_equivalent() 
     assert any(alt.effects == "thermal_lag(spindle) + temperature(bed)" for alt in move.equivalent)
 
 
+@pytest.mark.slow  # a run family searched to the limit and surveyed: 10-50 s on two cores (make slow)
 def test_a_search_stopped_by_the_limit_says_so() -> None:
     family = make_month_family("duty_month", 1)
     result = discover_runs(family.runs, AXIS, family.model, Settings(max_effects=1))
