@@ -73,7 +73,7 @@ test: $(VENV)/.installed-test tshark chromium npm nodesets lint
 # reason, never fail (CI runs this after `make test`; the files are found by what they name).
 NO_SHARED := $(CURDIR)/.no-shared-here
 test-without-shared: $(VENV)/.installed-test
-	NCKEMU_SHARED=$(NO_SHARED) $(PY) -m pytest -n $(JOBS) --dist loadfile -q \
+	NCKEMU_SHARED=$(NO_SHARED) $(PY) -m pytest -n $(JOBS) --dist loadfile \
 	  $$(grep -rlE 'SHARED|shared_dir|fl_thermal_ch3_discovery|\.\./shared' tests --include='test_*.py')
 
 # The slow suite (tests marked slow: seeds, run families, the README tour), two workers at once.
