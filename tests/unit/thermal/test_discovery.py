@@ -145,6 +145,7 @@ def test_discover_without_a_baseline_starts_from_an_offset(shared_dir: Path, tmp
 
 
 @pytest.mark.slow  # discovery over FL_THERMAL's 46 h of 16 sensors: 30-180 s on two cores (make slow)
+@pytest.mark.timeout(900)  # its shared fixture took 185 s on a loaded machine
 def test_fl_thermal_recording_claims_no_centrifugal_growth(fl_thermal_ch3_discovery: Discovery) -> None:
     result = fl_thermal_ch3_discovery
     assert "centrifugal_growth" not in [m.effect for m in result.missing_physics]
