@@ -156,5 +156,6 @@ class ProgramAlarm(NckError):
         self.block = block
 
     def __str__(self) -> str:
-        where = f" ({self.program} line {self.line}: {self.block})" if self.program else ""
+        block = f": {self.block}" if self.block else ""  # the block's N number, where it has one
+        where = f" ({self.program} line {self.line}{block})" if self.program else ""
         return f"alarm {self.number}: {self.args[0]}{where}"
