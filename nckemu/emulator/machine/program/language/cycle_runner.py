@@ -113,10 +113,9 @@ class CycleRunner:
         first, second, infeed = _PLANES[it.modal.plane]
         unit = 25.4 if it.modal.inch_geometry else 1.0
         position = {axis: value / unit for axis, value in it.work_pos.items()}
-        spindle = next((s for s in (1,) if s in it.spindle_speed), None)
-        return cycles.Context(first, second, infeed, position, it.feed_mm,
-                              it.spindle_speed.get(spindle, 0.0) if spindle else 0.0,
-                              getattr(it, "spindle_direction", None))
+        # The interpreter keeps no spindle direction (M3/M4 go to the channel as events): the cycles fall
+        # back to M3 where a program gives none.
+        return cycles.Context(first, second, infeed, position, it.feed_mm, it.spindle_speed.get(1, 0.0), None)
 
     # --- steps into events -------------------------------------------------------------------------
     def _run(self, steps: list[cycles.Step]) -> list[Event]:
