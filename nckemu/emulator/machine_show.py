@@ -9,8 +9,14 @@ from typing import Any
 from nckemu.catalogue.edges import EDGE_PARAMETER_NAMES, parameter_unit
 from nckemu.catalogue.table import load_table
 from nckemu.emulator.faces.opcua.settings import OpcUaSettings
-from nckemu.emulator.machine.machine_file import AXIS_DYNAMICS, Machine, Sensor, Settings, axis_dynamics
-from nckemu.emulator.machine.plc.memory import AREA_BYTES
+from nckemu.emulator.machine.machine_file import (
+    AXIS_DYNAMICS,
+    PLC_AREA_BYTES,
+    Machine,
+    Sensor,
+    Settings,
+    axis_dynamics,
+)
 from nckemu.emulator.machine_check import opcua_document
 from nckemu.heat_response import HeatTerm
 from nckemu.protocol.db41 import CHANNEL_DB
@@ -72,7 +78,8 @@ def machine_document(machine: Machine, opcua: OpcUaSettings) -> dict[str, Any]:
         "settings_changed": [f.name for f in fields(Settings)
                              if getattr(machine.settings, f.name) != getattr(defaults, f.name)],
         "plc": {"data_blocks": {str(n): size for n, size in blocks.items()},
-                "inputs_bytes": AREA_BYTES, "outputs_bytes": AREA_BYTES, "flags_bytes": AREA_BYTES},
+                "inputs_bytes": PLC_AREA_BYTES, "outputs_bytes": PLC_AREA_BYTES,
+                "flags_bytes": PLC_AREA_BYTES},
         "passwords": machine.passwords, "connection_access_level": machine.connection_access_level,
         "opcua": opcua_document(opcua),
     }
@@ -133,7 +140,7 @@ def print_machine(doc: dict[str, Any]) -> None:
     blocks = doc["plc"]["data_blocks"]
     print("  PLC data blocks (number: bytes): " + ", ".join(f"DB{n}: {size}" for n, size in blocks.items())
           + "; no other DB (a read of one is refused)")
-    print(f"  PLC inputs, outputs, flags: {AREA_BYTES} bytes each (I/Q/M 0..{AREA_BYTES - 1})")
+    print(f"  PLC inputs, outputs, flags: {PLC_AREA_BYTES} bytes each (I/Q/M 0..{PLC_AREA_BYTES - 1})")
     passwords = ", ".join(f"{name} -> {level}" for name, level in doc["passwords"].items())
     print(f"  access level of a new connection: {doc['connection_access_level']}; passwords: "
           + (passwords or "none (every connection keeps that level)"))

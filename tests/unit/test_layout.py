@@ -91,9 +91,6 @@ def test_the_opcua_face_parts_form_no_circle_even_under_type_checking() -> None:
 # modules it may hold and what untangles it. A circle that grows past its size, or one not listed, fails;
 # so does a listed one that is gone (take it off: the list only shrinks).
 KNOWN_TYPE_CIRCLES: dict[str, tuple[int, str]] = {
-    "nckemu.emulator.machine.nck.parts": (
-        13, "every part of the machine is handed the whole NCK (NckParts) and names its type: issue 52 item 4, "
-            "a narrow protocol per part"),
     "nckemu.thermal.discovery.selector": (
         2, "the selector asks explain for words and explain reads the selector's records: issue 52 item 5"),
 }

@@ -16,7 +16,6 @@ from typing import Any
 
 from nckemu.catalogue.edges import STANDARD_EDGE_PARAMS
 from nckemu.catalogue.table import VariableSpec, load_table, machine_table, row_lines
-from nckemu.emulator.machine.plc.memory import AREA_BYTES
 from nckemu.errors import NckConfigError
 from nckemu.heat_response import SENSOR, HeatTerm, parse_terms
 from nckemu.textfile import read_text
@@ -45,6 +44,11 @@ class Axis:
 
 # The default allocation of SD42960's components to geometry axes, by the first letter of the axis name.
 TOOL_TEMP_COMP_COMPONENTS = {"Z": 1, "Y": 2, "X": 3}
+
+
+# The bytes of each of the PLC's input, output and flag areas (plc/memory.py): a sensor's ``plc_input`` word
+# lies in the input area. Here, with the machine's shape, so that the machine file does not import the PLC.
+PLC_AREA_BYTES = 2048
 
 
 @dataclass(frozen=True)
@@ -483,8 +487,8 @@ def _sensor(table: dict[str, Any], index: int, source: str) -> Sensor:
     if plc_input is not None and (not isinstance(plc_input, str) or not plc_input.upper().startswith("PIW")
                                   or not plc_input[3:].isdigit()):
         raise NckConfigError("expected 'PIW<byte address>'", path=source, field=f"{where}plc_input")
-    if plc_input is not None and int(plc_input[3:]) > AREA_BYTES - 2:
-        raise NckConfigError(f"{plc_input}: the input area has bytes 0..{AREA_BYTES - 1}, so PIW0..PIW{AREA_BYTES - 2}",
+    if plc_input is not None and int(plc_input[3:]) > PLC_AREA_BYTES - 2:
+        raise NckConfigError(f"{plc_input}: the input area has bytes 0..{PLC_AREA_BYTES - 1}, so PIW0..PIW{PLC_AREA_BYTES - 2}",
                              path=source, field=f"{where}plc_input")
     return Sensor(name=_get(table, "name", str, where, source),
                   temperature_C=_get(table, "temperature_C", float, where, source, 20.0),

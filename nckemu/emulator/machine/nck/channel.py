@@ -47,7 +47,9 @@ from nckemu.emulator.machine.program.planner import SpindleRamp
 from nckemu.errors import NckAddressOutOfRange, NckError, NckItemError, NckNoSuchFile, NckPiStateError
 
 if TYPE_CHECKING:
-    from nckemu.emulator.machine.nck.parts import NckParts
+    from nckemu.emulator.machine.machine_file import Machine
+    from nckemu.emulator.machine.nck.alarms import Alarms
+    from nckemu.emulator.machine.nck.programs import Programs
     from nckemu.emulator.machine.program.block_record import BlockRecord
 
 log = logging.getLogger("nckemu.emulator.nck.channel")
@@ -62,6 +64,21 @@ CHANGES = ("selected", "unselected", "started", "interrupted", "resumed", "ended
 # system variables): the part counters, the overrides and the commanded feed.
 SETTABLE_FIGURES = frozenset({"required_parts", "total_parts", "actual_parts", "specified_parts",
                               "feed_override_pct", "rapid_override_pct", "commanded_feed_mm_min"})
+
+
+class ChannelParts(Protocol):
+    """What a channel uses of the NCK: the program store (select, read, what runs), the alarm list (its
+    program alarms and refusals) and the machine's program settings. Not the whole NCK (``parts.NckParts``
+    names the channel among its parts): the channel and the NCK would import each other."""
+
+    @property
+    def machine(self) -> Machine: ...
+
+    @property
+    def programs(self) -> Programs: ...
+
+    @property
+    def alarm_list(self) -> Alarms: ...
 
 
 class ChannelRun(Protocol):
@@ -86,8 +103,8 @@ class ChannelRun(Protocol):
     def programs_in_use(self) -> frozenset[str]: ...
 
 
-# (channel, the NCK's parts, program path, program text, start time) -> the run
-RunFactory = Callable[["Channel", "NckParts", str, str, float], ChannelRun]
+# (channel, program path, program text, start time) -> the run; the model binds the NCK the run works on
+RunFactory = Callable[["Channel", str, str, float], ChannelRun]
 
 
 @dataclass
@@ -135,13 +152,14 @@ class ChannelState:
 class Channel:
     """One channel's run state on the emulator's clock, and its program run."""
 
-    def __init__(self, number: int, clock: Clock, spindles: int, parts: NckParts, start_run: RunFactory) -> None:
+    def __init__(self, number: int, clock: Clock, spindles: int, parts: ChannelParts,
+                 start_run: RunFactory) -> None:
         self.number = number
         self._clock = clock
         self.state = ChannelState(spindles={n: Spindle() for n in range(1, spindles + 1)})
         self._net_s = 0.0
         self._running_since: float | None = None
-        self.parts = parts   # the NCK's parts it runs programs with (programs, axes, alarms, tools, frames)
+        self.parts = parts   # the program store, the alarm list and the program settings
         self.selected = ""
         # The NC path a run without a program is shown under (a recording's run: progName and the
         # program of the current block name it); kept after its end, as a selection is, until a select.
@@ -227,7 +245,7 @@ class Channel:
             text = self.parts.programs.read(self.selected)
         except NckNoSuchFile:
             self._refuse(settings.start_refused_alarm, f"NC start not possible: {self.selected} no longer exists")
-        self.run = self._start_run(self, self.parts, self.selected, program_text(text), now)
+        self.run = self._start_run(self, self.selected, program_text(text), now)
         self._run_key = (self.selected, hash(text))
         if self.number == 1:
             self.parts.programs.running = self.selected

@@ -24,14 +24,15 @@ What the values follow:
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Protocol
 
 from nckemu.emulator.machine.machine_file import Drive, Machine
 from nckemu.errors import NckObjectDoesNotExist
 
 if TYPE_CHECKING:
-    from nckemu.emulator.machine.nck.parts import NckParts
+    from nckemu.emulator.machine.nck.channel import Channel
+    from nckemu.emulator.machine.nck.sensors import Sensors
 
 # Drive objects (the module byte of an area-V item).
 CONTROL_UNIT = 0x80
@@ -52,6 +53,21 @@ R0037_MEASURED: dict[int, float] = {
     5: 1.0,    # inverter 1
 }
 R0037_INDICES = 20
+
+
+class DriveInputs(Protocol):
+    """What the drive values read of the NCK: channel 1's spindles (the speed), the sensors (a motor
+    sensor) and the line-up itself. Not the whole NCK (``parts.NckParts`` names the drives among its parts):
+    the drives and the NCK would import each other."""
+
+    @property
+    def channels(self) -> Mapping[int, Channel]: ...
+
+    @property
+    def sensors(self) -> Sensors: ...
+
+    @property
+    def drives(self) -> Drives: ...
 
 
 class Drives:
@@ -94,7 +110,7 @@ class Drives:
         else:
             self._load_pct[number] = float(load_pct)
 
-    def speed_rpm(self, model: NckParts, number: int) -> float:
+    def speed_rpm(self, model: DriveInputs, number: int) -> float:
         drive = self.drive(number)
         spindle = self._spindle_of_axis.get(drive.axis or 0)
         channel = model.channels.get(1)
@@ -102,7 +118,7 @@ class Drives:
             return 0.0
         return channel.spindle_speed_rpm(spindle)
 
-    def load_pct(self, model: NckParts, number: int) -> float:
+    def load_pct(self, model: DriveInputs, number: int) -> float:
         override = self._load_pct.get(number)
         if override is not None:
             return override
@@ -111,21 +127,21 @@ class Drives:
         return drive.standstill_load_pct + drive.speed_load_pct * fraction
 
     # ------------------------------------------------------------------ r-parameters of a motor module
-    def torque_current_A(self, model: NckParts, number: int) -> float:
+    def torque_current_A(self, model: DriveInputs, number: int) -> float:
         """r0030: the torque-generating current Iq, in proportion to the load."""
         return self.drive(number).rated_current_A * self.load_pct(model, number) / 100.0
 
-    def current_A(self, model: NckParts, number: int) -> float:
+    def current_A(self, model: DriveInputs, number: int) -> float:
         """r0027: the absolute current, Iq and the magnetizing current Id together."""
         return math.hypot(self.torque_current_A(model, number), self.drive(number).magnetizing_current_A)
 
-    def torque_Nm(self, model: NckParts, number: int) -> float:
+    def torque_Nm(self, model: DriveInputs, number: int) -> float:
         """r0080: the load (torque utilization, r0081) of the rated torque, rated power over rated speed."""
         drive = self.drive(number)
         rated_Nm = drive.rated_power_kW * 1000.0 / (2.0 * math.pi * drive.rated_speed_rpm / 60.0)
         return rated_Nm * self.load_pct(model, number) / 100.0
 
-    def power_kW(self, model: NckParts, number: int) -> float:
+    def power_kW(self, model: DriveInputs, number: int) -> float:
         """r0032: electrical active power, motoring positive: load x speed over the efficiency, plus the
         copper losses of the current."""
         drive = self.drive(number)
@@ -135,7 +151,7 @@ class Drives:
         losses_kW = drive.rated_power_kW * (1.0 - self.settings.efficiency) * load * load
         return mechanical_kW / self.settings.efficiency + losses_kW
 
-    def motor_temperature_C(self, model: NckParts, number: int) -> float:
+    def motor_temperature_C(self, model: DriveInputs, number: int) -> float:
         """r0035: the motor sensor, else ambient plus a steady rise with the square of the load."""
         drive = self.drive(number)
         if drive.motor_sensor is not None:
@@ -143,7 +159,7 @@ class Drives:
         load = self.load_pct(model, number) / 100.0
         return self.settings.ambient_C + self.settings.motor_rise_K * load * load
 
-    def power_unit_temperature_C(self, model: NckParts, number: int, index: int) -> float:
+    def power_unit_temperature_C(self, model: DriveInputs, number: int, index: int) -> float:
         """r0037[index]: ambient plus a rise with the current where the power unit has a sensor."""
         share = R0037_MEASURED.get(index)
         if share is None:
@@ -152,7 +168,7 @@ class Drives:
         utilization = self.current_A(model, number) / drive.rated_current_A
         return self.settings.ambient_C + self.settings.power_unit_rise_K * share * utilization
 
-    def temperatures_C(self, model: NckParts) -> list[dict[str, object]]:
+    def temperatures_C(self, model: DriveInputs) -> list[dict[str, object]]:
         """Each drive's motor and power unit (inverter) temperature, for the live page."""
         return [{"number": number, "axis": self.by_number[number].axis,
                  "motor_C": self.motor_temperature_C(model, number),
@@ -161,19 +177,19 @@ class Drives:
                 for number in self.numbers]
 
     # ------------------------------------------------------------------ the infeed
-    def infeed_power_kW(self, model: NckParts) -> float:
+    def infeed_power_kW(self, model: DriveInputs) -> float:
         """r0032 of the infeed: what the motor modules draw, over the infeed's efficiency."""
         return sum(self.power_kW(model, number) for number in self.numbers) / self.settings.infeed_efficiency
 
 
-def _motor(value: Callable[[Drives, NckParts, int], float]) -> Callable[[NckParts, int, int], object]:
-    def read(model: NckParts, unit: int, _line: int) -> object:
+def _motor(value: Callable[[Drives, DriveInputs, int], float]) -> Callable[[DriveInputs, int, int], object]:
+    def read(model: DriveInputs, unit: int, _line: int) -> object:
         return value(model.drives, model, unit)
     return read
 
 
 # The value sources of the drive parameters (registered in ``sources.SOURCES``): (model, unit, line).
-DRIVE_READERS: dict[str, Callable[[NckParts, int, int], object]] = {
+DRIVE_READERS: dict[str, Callable[[DriveInputs, int, int], object]] = {
     "drives.motor.r0021": _motor(lambda drives, model, unit: drives.speed_rpm(model, unit)),
     "drives.motor.r0026": lambda model, _unit, _line: model.drives.settings.dc_link_V,
     "drives.motor.r0027": _motor(lambda drives, model, unit: drives.current_A(model, unit)),

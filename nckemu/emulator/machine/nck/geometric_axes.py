@@ -16,15 +16,57 @@ is, the temperature and leadscrew compensation included.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Protocol
 
 from nckemu.errors import NckAddressOutOfRange
 
 if TYPE_CHECKING:
-    from nckemu.emulator.machine.nck.parts import NckParts
+    from nckemu.emulator.machine.machine_file import Machine
+    from nckemu.emulator.machine.nck.axes import Axes
+    from nckemu.emulator.machine.nck.frames import Frames
+    from nckemu.emulator.machine.nck.tools import Tools
 
 GEOMETRY_AXIS_NAMES = ("X", "Y", "Z")  # MD20060 AXCONF_GEOAX_NAME_TAB, as SINUMERIK delivers it
+
+
+class ActiveEdge(Protocol):
+    """The tool edge a channel has active (its state's T and D numbers)."""
+
+    @property
+    def t_number(self) -> int: ...
+
+    @property
+    def d_number(self) -> int: ...
+
+
+class EdgeOfChannel(Protocol):
+    @property
+    def state(self) -> ActiveEdge: ...
+
+
+class WorkpieceParts(Protocol):
+    """What the workpiece view of the channel's axes reads of the NCK: the machine's axes and tool
+    settings, the axes' positions (commanded and, compensation included, actual), the frames, the
+    tools and each channel's active edge. Not the whole NCK (``parts.NckParts``): the channel's
+    planner names the geometry axes from here, and the channel is one of the NCK's parts."""
+
+    @property
+    def machine(self) -> Machine: ...
+
+    @property
+    def axes(self) -> Axes: ...
+
+    @property
+    def frames(self) -> Frames: ...
+
+    @property
+    def tools(self) -> Tools: ...
+
+    @property
+    def channels(self) -> Mapping[int, EdgeOfChannel]: ...
+
+    def actual_position_mm(self, axis: int) -> float: ...
 
 
 def channel_axis_name(machine_axis_name: str) -> str:
@@ -32,7 +74,7 @@ def channel_axis_name(machine_axis_name: str) -> str:
     return machine_axis_name.rstrip("0123456789") or machine_axis_name
 
 
-def wcs_axes(model: NckParts, channel: int) -> list[tuple[str, int]]:
+def wcs_axes(model: WorkpieceParts, channel: int) -> list[tuple[str, int]]:
     """The channel's axes in WCS order: (channel axis name, machine axis number) per line from 1."""
     if channel != 1:
         return []
@@ -43,7 +85,7 @@ def wcs_axes(model: NckParts, channel: int) -> list[tuple[str, int]]:
     return [(channel_axis_name(axis.name), axis.number) for axis in geometry + others]
 
 
-def _axis(model: NckParts, channel: int, line: int) -> tuple[int, int]:
+def _axis(model: WorkpieceParts, channel: int, line: int) -> tuple[int, int]:
     """(machine axis number, geometry axis index 1..3 or 0) of a GeometricAxis line."""
     axes = wcs_axes(model, channel)
     if not 1 <= line <= len(axes):
@@ -54,7 +96,7 @@ def _axis(model: NckParts, channel: int, line: int) -> tuple[int, int]:
     return number, geometry
 
 
-def _tool_length_mm(model: NckParts, channel: int, geometry: int) -> float:
+def _tool_length_mm(model: WorkpieceParts, channel: int, geometry: int) -> float:
     """The active tool edge's length along geometry axis ``geometry`` (1..3; 0 for another axis)."""
     if not geometry:
         return 0.0
@@ -63,29 +105,29 @@ def _tool_length_mm(model: NckParts, channel: int, geometry: int) -> float:
     return float(model.tools.active_length_mm(state.t_number, state.d_number, component))
 
 
-def _tool_base_of_mm(model: NckParts, channel: int, number: int, actual: bool) -> float:
+def _tool_base_of_mm(model: WorkpieceParts, channel: int, number: int, actual: bool) -> float:
     """The tool base of machine axis ``number`` in the channel's WCS."""
     machine_mm = model.actual_position_mm if actual else model.axes.positions_mm.__getitem__
     return model.frames.work_position_mm(channel, number, machine_mm)
 
 
-def tool_base_mm(model: NckParts, channel: int, line: int, *, actual: bool = True) -> float:
+def tool_base_mm(model: WorkpieceParts, channel: int, line: int, *, actual: bool = True) -> float:
     number, _geometry = _axis(model, channel, line)
     return _tool_base_of_mm(model, channel, number, actual)
 
 
-def programmed_point_mm(model: NckParts, channel: int, line: int, *, actual: bool = True) -> float:
+def programmed_point_mm(model: WorkpieceParts, channel: int, line: int, *, actual: bool = True) -> float:
     number, geometry = _axis(model, channel, line)  # once: a read lists the channel's axes
     return _tool_base_of_mm(model, channel, number, actual) - _tool_length_mm(model, channel, geometry)
 
 
-def axis_name(model: NckParts, channel: int, line: int) -> str:
+def axis_name(model: WorkpieceParts, channel: int, line: int) -> str:
     axes = wcs_axes(model, channel)
     return axes[line - 1][0] if 1 <= line <= len(axes) else ""
 
 
 # The value sources of the GeometricAxis rows (registered in ``sources.SOURCES``): (model, unit, line).
-GEOMETRIC_AXIS_READERS: dict[str, Callable[[NckParts, int, int], object]] = {
+GEOMETRIC_AXIS_READERS: dict[str, Callable[[WorkpieceParts, int, int], object]] = {
     "geometric_axes.actual_tool_base": lambda model, unit, line: tool_base_mm(model, unit, line),
     "geometric_axes.commanded_tool_base": lambda model, unit, line: tool_base_mm(model, unit, line, actual=False),
     "geometric_axes.actual_programmed": lambda model, unit, line: programmed_point_mm(model, unit, line),

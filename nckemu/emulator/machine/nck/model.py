@@ -90,9 +90,9 @@ class NckModel:
         self.nck_io = NckIo()  # $A_IN/$A_OUT and the PLC-NCK data area ($A_DBB ...) programs use
         self.programs.definitions.on_checked = self._definition_checked
         spindles = sum(axis.spindle for axis in machine.axes)
-        # The channels run programs with the NCK's parts (programs, axes, alarms, tools, frames, store),
-        # read when a program runs: the tools and frames below come before any.
-        self.channels = {number: Channel(number, clock, spindles if number == 1 else 0, self, ProgramRun)
+        # The channels' runs work on the whole NCK (programs, axes, alarms, tools, frames, store), read
+        # when a program runs: the tools and frames below come before any.
+        self.channels = {number: Channel(number, clock, spindles if number == 1 else 0, self, self._start_run)
                          for number in range(1, machine.channels + 1)}
         self.tools = Tools(machine)
         self.frames = Frames(machine, machine.channels)
@@ -102,6 +102,10 @@ class NckModel:
         # Told of every accepted write (after it landed): one write can move other variables (a
         # compensation value moves the axis' positions), so listeners get the address only as a hint.
         self.write_listeners: list[Callable[[NckAddress], None]] = []
+
+    def _start_run(self, channel: Channel, path: str, text: str, start_s: float) -> ProgramRun:
+        """A channel's run of a program, on this NCK."""
+        return ProgramRun(channel, self, path, text, start_s)
 
     def _definition_checked(self, path: str, alarm: ProgramAlarm | None) -> None:
         """A definition file refused stays on the alarm list (with its file and line) until a good

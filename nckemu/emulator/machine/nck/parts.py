@@ -1,8 +1,13 @@
 """What the NCK model's collaborators may use of it: its parts, by a narrow protocol.
 
-Named value sources (``sources``) and PI services (``pi_services``) are handed the model, but type
-against :class:`NckParts`, not the model class, so they depend on the parts they touch (axes,
-channels, tools, ...) and the model depends on them, never the other way round.
+Named value sources (``sources``), PI services (``pi_services``) and a channel's program run
+(``program/run.py`` and its environment) are handed the model, but type against :class:`NckParts`,
+not the model class, so they depend on the parts they touch (axes, channels, tools, ...) and the
+model depends on them, never the other way round.
+
+A part named here never takes :class:`NckParts` (that would close a circle, type imports counted):
+what a part needs of the others it names in its own protocol, beside it: ``channel.ChannelParts``,
+``drives.DriveInputs``, ``geometric_axes.WorkpieceParts``. The model satisfies them all.
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ from datetime import datetime, timedelta
 from typing import Any
 
 from nckemu.emulator.machine.clock import Clock, MonotonicClock
+from nckemu.emulator.machine.machine_file import PLC_AREA_BYTES
 from nckemu.emulator.machine.plc.channel_signals import ChannelSignals
 from nckemu.errors import NckAddressOutOfRange, NckError, NckObjectDoesNotExist, NckServiceError
 from nckemu.protocol import c840, db41, szl
@@ -24,7 +25,6 @@ log = logging.getLogger("nckemu.emulator.plc.memory")
 
 _SENSOR_WORD = struct.Struct(">h")
 
-AREA_BYTES = 2048
 ORDER_NUMBER = "6FC5372-0AA30-0AA0"  # NCU 720.3 PN; the PLC part answers as the NCU
 HARDWARE_VERSION = 3
 FIRMWARE_VERSION = (3, 2, 6)  # of the PLC part (a CPU 317-2 PN/DP); not a measured value
@@ -79,8 +79,8 @@ class PlcModel:
             dict(getattr(machine, "data_blocks", {})) if machine is not None else {41: 64, 100: 256})
         blocks.setdefault(db41.CHANNEL_DB, 64)
         self.data_blocks: dict[int, bytearray] = {number: bytearray(size) for number, size in blocks.items()}
-        self.areas: dict[int, bytearray] = {S7Area.I: bytearray(AREA_BYTES), S7Area.Q: bytearray(AREA_BYTES),
-                                            S7Area.M: bytearray(AREA_BYTES)}
+        self.areas: dict[int, bytearray] = {area: bytearray(PLC_AREA_BYTES)
+                                            for area in (S7Area.I, S7Area.Q, S7Area.M)}
         self.running = True
         # The machine's name and serial number as every face shows them (SZL 0x001C): the emulator
         # gives its own name (a fleet's machine's name) and MD18030.
