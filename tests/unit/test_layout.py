@@ -2,8 +2,11 @@
 count (bar-style checks count them: a type import is still a dependency a reader has to hold in mind)
 but the known ones, which may only shrink.
 
-import-linter (``make lint``) checks the layers; a circle inside one layer would pass it, so the
-graph is walked here (grimp, which import-linter uses).
+import-linter (``make lint``) checks the layers and, in its ``acyclic`` contract (acyclic_siblings,
+type imports counted), that no siblings at any level of the package import each other round. That
+contract ignores the imports of its known knots (the program package and the NCK), and a circle of
+modules running through one of them would pass it, so the module graph is walked here as well (grimp,
+which import-linter uses).
 """
 
 from __future__ import annotations
