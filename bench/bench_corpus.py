@@ -37,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from bench.corpus_fetch import load_manifest, repository_dir  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
+MANIFEST_DIR = ROOT / "bench" / "corpus"
 _ALARM = re.compile(r"alarm (\d+): (.*?)(?: \((\S+) line (\d+): (.*)\))?$")
 
 
@@ -67,6 +68,16 @@ def _files(tree: Path, repository: dict, main: Path) -> list[tuple[str, bytes]]:
         if path != main and path.is_file() and path.suffix.upper() == ".MPF":
             stored.append((f"/_N_MPF_DIR/_N_{_stem(path.name)}_MPF", path.read_bytes()))
     return stored
+
+
+def _values(entry: dict) -> list[tuple[str, bytes]]:
+    """The program's GUD values (``values`` in the manifest: a file of ours under bench/corpus/), stored
+    after its definition files as a shop's archive of the HMI's values would be loaded."""
+    name = entry.get("values")
+    if not name:
+        return []
+    path = MANIFEST_DIR / name
+    return [(f"/_N_DEF_DIR/_N_{_stem(path.name)}_GUD", path.read_bytes())]
 
 
 class _Faults(logging.Handler):
@@ -176,8 +187,10 @@ def run_isolated(args: tuple, wall_s: float) -> dict[str, Any]:
             process.join()
 
 
-def programs(corpus: Path, manifest: dict, only: str = "", machine: str = "") -> list[tuple[dict, Path, Path]]:
-    """(repository entry, repository tree, main program) of every program fetched into ``corpus``."""
+def programs(corpus: Path, manifest: dict, only: str = "",
+             machine: str = "") -> list[tuple[dict, Path, Path, dict]]:
+    """(repository entry, repository tree, main program, program entry) of every program fetched into
+    ``corpus``."""
     repositories = {entry["repo"]: entry for entry in manifest["repository"]}
     found = []
     for entry in manifest["program"]:
@@ -189,7 +202,7 @@ def programs(corpus: Path, manifest: dict, only: str = "", machine: str = "") ->
         if only and only.upper() not in f"{entry['repo']}/{entry['path']}".upper():
             continue
         if main.is_file():
-            found.append((repository, tree, main))
+            found.append((repository, tree, main, entry))
     return found
 
 
@@ -222,9 +235,14 @@ def run_corpus(corpus: Path, *, only: str = "", machine: str = "", max_time_s: f
                wall_s: float = 60.0, on_result: Any = None) -> list[dict[str, Any]]:
     """Every fetched program of the manifest, run; one result dict each."""
     results = []
-    for repository, tree, main_path in programs(corpus, load_manifest(), only, machine):
+    for repository, tree, main_path, entry in programs(corpus, load_manifest(), only, machine):
         stored = _files(tree, repository, main_path)
-        outcome = run_isolated((repository["machine"], str(main_path), stored, max_time_s, wall_s), wall_s + 30.0)
+        stored += _values(entry)
+        # a program the manifest knows to be long has its own budget (max_time_s, wall_s and why)
+        own_max_s = max(max_time_s, float(entry.get("max_time_s", 0.0)))
+        own_wall_s = max(wall_s, float(entry.get("wall_s", 0.0)))
+        outcome = run_isolated((repository["machine"], str(main_path), stored, own_max_s, own_wall_s),
+                               own_wall_s + 30.0)
         result = {"repo": repository["repo"], "program": f"{repository['repo']}/{main_path.relative_to(tree).as_posix()}",
                   **outcome}
         results.append(result)

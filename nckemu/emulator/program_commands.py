@@ -30,8 +30,10 @@ examples:
 A main program calling a subprogram kept elsewhere (the SYIL 828D warm-up, for instance):
   program run DAILY.MPF --with ../subroutines/WARMUP_CYCLE.SPF --machine fixtures/machines/syil_x7.toml
   program run MPF/GRIND.MPF --with DEF/MGUD.DEF     (GUD arrays the program uses: INI[53]=1500)
+  program run MPF/GRIND.MPF --with DEF/MGUD.DEF --with WHEEL.GUD  (the values an operator entered)
 The program is stored under its name (DAILY.MPF -> /_N_MPF_DIR/_N_DAILY_MPF), with the .MPF/.SPF/.DEF
-files next to it and every --with file (MGUD.DEF -> /_N_DEF_DIR/_N_MGUD_DEF, activated); it runs on channel 1 until M2/M30, an alarm or --max-time.
+files next to it and every --with file (MGUD.DEF -> /_N_DEF_DIR/_N_MGUD_DEF, activated; WHEEL.GUD: GUD values,
+INI[5]=3 a block, assigned); it runs on channel 1 until M2/M30, an alarm or --max-time.
 --out writes what the run would have recorded (t_s, temp_<sensor>_C, spindle_rpm, pos_<axis>_mm: the
 columns `plc run --inputs` and `discover` read); --blocks the executed blocks.
 """
@@ -52,7 +54,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("file", help="the main program (e.g. DAILY.MPF)")
     parser.add_argument("--machine", help="machine TOML (default: the built-in default machine)")
     parser.add_argument("--with", dest="extra", action="append", default=[], metavar="FILE",
-                        help="another program to store first (a subprogram in another folder); repeatable")
+                        help="another program to store first (a subprogram in another folder, a .DEF definition file, a .GUD "
+                             "file of GUD values); repeatable, stored in the order given")
     parser.add_argument("--blocks", metavar="BLOCKS.csv", help="write the executed blocks to this CSV file")
     parser.add_argument("--out", metavar="SIM.csv", help="write the recording the run would have made")
     parser.add_argument("--sample", type=float, default=1.0, metavar="S",
@@ -89,8 +92,11 @@ def store_programs(emulator: Emulator, files: list[str]) -> str:
 
 def _store(emulator: Emulator, main: Path, extra: list[str]) -> str:
     programs = emulator.nck.programs
-    for sibling in sorted(main.parent.glob("*")) if main.parent.is_dir() else []:
-        if sibling != main and sibling.suffix.upper() in (".MPF", ".SPF", ".DEF") and sibling.is_file():
+    siblings = sorted(main.parent.glob("*")) if main.parent.is_dir() else []
+    # definitions first, GUD values last: the values go into the variables the definitions make
+    order = {".DEF": 0, ".MPF": 1, ".SPF": 1, ".GUD": 2}
+    for sibling in sorted(siblings, key=lambda path: order.get(path.suffix.upper(), 3)):
+        if sibling != main and sibling.suffix.upper() in order and sibling.is_file():
             try:
                 programs.write(program_path(sibling.name), _read(sibling))
             except DefinitionRefused as exc:  # MGUD.DEF beside the program: its error is the user's

@@ -194,3 +194,55 @@ def test_positions_feed_and_time_a_program_reads_after_a_move() -> None:
     r = store.read_lines(store.spec("R"), 1, 31, 6)
     assert r[:4] == [pytest.approx(20.0), 20.0, 600.0, pytest.approx(20.0)]
     assert 0.0 <= r[4] < 1.0 and r[5] >= 0  # $AC_TIME: since the block's start; no tool changed
+
+
+VALUES_TEXT = b"""%_N_WHEEL_GUD
+;$PATH=/_N_DEF_DIR
+CHANDATA(1)
+N10 INI[5]=3 INI[53]=1500 ; wheel speed
+AXIS_VER="X"
+COUNTS[1]=2*3
+M17
+"""
+
+
+def test_a_gud_value_file_assigns_what_an_operator_entered_before_the_program_runs() -> None:
+    emulator = _emulator()
+    programs = emulator.nck.programs
+    programs.write(MGUD, GUD_TEXT)
+    programs.write("/_N_DEF_DIR/_N_WHEEL_GUD", VALUES_TEXT)
+    assert (_gud(emulator, "INI", 5), _gud(emulator, "INI", 53), _gud(emulator, "AXIS_VER")) == (3.0, 1500.0, "X")
+    assert _gud(emulator, "COUNTS", 1) == 6 and _gud(emulator, "COUNTS", 2) == 3  # the DEF's SET stays
+    _run(emulator, "GRIND", b"R1=360/INI[5]\nG0 AX[AXNAME(AXIS_VER)]=R1\nM30\n")
+    assert emulator.nck.axes.positions_mm[1] == pytest.approx(120.0)
+
+
+@pytest.mark.parametrize(("text", "line", "number", "says"), [
+    (b"INI[5]=3\nNO_SUCH[1]=2\n", 2, 12550, "NO_SUCH not defined"),
+    (b"INI[5]=3\nINI[100]=1\n", 2, 17020, "outside 0..99"),
+    (b'INI[5]=3\nINI[6]="text"\n', 2, 12150, "not a number"),
+    (b"CHANDATA(2)\nINI[5]=3\n", 1, 12080, "channel 1"),
+    (b"INI[5]=3\nINI[6]=SAFE_Z\n", 2, 12550, "SAFE_Z"),
+    (b"INI[5]=3\nG1 X10\n", 2, 12550, "G1 not defined"),
+])
+def test_a_gud_value_file_with_an_error_is_refused_whole_with_its_line(text: bytes, line: int, number: int,
+                                                                       says: str) -> None:
+    emulator = _emulator()
+    programs = emulator.nck.programs
+    programs.write(MGUD, GUD_TEXT)
+    with pytest.raises(DefinitionRefused) as refused:
+        programs.write("/_N_DEF_DIR/_N_BAD_GUD", text)
+    alarm = refused.value.alarm
+    assert (alarm.number, alarm.program, alarm.line) == (number, "/_N_DEF_DIR/_N_BAD_GUD", line), alarm
+    assert says in str(alarm)
+    assert _gud(emulator, "INI", 5) == 0.0 and not programs.exists("/_N_DEF_DIR/_N_BAD_GUD")
+
+
+def test_program_run_stores_definitions_before_the_gud_values_beside_the_program(tmp_path, capsys) -> None:
+    from nckemu.cli import main
+
+    (tmp_path / "ZVALUES.GUD").write_bytes(b"INI[5]=4\nM17\n")
+    (tmp_path / "MGUD.DEF").write_bytes(GUD_TEXT)
+    (tmp_path / "GRIND.MPF").write_bytes(b"R1=360/INI[5]\nM30\n")
+    assert main(["program", "run", str(tmp_path / "GRIND.MPF"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["outcome"] == "ended"

@@ -347,6 +347,18 @@ def test_modal_call_of_a_program_runs_after_each_motion_block() -> None:
     assert (env.r_parameter(1), env.r_parameter(2)) == (2.0, -5.0)
 
 
+def test_modal_call_arguments_are_the_callers_values_at_the_mcall() -> None:
+    # HOLES1 under MCALL CYCLE81(RTP, ...): the calls come from the pattern's blocks, where the main
+    # program's RTP is no name; the arguments are evaluated in the block that programs the MCALL
+    env = DictEnvironment(programs={
+        "DRILL.SPF": "PROC DRILL(REAL _RTP, REAL _DP)\nR1 = R1 + 1\nR2 = _RTP\nR3 = _DP\nRET",
+        "ROW.SPF": "PROC ROW(INT _N)\nDEF INT _I\nLOOP_:G0 X=_I*10\n_I=_I+1\nIF _I<_N GOTOB LOOP_\nRET"})
+    result = run("DEF REAL RTP=112, DP=22\nMCALL DRILL(RTP, DP)\nRTP=5\nROW(3)\nMCALL\nM30", env)
+    assert result.alarm is None, result.alarm
+    assert [env.r_parameter(index) for index in (1, 2, 3)] == [3.0, 112.0, 22.0]
+    assert [move.target_mm["X"] for move in result.moves] == [0.0, 10.0, 20.0]
+
+
 def test_proc_save_restores_the_callers_modal_state() -> None:
     env = DictEnvironment(programs={"INCH.SPF": "PROC INCH SAVE\nG70 G91 G1 X1 F10\nRET"})
     result = run("G0 X0\nINCH\nG0 X1\nM30", env)

@@ -14,6 +14,7 @@ from typing import Any
 
 from nckemu.catalogue.program_names import DIRECTORIES, directory_path, program_path
 from nckemu.emulator.machine.program.language.definitions import GlobalDefinitions, is_definition_file
+from nckemu.emulator.machine.program.language.gud_values import is_values_file
 from nckemu.emulator.machine.program.language.source import decode_program
 from nckemu.errors import NckNoSuchFile, NckPiStateError
 
@@ -60,6 +61,8 @@ class Programs:
         self._refuse_in_use(path)
         if is_definition_file(path):
             self.definitions.activate(path, bytes(text))  # raises DefinitionRefused
+        elif is_values_file(path):
+            self.definitions.assign_values(path, bytes(text))  # raises DefinitionRefused
         self.texts[path] = bytes(text)
         self.paths.add(path)
         self.stamps.pop(path, None)

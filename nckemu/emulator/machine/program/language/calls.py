@@ -62,7 +62,8 @@ class Calls:
         self.sources: dict[str, ProgramSource] = {}
         self.stack: list[ProgramLevel] = []
         self.frame: ProgramLevel | None = None
-        self.modal_call: tuple[Any, Any] | None = None   # MCALL: the name and arguments
+        self.modal_call: tuple[Any, Any] | None = None   # MCALL: the name and the arguments' values
+        self.modal_refs: tuple = ()   # MCALL: the references of its arguments (for VAR parameters)
         # The depth of the subprogram a modal call entered while it runs: its own motion blocks do not
         # call it again (a user's CYCLE82.SPF under MCALL CYCLE82 would otherwise call itself forever).
         self.modal_depth: int | None = None
@@ -83,6 +84,10 @@ class Calls:
     def call(self, name_expr: Any, args: list | None, repeat: Any, frame: ProgramLevel) -> list[Event] | None:
         """``name(args) P=repeat`` from ``frame``: the subprogram's level is entered (its blocks come
         next), or a standard cycle's events are returned."""
+        return self._call(name_expr, args, repeat, frame, None)
+
+    def _call(self, name_expr: Any, args: list | None, repeat: Any, frame: ProgramLevel,
+              refs: tuple | None) -> list[Event] | None:
         names = self.names
         name = evaluate(name_expr, names)
         if name.__class__ is not str or not name:
@@ -108,19 +113,34 @@ class Calls:
             source = ProgramSource(path, text, subprogram=True)
             self.sources[path] = source
         values = tuple(None if arg is None else evaluate(arg, names) for arg in (args or ()))
-        refs = tuple(getattr(arg, "lvalue", None) for arg in (args or ()))
+        if refs is None:
+            refs = tuple(getattr(arg, "lvalue", None) for arg in (args or ()))
         count = 1 if repeat is None else int(number(evaluate(repeat, names)))
         if count < 1:
             return None
         self._enter(source, values, refs, count - 1)
         return None
 
+    def set_modal_call(self, name: Any, args: list | None) -> None:
+        """``MCALL name(args)`` (``name`` None: ``MCALL`` alone ends it). The arguments passed by value
+        are evaluated here, in the scope of the block that programs the MCALL: the calls come later
+        from blocks of other levels (HOLES1's positioning blocks call ``CYCLE81(RTP, RFP, ...)`` with
+        the main program's RTP, a name HOLES1 does not have). A VAR argument keeps its reference."""
+        if name is None:
+            self.modal_call = None
+            return
+        names = self.names
+        values = None if args is None else [None if arg is None else evaluate(arg, names) for arg in args]
+        self.modal_refs = tuple(getattr(arg, "lvalue", None) for arg in (args or ()))
+        self.modal_call = (name, values)
+
     def may_call_modal(self, frame: ProgramLevel) -> bool:
         return self.modal_depth is None or frame.depth < self.modal_depth
 
     def call_modal(self, frame: ProgramLevel) -> list[Event]:
         """The modal call after a motion block; the subprogram it enters does not call it again."""
-        events = self.call(self.modal_call[0], self.modal_call[1], None, frame) or []  # type: ignore[index]
+        events = self._call(self.modal_call[0], self.modal_call[1], None, frame,  # type: ignore[index]
+                            self.modal_refs) or []
         if self.frame is not frame and self.modal_depth is None:
             self.modal_depth = self.frame.depth  # type: ignore[union-attr]
         return list(events)

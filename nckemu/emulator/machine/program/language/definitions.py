@@ -24,6 +24,7 @@ from nckemu.errors import NckPiBadArguments
 from ..motions import ALARM_SYNTAX, ProgramAlarm
 from .blocks import DEF, BlockCompiler
 from .expressions import evaluate, undefined
+from .gud_values import apply_values, parse_values
 from .lexer import strip_comment, tokenize
 from .source import decode_program
 from .variables import Variable
@@ -189,6 +190,19 @@ class GlobalDefinitions:
                     parsed.variables[name] = before
         self.files[path] = parsed
         self._merge()
+
+    def assign_values(self, path: str, text: bytes) -> None:
+        """Assign the GUD values of the value file ``text`` (gud_values.py) to the activated variables
+        (raises DefinitionRefused with the line; then no value of the file is assigned)."""
+        try:
+            assignments = parse_values(path, text, self._variables)
+        except ProgramAlarm as alarm:
+            if self.on_checked is not None:
+                self.on_checked(path, alarm)
+            raise DefinitionRefused(alarm) from None
+        if self.on_checked is not None:
+            self.on_checked(path, None)
+        apply_values(assignments)
 
     def remove(self, path: str) -> None:
         if self.files.pop(path, None) is not None:

@@ -502,7 +502,7 @@ class Interpreter:
                 variable.fill(tuple(evaluate(i, names) for i in indices),
                               [evaluate(v, names) for v in item.values], repeat=item.which == "REP")
             elif kind is w.ModalCall:
-                self.calls.modal_call = None if item.name is None else (item.name, item.args)
+                self.calls.set_modal_call(item.name, item.args)
             elif kind is w.Spos:
                 spos.append(item.spindle)
             elif kind is w.Setal:
