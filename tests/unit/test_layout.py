@@ -92,11 +92,8 @@ def test_the_opcua_face_parts_form_no_circle_even_under_type_checking() -> None:
 
 # Each circle that stands today once type imports count, named by one module it holds, with the most
 # modules it may hold and what untangles it. A circle that grows past its size, or one not listed, fails;
-# so does a listed one that is gone (take it off: the list only shrinks).
-KNOWN_TYPE_CIRCLES: dict[str, tuple[int, str]] = {
-    "nckemu.thermal.discovery.selector": (
-        2, "the selector asks explain for words and explain reads the selector's records: issue 52 item 5"),
-}
+# so does a listed one that is gone (take it off: the list only shrinks). None stands today.
+KNOWN_TYPE_CIRCLES: dict[str, tuple[int, str]] = {}
 
 
 def test_no_circle_with_type_imports_but_the_known_ones() -> None:

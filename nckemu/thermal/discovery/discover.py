@@ -39,7 +39,8 @@ from .findings import Closest, Finding, GuardFigure, Likely, Withdrawn
 from .library import Library
 from .problem import Problem
 from .readings import prepare, resampled
-from .selector import Baseline, Path, Selector
+from .records import Baseline, Path
+from .selector import Selector
 from .settings import Settings
 from .splitters import Blocks, LeaveOneRunOut, Splitter, held_out_masks
 

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -15,9 +15,7 @@ from nckemu.thermal.recordings.recording import Recording
 
 from .findings import Alternative, Evidence, Likely, LikelyEvidence, Window
 from .library import label
-
-if TYPE_CHECKING:  # the selector imports this module for its words
-    from .selector import Evaluation
+from .records import Evaluation
 
 
 def finite(value: float) -> float | None:

@@ -25,8 +25,10 @@ from nckemu.errors import NckConfigError
 from nckemu.thermal import stats
 
 from . import explain, shapes
+from .admission import runs_improve
 from .findings import Evidence, RegimeGroup, finding
-from .selector import Evaluation, Path, Selector, runs_improve
+from .records import Evaluation, Path
+from .selector import Selector
 
 MIN_GROUP_RUNS = 3
 

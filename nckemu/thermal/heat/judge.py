@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nckemu.thermal import stats
-from nckemu.thermal.discovery.selector import runs_improve
+from nckemu.thermal.discovery.admission import runs_improve
 from nckemu.thermal.discovery.splitters import Blocks, LeaveOneRunOut
 
 from .table import HeatRun

@@ -17,7 +17,7 @@ from nckemu.thermal.discovery.explain import detectable_um
 from nckemu.thermal.discovery.library import Library, bounded, present_key
 from nckemu.thermal.discovery.problem import Problem
 from nckemu.thermal.discovery.readings import prepare
-from nckemu.thermal.discovery.selector import Evaluation
+from nckemu.thermal.discovery.records import Evaluation
 from nckemu.thermal.discovery.settings import Settings
 from nckemu.thermal.model import families
 from nckemu.thermal.model.families import CandidateSource, Family

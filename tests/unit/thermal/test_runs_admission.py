@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from nckemu.thermal import stats
-from nckemu.thermal.discovery.selector import runs_improve
+from nckemu.thermal.discovery.admission import runs_improve
 
 LEVEL = 0.05 / 4  # runs_alpha over four candidates reaching the test
 SHARE = 0.8       # min_fold_share: the head count, where the runs are too few for the test

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from nckemu.thermal.discovery.admission import Admission
 from nckemu.thermal.discovery.discover import Discovery, discover, discover_runs
 from nckemu.thermal.discovery.library import Library
 from nckemu.thermal.discovery.problem import Problem
@@ -164,13 +165,13 @@ def test_a_time_constant_that_earns_nothing_over_its_sensor_is_held_back_with_it
     assert guards and all("its time constant against" in g.figure for g in guards)
 
 
-def test_selector_bar_property() -> None:
+def test_admission_bar_property() -> None:
     library = _library(12)
-    selector = Selector.__new__(Selector)
-    selector.library, selector.settings = library, Settings()
-    assert selector.paired_runs and selector.bar == 0.05
-    selector.library = _library(6)
-    assert not selector.paired_runs and selector.bar == 0.10
+    admission = Admission.__new__(Admission)
+    admission.library, admission.settings = library, Settings()
+    assert admission.paired_runs and admission.bar == 0.05
+    admission.library = _library(6)
+    assert not admission.paired_runs and admission.bar == 0.10
 
 
 def test_what_is_left_is_placed_in_a_run_or_a_window_with_what_it_follows() -> None:

@@ -7,9 +7,10 @@ import math
 
 import pytest
 
+from nckemu.thermal.discovery.admission import t_critical
 from nckemu.thermal.discovery.discover import Discoverer
 from nckemu.thermal.discovery.library import Library
-from nckemu.thermal.discovery.selector import Selector, t_critical
+from nckemu.thermal.discovery.selector import Selector
 from nckemu.thermal.synthetic.scenarios import make_scenario, make_variant
 
 

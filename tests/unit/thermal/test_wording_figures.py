@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from nckemu.thermal import stats
 from nckemu.thermal.discovery.explain import bar_words, likely_record
 from nckemu.thermal.discovery.library import Candidate
-from nckemu.thermal.discovery.selector import Evaluation
+from nckemu.thermal.discovery.records import Evaluation
 from nckemu.thermal.model.terms import Term
 
 

@@ -1,0 +1,269 @@
+"""The search: one path of explanation grown a round at a time (the recalibrated model, or gain x the
+model as given, plus effects), each round's candidates judged by the admission tests, and at the end
+the shapes named, the terms the later ones made redundant withdrawn, and twins' shares given."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from nckemu.thermal import stats
+
+from . import explain, shapes
+from .admission import Admission, t_critical
+from .findings import Evidence, Finding, GainEvidence, Withdrawn, finding
+from .fits import Fits
+from .library import Library, present_key, time_constants
+from .moves import Moves
+from .records import Baseline, Evaluation, Path
+from .selection_words import CANNOT_HAVE, per_parameter_words, percent
+from .settings import Settings
+
+
+class Search:
+    def __init__(self, y: np.ndarray, t_s: np.ndarray, library: Library, settings: Settings,
+                 baseline: Baseline, admission: Admission) -> None:
+        self.y = y
+        self.t_s = t_s
+        self.library = library
+        self.settings = settings
+        self.baseline = baseline
+        self.admission = admission
+        self.fits = Fits(y, baseline, admission)
+        self.moves = Moves(y, library, settings, baseline, admission, self.fits)
+
+    def search(self, gain_mode: bool) -> Path:
+        """Add effects one round at a time to the recalibrated model (or to gain x the model as given)."""
+        setup = self.baseline
+        if gain_mode:
+            gain, gain_se, gain_cv = setup.gain
+            path = Path(True, setup.given[:, None], gain_cv, setup.given_noise[:, None])
+            path.present.add("gain_error")
+            path.discovered.append(Finding("gain_error", {"gain": round(gain, 5)}, GainEvidence(
+                round(setup.baseline_rms, 4), round(gain_cv.rms_um, 4), round(setup.baseline_rms, 4),
+                round(gain_se, 5), [], "one common factor on the whole model explains the mismatch")))
+        else:
+            path = Path(False, setup.base_design, setup.recal_cv, setup.base_noise)
+        if self.library.problem.per_run_offset:
+            path.present.add("offset")  # each run's own offset is in the baseline
+        for _round in range(self.settings.max_effects):
+            if len(path.added) >= self.settings.max_effects or not self.round(path):
+                break
+        path.at_limit = len(path.added) >= self.settings.max_effects
+        self.name_shapes(path)
+        if self.admission.paired_runs:
+            self.withdraw_redundant(path)
+        if path.at_limit:
+            self.survey(path)
+        path.final = stats.fit(path.design, self.y) if path.design.shape[1] else None
+        self.twin_shares(path)
+        return path
+
+    def evaluate_round(self, path: Path) -> tuple[list[Evaluation], float, int] | None:
+        """The round's candidates evaluated beside the path's design: (evaluations, critical t, the
+        hypotheses it is corrected over); the runs' paired test counted over them. None: no candidate."""
+        s, setup = self.settings, self.baseline
+        design = path.design
+        candidates = self.library.candidates(design if design.shape[1] else setup.given[:, None], path.present,
+                                             tuple(path.added))
+        if not candidates:
+            return None
+        # Bonferroni over every hypothesis of the round, each time constant tried included.
+        tests = sum(c.grid_points for c in candidates)
+        t_crit = t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1 - setup.extra_parameters)
+        evaluations = [e for e in (self.fits.evaluate(design, path.noise, c, path.base_cv) for c in candidates)
+                       if self.twin_of_one_sign(path, e)]
+        self.admission.count_paired_tests(evaluations, path.base_cv, t_crit)
+        return evaluations, t_crit, tests
+
+    def round(self, path: Path) -> bool:
+        s, setup = self.settings, self.baseline
+        folds = setup.folds
+        design = path.design
+        evaluated = self.evaluate_round(path)
+        if evaluated is None:
+            return False
+        evaluations, t_crit, tests = evaluated
+        single_paired_tests = self.admission.paired_tests  # pair_round counts its moves' own
+        passing = [e for e in evaluations if self.admission.passes(e, path.base_cv, t_crit)]
+        fitting = self.note_cannot_have(path, [e for e in evaluations if e not in passing], t_crit)
+        passing = [e for e in passing if self.admission.earned(e, evaluations, passing)]
+        if not passing and s.pair_moves and len(path.added) + 2 <= s.max_effects \
+                and self.moves.pair_round(path, evaluations, tests):
+            return True
+        if not passing:
+            path.rejected, path.rejected_t_critical = evaluations, t_crit
+            path.rejected_paired_tests = single_paired_tests
+            return False
+        best, margin, equivalent = self.admission.equivalent(passing, fitting)
+        chosen = min(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um))
+        chosen = self.admission.parsimonious(chosen, passing)
+        if self.moves.time_constant_moves(path, chosen, design, tests):
+            return True
+        term = chosen.candidate.term.with_coefficient(chosen.coefficient)
+        # Several runs share one clock from their own starts: a window in time names no run.
+        window = [] if self.library.problem.per_run_offset else explain.locate(
+            self.t_s, chosen.coefficient * (chosen.candidate.feature - np.median(chosen.candidate.feature)))
+        record = explain.evidence(chosen, best, equivalent, margin, path.base_cv.rms_um, t_crit, len(folds),
+                                  window[0][:2] if window else None, term.spec.description)
+        if self.admission.per_run:
+            record.runs = self.admission.runs.run_figures(chosen.cv, path.base_cv, chosen.candidate.runs_with)
+        path.discovered.append(finding(term.effect, term.parameters, record))
+        path.added.append(term)
+        path.present.add(present_key(term))
+        path.design = np.column_stack([design, chosen.candidate.feature])
+        path.noise = np.column_stack([path.noise, chosen.candidate.noise])
+        path.base_cv = chosen.cv
+        return True
+
+    def note_cannot_have(self, path: Path, refused: list[Evaluation], t_crit: float) -> list[Evaluation]:
+        """Candidates that pass every guard but what a machine can have: never named, listed with
+        their figures ("fits, but a machine cannot have it"). Returns those, and those held back only
+        by the bar for their extra parameters: candidates that fit."""
+        fitting = []
+        for evaluation in refused:
+            label = explain.label_with_time_constants(evaluation.candidate.term)
+            guards = self.admission.guards_of(evaluation, path.base_cv, t_crit)
+            failing = [g for g in guards if not g.passes]
+            cannot = len(failing) == 1 and failing[0].figure.startswith(CANNOT_HAVE)
+            if cannot or (len(failing) == 1 and failing[0] is guards[-1] and guards[-1].gain >= self.admission.bar):
+                fitting.append(evaluation)
+            if cannot and not any(item[0] == label for item in path.cannot_have):
+                term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
+                path.cannot_have.append((label, term, guards))
+        return fitting
+
+    def survey(self, path: Path) -> None:
+        """The search stopped at the limit: the next round's candidates, evaluated and not admitted, so
+        the words can say what came closest and the detectable sizes can be given."""
+        surveyed = self.evaluate_round(path)
+        if surveyed is not None:
+            path.rejected, path.rejected_t_critical, _tests = surveyed
+            path.rejected_paired_tests = self.admission.paired_tests
+
+    def twin_of_one_sign(self, path: Path, evaluation: Evaluation) -> bool:
+        """A sensor's second time constant, offered in a later round, moves the structure the same way
+        as its first in the joint fit (a skin and a core of one structure heated from one side; two
+        pulling apart are one band of time constants, not two paths of heat: ``split_move``)."""
+        term = evaluation.candidate.term
+        sensor = term.parameters.get("sensor")
+        twins = [index for index, added in enumerate(path.added)
+                 if added.effect == term.effect and added.parameters.get("sensor") == sensor
+                 and time_constants(added) and sensor is not None]
+        if not twins:
+            return True
+        full = np.column_stack([path.design, evaluation.candidate.feature])
+        coefficients = stats.least_squares(full, self.y)
+        first = path.design.shape[1] - len(path.added) + twins[0]
+        return bool(coefficients[first] * coefficients[-1] > 0)
+
+    def name_shapes(self, path: Path) -> None:
+        """A sensor named with its temperature and its own lag is named as the shape the two make: the
+        lag's column becomes the sensor's transient at the lag's time constant (the same span, the
+        same held-out figures), and the temperature is the static part (``shapes``). Whether the
+        static part earns its parameter is then the withdrawal's to judge."""
+        offset = 1 if path.gain_mode else 0
+        pairs = shapes.temperature_with_lag(path.added)
+        if not pairs:
+            return
+        coefficients = stats.least_squares(path.design, self.y)
+        first = path.design.shape[1] - len(path.added)
+        design, noise = path.design.copy(), path.noise.copy()
+        for temperature_index, lag_index in pairs:
+            lag = path.added[lag_index]
+            if not self.settings.second_time_constant_ratio and any(
+                    t.effect == "transient_gradient" and t.parameters.get("sensor") == lag.parameters["sensor"]
+                    for t in path.added):
+                continue  # a sensor at one time constant only: its transient is named already
+            candidate = self.library.candidate(shapes.as_transient(lag))
+            record = path.discovered[lag_index + offset]
+            if candidate is None or not isinstance(record.evidence, Evidence):
+                continue
+            column = first + lag_index
+            design[:, column], noise[:, column] = candidate.feature, candidate.noise
+            path.added[lag_index] = candidate.term
+            path.present.add(present_key(candidate.term))
+            record.evidence.note = shapes.shape_words(str(lag.parameters["sensor"]), float(lag.parameters["tau_s"]),
+                                                      float(coefficients[column]),
+                                                      float(coefficients[first + temperature_index]))
+            path.discovered[lag_index + offset] = finding(candidate.term.effect, candidate.term.parameters,
+                                                          record.evidence)
+        path.design, path.noise = design, noise
+        path.base_cv = self.baseline.cross_validate(path.design, self.y, self.baseline.folds)
+
+    def withdraw_redundant(self, path: Path) -> None:
+        """With the runs' paired test and its lower bar, a term may pass in an early round and be
+        explained by the terms named after it (a gradient of the rear and the ambient, then the rear's
+        and the front's own temperatures; a second time constant that stood in for a temperature named
+        later). Each term must still clear its bar (``withdrawal_bar``) over the others: without it,
+        the median over runs of held-out RMS must rise by the bar, the worst run by the margin of
+        equivalence, or some run by more than the harm tolerance. The one that matters least is
+        withdrawn, and the rest are judged again; a term of a move whose partner goes stays, alone."""
+        s = self.settings
+        offset = 1 if path.gain_mode else 0
+        while True:
+            weakest: tuple[float, int, stats.CrossValidation, list[int], float] | None = None
+            for index in range(len(path.added)):
+                record = path.discovered[index + offset].evidence
+                if not isinstance(record, Evidence):
+                    continue
+                without, keep = self.without_added(path, index)
+                median_with, median_without = (float(np.median(cv.fold_rms_um)) for cv in (path.base_cv, without))
+                loss = 1.0 - median_with / median_without if median_without > 0 else 0.0
+                worst_with, worst_without = max(path.base_cv.fold_rms_um), max(without.fold_rms_um)
+                bar = self.admission.withdrawal_bar(path.added[index]) if record.move is None or s.withdraw_per_parameter \
+                    else -math.inf
+                if loss < bar and worst_without <= (1 + s.equivalence) * worst_with \
+                        and not self.admission.runs.harms_runs(path.base_cv.fold_rms_um, without.fold_rms_um) \
+                        and (weakest is None or loss < weakest[0]):
+                    weakest = (loss, index, without, keep, bar)
+            if weakest is None:
+                return
+            loss, index, without, keep, bar = weakest
+            term = path.added.pop(index)
+            gone = path.discovered.pop(index + offset).evidence
+            path.design, path.noise = path.design[:, keep], path.noise[:, keep]
+            path.withdrawn.append(Withdrawn(
+                term.effect, explain.label_with_time_constants(term), dict(term.parameters),
+                f"the terms named after it explain what it did: without it the median over runs of held-out RMS "
+                f"is {float(np.median(without.fold_rms_um)):.3f} um against {float(np.median(path.base_cv.fold_rms_um)):.3f} um "
+                f"with it ({loss:.1%}; the bar is {percent(bar)}){per_parameter_words(bar, self.admission.bar, (term,))}, "
+                f"the worst run {max(without.fold_rms_um):.3f} um against {max(path.base_cv.fold_rms_um):.3f} um"))
+            path.base_cv = without
+            if isinstance(gone, Evidence) and gone.move is not None:
+                self.leave_move(path, gone.move.terms, explain.label_with_time_constants(term))
+
+    def leave_move(self, path: Path, members: list[str], withdrawn: str) -> None:
+        """A term of a move was withdrawn: its partner stays as a term of its own, and says so."""
+        for found in path.discovered:
+            record = found.evidence
+            if isinstance(record, Evidence) and record.move is not None and record.move.terms == members:
+                record.move = None
+                record.preferred = f"named in a move with {withdrawn}, which the later terms made redundant (withdrawn)"
+
+    def without_added(self, path: Path, index: int) -> tuple[stats.CrossValidation, list[int]]:
+        """The path's design without the column of ``path.added[index]``, cross-validated, and the
+        columns kept."""
+        column = path.design.shape[1] - len(path.added) + index
+        keep = [c for c in range(path.design.shape[1]) if c != column]
+        return self.baseline.cross_validate(path.design[:, keep], self.y, self.baseline.folds), keep
+
+    def twin_shares(self, path: Path) -> None:
+        """A sensor named at two time constants in two rounds (the second found once another term was
+        in): each one's share, as for a move of two, of what the two improve together: how much the
+        held-out figure rises without it."""
+        groups: dict[tuple[str, object], list[int]] = {}
+        for index, term in enumerate(path.added):
+            if time_constants(term) and term.parameters.get("sensor") is not None:
+                groups.setdefault((term.effect, term.parameters["sensor"]), []).append(index)
+        for indices in groups.values():
+            records = [path.discovered[i + (1 if path.gain_mode else 0)].evidence for i in indices]
+            if len(indices) != 2 or any(not isinstance(r, Evidence) or r.move is not None for r in records):
+                continue
+            lost = [max(self.admission.heldout_gain(path.base_cv, self.without_added(path, index)[0]), 0.0)
+                    for index in indices]
+            total = sum(lost)
+            for record, part in zip(records, lost, strict=True):
+                assert isinstance(record, Evidence)
+                record.twin_share = round(part / total if total > 0 else 0.5, 4)
