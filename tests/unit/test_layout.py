@@ -1,6 +1,6 @@
-"""The package's shape: no module imports itself back at run time, and no circle once type imports
+"""The package's shape: no module imports itself back at run time, no circle once type imports
 count (bar-style checks count them: a type import is still a dependency a reader has to hold in mind)
-but the known ones, which may only shrink.
+but the known ones, which may only shrink, and no class with more than 25 methods longer than 5 lines.
 
 import-linter (``make lint``) checks the layers and, in its ``acyclic`` contract (acyclic_siblings,
 type imports counted), that no siblings at any level of the package import each other round. That
@@ -11,7 +11,15 @@ which import-linter uses).
 
 from __future__ import annotations
 
+import ast
+from pathlib import Path
+
 import grimp
+
+import nckemu
+
+# The developers' rule: no class with more than this many methods longer than 5 lines (def to its last line).
+MOST_LONG_METHODS = 25
 
 
 def strongly_connected(graph: grimp.ImportGraph) -> list[list[str]]:
@@ -107,3 +115,33 @@ def test_no_circle_with_type_imports_but_the_known_ones() -> None:
     assert not grown, f"known circles grown: {grown}"
     assert not gone, f"circles untangled, take them off KNOWN_TYPE_CIRCLES: {gone}"
     assert not any("nckemu.emulator.machine.saves" in circle for circle in found)
+
+
+def long_methods(cls: ast.ClassDef) -> list[str]:
+    """The methods of ``cls`` longer than 5 lines, from ``def`` to their last line."""
+    return [node.name for node in cls.body if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+            and node.end_lineno is not None and node.end_lineno - node.lineno + 1 > 5]
+
+
+def crowded_classes(root: Path) -> dict[str, int]:
+    """Every class under ``root`` with more than ``MOST_LONG_METHODS`` long methods, and how many."""
+    crowded = {}
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ClassDef) and len(long_methods(node)) > MOST_LONG_METHODS:
+                crowded[f"{path.relative_to(root.parent)}:{node.name}"] = len(long_methods(node))
+    return crowded
+
+
+def test_no_class_has_more_than_25_methods_longer_than_5_lines() -> None:
+    assert crowded_classes(Path(nckemu.__file__).parent) == {}
+
+
+def test_the_count_finds_a_crowded_class(tmp_path: Path) -> None:
+    package = tmp_path / "package"
+    package.mkdir()
+    long_body = "\n".join(f"        x{line} = {line}" for line in range(5))
+    methods = "\n".join(f"    def m{index}(self) -> None:\n{long_body}\n" for index in range(26))
+    short = "\n".join(f"    def s{index}(self) -> None:\n        pass\n" for index in range(30))
+    (package / "crowded.py").write_text(f"class Crowded:\n{methods}\n\nclass Roomy:\n{short}\n")
+    assert crowded_classes(package) == {"package/crowded.py:Crowded": 26}
