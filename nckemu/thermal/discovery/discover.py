@@ -19,7 +19,8 @@ Method (docs/thermal.md):
 The method is a pipeline of parts, each its own module: ``readings`` (glitch repair, sensor noise,
 averaging), ``problem`` (the gauge samples over one run or several, features of a term),
 ``library`` (the candidates), ``splitters`` (blocks of one run, runs as groups), ``selector`` (the
-forward search and its guards) and ``explain`` (words, mismatch windows). This module wires them.
+forward search, by job: ``admission`` its guards, ``search`` and ``moves`` its rounds, ``run_figures``)
+and ``explain`` (words, mismatch windows). This module wires them.
 """
 
 from __future__ import annotations

@@ -232,7 +232,7 @@ def likely_record(evaluation: Evaluation, before_um: float, after_um: float, gai
     """A correctly named term below the held-out bar: "likely, not proven", with its figures: the
     held-out figure admission judged it on (``figure``: held-out RMS, or with several runs the median
     over runs), before and after, and its relative drop ``gain``; ``passed``: the figures of the guards
-    it passed, in words (``selector.Guard``)."""
+    it passed, in words (``records.Guard``)."""
     term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
     return Likely(term.effect, label(term),
                   {k: (round(v, 6) if isinstance(v, float) else v) for k, v in term.parameters.items()},

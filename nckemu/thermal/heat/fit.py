@@ -7,7 +7,7 @@ on, and the one that lowers the held-out RMS most while passing the guards is na
 naming, an earlier term that no longer earns its place on held-out data is withdrawn. The search stops
 when no family passes.
 
-Held out, as discovery holds out (discovery/splitters.py, discovery/selector.runs_improve):
+Held out, as discovery holds out (discovery/splitters.py, discovery/admission.runs_improve):
 - one recording: the coefficients are fitted on its first ``train_share`` and judged on the rest; the
   rest is cut into ``blocks`` blocks of time (``Blocks``), most of which must improve;
 - several runs: each run is held out once (``LeaveOneRunOut``), fitted on the others, each run with

@@ -1,6 +1,6 @@
 """Where a heat fit may look and where it is judged: the fit's settings, and the held-out judge (one
 recording: fitted on its first part, judged in blocks of the rest; several runs: each run held out once,
-as discovery holds out, discovery/splitters.py and discovery/selector.runs_improve)."""
+as discovery holds out, discovery/splitters.py and discovery/admission.runs_improve)."""
 
 from __future__ import annotations
 
