@@ -246,3 +246,75 @@ def test_program_run_stores_definitions_before_the_gud_values_beside_the_program
     (tmp_path / "GRIND.MPF").write_bytes(b"R1=360/INI[5]\nM30\n")
     assert main(["program", "run", str(tmp_path / "GRIND.MPF"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["outcome"] == "ended"
+
+
+PLC_ANSWERS = """
+[nck_io]
+initial = { "$A_IN[22]" = 1, "$A_DBB[12]" = 1 }
+
+[[nck_io.answer]]
+m = 48                                     # close the guard
+set = { "$A_IN[10]" = 1, "$A_IN[9]" = 0 }
+after_s = 2.0
+
+[[nck_io.answer]]
+m = 47                                     # open it
+set = { "$A_IN[9]" = 1, "$A_IN[10]" = 0 }
+after_s = 1.5
+
+[[nck_io.answer]]
+out = 5                                    # the program asks for the part
+set = { "$A_DBB[30]" = 1 }
+after_s = 0.4
+"""
+
+
+def _answering_machine(tmp_path) -> str:
+    from nckemu.emulator.machine.machine_file import machine_text
+
+    path = tmp_path / "answers.toml"
+    path.write_text(machine_text(None)[0] + PLC_ANSWERS)
+    return str(path)
+
+
+def test_the_machine_files_plc_answers_the_programs_m_functions_and_outputs_on_time(tmp_path, capsys) -> None:
+    from nckemu.cli import main
+
+    program = tmp_path / "GUARD.MPF"
+    # times by hand: M48 at 0 s, the guard reads closed from 2.0 s: ten dwells of 0.2 s; $A_OUT[5] at
+    # 2.0 s, the part there at 2.4 s: two dwells; M47 at 2.4 s, open at 3.9 s: eight dwells (4.0 s)
+    program.write_bytes(b"R1=$A_IN[22]+$A_DBB[12]\nM48\nWHILE ($A_IN[10]==0) OR ($A_IN[9]==1)\n  G4 F0.2\n"
+                        b"ENDWHILE\nR2=$AC_TIME\n$A_OUT[5]=1\nWHILE $A_DBB[30]==0\n  G4 F0.2\nENDWHILE\n"
+                        b"M47\nWHILE $A_IN[9]==0\n  G4 F0.2\nENDWHILE\nM30\n")
+    assert main(["program", "run", str(program), "--machine", _answering_machine(tmp_path), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["outcome"] == "ended"
+    assert summary["net_time_s"] == pytest.approx(2.0 + 0.4 + 1.6, abs=1e-3)
+
+
+def test_without_answers_the_program_waits_for_its_plc(tmp_path) -> None:
+    emulator = _emulator()
+    emulator.nck.programs.write("/_N_MPF_DIR/_N_WAIT_MPF", b"M48\nWHILE $A_IN[10]==0\n  G4 F0.2\nENDWHILE\nM30\n")
+    assert run_offline(emulator, "/_N_MPF_DIR/_N_WAIT_MPF", max_time_s=30.0).outcome == "timeout"
+    emulator = Emulator(_answering_machine(tmp_path), clock=SimulatedClock())
+    emulator.nck.programs.write("/_N_MPF_DIR/_N_WAIT_MPF", b"M48\nWHILE $A_IN[10]==0\n  G4 F0.2\nENDWHILE\nM30\n")
+    assert run_offline(emulator, "/_N_MPF_DIR/_N_WAIT_MPF", max_time_s=30.0).outcome == "ended"
+
+
+@pytest.mark.parametrize(("table", "field"), [
+    ('[nck_io]\ninitial = { "$A_OUT[1]" = 1 }', "nck_io.initial"),
+    ('[nck_io]\ninitial = { "$A_IN[65]" = 1 }', "nck_io.initial"),
+    ('[[nck_io.answer]]\nset = { "$A_IN[1]" = 1 }', "nck_io.answer[0].m"),
+    ('[[nck_io.answer]]\nm = 48\nout = 2\nset = { "$A_IN[1]" = 1 }', "nck_io.answer[0].m"),
+    ('[[nck_io.answer]]\nm = 48', "nck_io.answer[0].set"),
+    ('[[nck_io.answer]]\nm = 48\nafter_s = -1\nset = { "$A_IN[1]" = 1 }', "nck_io.answer[0].after_s"),
+    ('[[nck_io.answer]]\nm = 48\nwhen = 1\nset = { "$A_IN[1]" = 1 }', "nck_io.answer[0].when"),
+    ('[nck_io]\ninputs = [1]', "nck_io.inputs"),
+])
+def test_a_faulty_nck_io_table_is_refused_naming_its_field(table: str, field: str) -> None:
+    from nckemu.emulator.machine.machine_file import machine_text, parse_machine
+    from nckemu.errors import NckConfigError
+
+    with pytest.raises(NckConfigError) as refused:
+        parse_machine(machine_text(None)[0] + "\n" + table + "\n")
+    assert refused.value.field == field, refused.value

@@ -16,6 +16,7 @@ from typing import Any
 
 from nckemu.catalogue.edges import STANDARD_EDGE_PARAMS
 from nckemu.catalogue.table import VariableSpec, load_table, machine_table, row_lines
+from nckemu.emulator.machine.io_points import NckIoSettings, parse_nck_io
 from nckemu.errors import NckConfigError
 from nckemu.heat_response import SENSOR, HeatTerm, parse_terms
 from nckemu.textfile import read_text
@@ -260,6 +261,9 @@ class Machine:
     drives: tuple[Drive, ...] = ()
     drive_settings: DriveSettings = field(default_factory=DriveSettings)
     program: ProgramSettings = field(default_factory=ProgramSettings)
+    # [nck_io]: points that read so from power on, and what the PLC sets when the channel outputs an
+    # M function or a program sets an NCK output (io_points.py)
+    nck_io: NckIoSettings = field(default_factory=NckIoSettings)
 
     def tool(self, number: int) -> Tool | None:
         for tool in self.tools:
@@ -292,7 +296,7 @@ def _get(table: dict[str, Any], key: str, kind: type | tuple[type, ...], where: 
 _KNOWN_KEYS: dict[str, frozenset[str]] = {
     "": frozenset({"name", "ipo_cycle_s", "pdu_size_max", "max_amq", "channels", "connection_access_level",
                    "passwords", "settings", "axis", "sensor", "plc", "initial", "var", "tools", "tool",
-                   "work_offsets", "opcua", "drives", "drive", "program"}),
+                   "work_offsets", "opcua", "drives", "drive", "program", "nck_io"}),
     # every setting the dataclass has (a new setting needs no second list)
     "settings.": frozenset(setting.name for setting in fields(Settings)),
     "axis": frozenset({"number", "name", "travel_mm", "rotary", "spindle", "referenced", "position_mm",
@@ -589,6 +593,7 @@ def parse_machine(text: str, source: str = "<string>") -> Machine:
         opcua=_opcua_table(data.get("opcua", {}), source),
         drives=drives, drive_settings=drive_settings,
         program=_program_settings(data.get("program", {}), text, source),
+        nck_io=parse_nck_io(data.get("nck_io", {}), source),
     )
 
 

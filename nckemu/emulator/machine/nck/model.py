@@ -87,7 +87,8 @@ class NckModel:
         self.compensation = Compensation(machine, clock, self.store, self.axes)
         self.programs = Programs()
         self.alarm_list = Alarms(clock)
-        self.nck_io = NckIo()  # $A_IN/$A_OUT and the PLC-NCK data area ($A_DBB ...) programs use
+        # $A_IN/$A_OUT and the PLC-NCK data area ($A_DBB ...) programs use; the machine file's PLC answers
+        self.nck_io = NckIo(machine.nck_io)
         self.programs.definitions.on_checked = self._definition_checked
         spindles = sum(axis.spindle for axis in machine.axes)
         # The channels' runs work on the whole NCK (programs, axes, alarms, tools, frames, store), read

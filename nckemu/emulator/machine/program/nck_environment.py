@@ -50,10 +50,13 @@ def _clock_value(key: str, now_s: float) -> int:
 class NckEnvironment(ProgramEnvironment):
     """The interpreter's view of the NCK: the channel's axes, the NCK's R parameters and state."""
 
-    def __init__(self, channel: Channel, parts: NckParts, block_time_s: Callable[[], float]) -> None:
+    def __init__(self, channel: Channel, parts: NckParts, block_time_s: Callable[[], float],
+                 now_s: Callable[[], float] | None = None) -> None:
         self._channel = channel
         self._parts = parts
         self._block_time_s = block_time_s   # $AC_TIME: the time since the current block began (the run's)
+        # the run's time: the PLC's answers fall due on it (nck/nck_io.py)
+        self._now_s = now_s or parts.clock.now_s
         self._axes = channel_axes(parts)
         super().__init__(axes=path_axis_names(parts, self._axes), r_parameters=self._r_spec_lines())
 
@@ -164,7 +167,9 @@ class NckEnvironment(ProgramEnvironment):
         if key in CLOCK_VARIABLES:
             return _clock_value(key, self._parts.clock.now_s())
         if key in nck_io.READABLE:
-            return self._parts.nck_io.read(key, self._io_index(key, indices))
+            io = self._parts.nck_io
+            io.settle(self._now_s())
+            return io.read(key, self._io_index(key, indices))
         raise UndefinedName(name)
 
     def _io_index(self, key: str, indices: tuple[object, ...]) -> int:
@@ -183,7 +188,8 @@ class NckEnvironment(ProgramEnvironment):
             store.write_lines(spec, unit, line, [store.checked_value(spec, value)])
             return
         if key in nck_io.WRITABLE:
-            self._parts.nck_io.write(key, self._io_index(key, indices), float(value))  # type: ignore[arg-type]
+            self._parts.nck_io.write(key, self._io_index(key, indices), float(value),  # type: ignore[arg-type]
+                                     self._now_s())
             return
         attribute = PART_COUNTERS.get(key)
         if attribute is None:

@@ -73,7 +73,7 @@ class ProgramRun:
         self.geometry = ChannelGeometry(parts, channel.state)
         self.axes = self.geometry.axes
         self._wait_for_spindle = parts.machine.program.wait_for_spindle
-        self.env = NckEnvironment(channel, parts, lambda: self.t_s - self.block_start_s)
+        self.env = NckEnvironment(channel, parts, lambda: self.t_s - self.block_start_s, lambda: self.t_s)
         self.interpreter = Interpreter(self.env, path, text)
         self._events: Iterator[Event] = self.interpreter.events()
         self._pending: Event | None = None   # a move held by an override of 0, dispatched again next cycle
@@ -170,6 +170,7 @@ class ProgramRun:
             elif isinstance(event, MFunction):
                 if self.record is not None:
                     self.record.m_codes.append(event.code)
+                self.parts.nck_io.m_function(event.code, self.t_s)  # the PLC's answers (machine file)
                 if event.code == 0 or (event.code == 1 and self.parts.machine.program.optional_stop):
                     return "stopped"
             elif isinstance(event, ToolSelect):
