@@ -108,7 +108,11 @@ class VariableStore:
         stored = self.stored[(spec.name, unit)]
         stored[line - 1:line - 1 + len(values)] = values
         if spec.effective in ("immediate", "reset"):
-            self.active[(spec.name, unit)] = list(stored)
+            active = self.active.get((spec.name, unit))
+            if active is None or active is stored or len(active) != len(stored):
+                self.active[(spec.name, unit)] = list(stored)
+            else:  # the lines written, not a copy of all (a program writes R1 in every block)
+                active[line - 1:line - 1 + len(values)] = values
 
     def checked_value(self, spec: VariableSpec, value: object) -> object:
         """The value as the variable stores it, or the item error a controller gives for it."""

@@ -61,23 +61,23 @@ class NckEnvironment(ProgramEnvironment):
         super().__init__(axes=path_axis_names(parts, self._axes), r_parameters=self._r_spec_lines())
 
     def _r_spec_lines(self) -> int:
-        spec = self._parts.store.spec("R")
-        return spec.lines - self._parts.machine.settings.r_parameter_line_offset + 1
+        # R is read and written in nearly every block of a computed contour: its entry and line offset
+        # are looked up once a run (the table and the machine file do not change while it runs)
+        self._r_spec = self._parts.store.spec("R")
+        self._r_offset = self._parts.machine.settings.r_parameter_line_offset
+        return self._r_spec.lines - self._r_offset + 1
 
     def _r_line(self, index: int) -> int:
-        line = index + self._parts.machine.settings.r_parameter_line_offset
-        spec = self._parts.store.spec("R")
-        if not 1 <= line <= spec.lines or index < 0:
+        line = index + self._r_offset
+        if not 1 <= line <= self._r_spec.lines or index < 0:
             raise UndefinedName(f"R{index}")
         return line
 
     def r_parameter(self, index: int) -> float:
-        spec = self._parts.store.spec("R")
-        return float(self._parts.store.read_lines(spec, self._channel.number, self._r_line(index), 1)[0])
+        return float(self._parts.store.read_lines(self._r_spec, self._channel.number, self._r_line(index), 1)[0])
 
     def set_r_parameter(self, index: int, value: float) -> None:
-        spec = self._parts.store.spec("R")
-        self._parts.store.write_lines(spec, self._channel.number, self._r_line(index), [float(value)])
+        self._parts.store.write_lines(self._r_spec, self._channel.number, self._r_line(index), [float(value)])
 
     def machine_position_mm(self, axis: str) -> float:
         number = self._axes.get(axis.upper())

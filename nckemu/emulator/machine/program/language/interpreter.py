@@ -604,6 +604,8 @@ class Interpreter:
         events.append(ToolSelect(tool=tool, edge=edge, change=change))
 
     def _spindle_words(self, address: dict, m_codes: list, spos: list, flags: dict, events: list) -> None:
+        if not (address or m_codes or spos or flags):  # a block of assignments, jumps or calls only
+            return
         directions: dict[int, str] = {}
         if len(m_codes) > MAX_M_PER_BLOCK:
             raise ProgramAlarm(ALARM_AUXILIARY, f"{len(m_codes)} M functions in one block (at most {MAX_M_PER_BLOCK})")
