@@ -340,6 +340,26 @@ def test_settings_without_a_model_are_accepted() -> None:
     assert run("NO_SUCH_WORD\nM30").alarm.number == ALARM_NAME_NOT_DEFINED  # type: ignore[union-attr]
 
 
+def test_pi_the_handwheels_drf_and_waitp_as_a_grinders_cycles_read_them() -> None:
+    env = DictEnvironment()
+    result = run("R1=1000*60/($PI*400)\nR2=$AC_DRF[X]\nPOSA[X]=5 FA[X]=100\nWAITP(X)\nG1 X=10-$AC_DRF[X] F100\nM30", env)
+    assert result.alarm is None, result.alarm
+    assert env.r_parameter(1) == pytest.approx(60000 / (math.pi * 400)) and env.r_parameter(2) == 0.0
+    assert [move.target_mm for move in result.moves] == [{"X": 10.0}]
+    assert run("R1=$AC_DRF[Q]\nM30").alarm.number == ALARM_NAME_NOT_DEFINED  # type: ignore[union-attr]
+
+
+def test_a_synchronized_action_whose_condition_is_false_is_accepted_and_one_that_holds_is_refused() -> None:
+    env = DictEnvironment()
+    text = ("N10 WHEN R5==1 DO DELDTG(X) $R[280]=$AA_IM[X]\nID=2 WHENEVER $AA_IM[X]>100 DO POS[X]=0.2 FA[X]=30\n"
+            "G1 X1 F100\nR5=1\nWHEN R5==1 DO M120\nM30")
+    result = run(text, env)
+    assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_NAME_NOT_DEFINED, 5)
+    assert "synchronized action WHEN" in str(result.alarm) and len(result.moves) == 1
+    bad = run("WHEN R5== DO M120\nM30").alarm
+    assert bad is not None and bad.line == 1
+
+
 def test_modal_call_of_a_program_runs_after_each_motion_block() -> None:
     env = DictEnvironment(programs={"DRILL.SPF": "PROC DRILL(REAL _DEPTH)\nR1 = R1 + 1\nR2 = _DEPTH\nRET"})
     result = run("MCALL DRILL(-5)\nG0 X1\nX2\nR3 = 1\nMCALL\nX3\nM30", env)

@@ -67,6 +67,7 @@ NO_OP_WORDS = frozenset({
     "CDOF", "CDOF2", "DISC", "OFFN", "FENDNORM", "TOFFON", "TOFFOF", "G40", "RESET", "WAITMC",
     "FGROUP", "FTOCON", "FTOCOF", "ORISON", "ORISOF", "PAROT", "PAROTOF", "TOROT", "TOROTOF",
     "TCARR", "TCOABS", "TCOFR", "SUPD", "CPROTDEF", "LIFTFAST", "SETMS", "PROTA", "PROTS",
+    "WAITP", "WAITS",  # the positioning axes (POS, POSA) and spindles they wait for move at once here
 }) | frozenset(name for name, entry in G_FUNCTIONS.items() if entry.number is None and entry.emulation is NO_EFFECT)
 # Named G functions of the control that the emulator cannot run right (CIP, CT, REPOSA, ...): 12550.
 NOT_SUPPORTED_WORDS = frozenset(

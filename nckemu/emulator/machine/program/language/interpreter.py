@@ -53,7 +53,7 @@ from .calls import Calls, as_text
 from .control_flow import ControlFlow, ProgramLevel
 from .cycle_runner import CycleRunner
 from .definitions import expand_macros
-from .expressions import evaluate, number, to_text, undefined
+from .expressions import Parser, evaluate, number, to_text, truth, undefined
 from .feedrules import DIAMETER_WORDS, TRANSVERSE_AXIS
 from .gfunctions import (
     BY_NUMBER,
@@ -75,6 +75,10 @@ log = logging.getLogger(__name__)
 MAX_CACHED_BLOCKS = 50_000
 _BLOCK_NUMBER = re.compile(r"(?:/\d?\s*)?(N\d+)", re.IGNORECASE)
 _END_CODES = frozenset({0, 1, 2, 17, 30})
+# A synchronized action: [N..] [ID=n|IDS=n] WHEN|WHENEVER|FROM|EVERY condition DO actions
+_SYNC_ACTION = re.compile(r"(?:/\d?\s*)?(N\d+\s*)?(?:IDS?\s*=\s*\S+\s+)?(WHENEVER|WHEN|FROM|EVERY)\b(.*?)\bDO\b.*",
+                          re.IGNORECASE | re.DOTALL)
+_SYNC_WORDS = frozenset({"WHEN", "WHENEVER", "FROM", "EVERY"})
 
 
 class Interpreter:
@@ -303,7 +307,30 @@ class Interpreter:
             return None
         if self._macros:
             text = expand_macros(text, self._macros)
+        sync = _SYNC_ACTION.match(text)
+        if sync is not None:
+            return self._compile_sync_action(text, sync)
         return self._compiler.compile_simple(text) or self._compiler.compile(text, tokenize(text))
+
+    def _compile_sync_action(self, text: str, sync: re.Match[str]) -> Compiled:
+        """``[ID=n] WHEN|WHENEVER|FROM|EVERY condition DO actions``: the condition compiled, the actions not
+        (the emulator runs no synchronized actions; see _sync_action)."""
+        parser = Parser(tokenize(sync.group(3)), self.names.resolve)
+        condition = parser.expression()
+        if not parser.at_end():
+            raise ProgramAlarm(ALARM_SYNTAX, f"{sync.group(2).upper()} condition DO: the condition does not end")
+        number = sync.group(1).upper() if sync.group(1) else ""
+        return Compiled(number, b.WORDS, [w.NoOp(sync.group(2).upper(), condition)], text)
+
+    def _sync_action(self, word: str, condition: Any) -> None:
+        """A synchronized action is accepted while its condition is false when the block runs (a
+        grinder's WHEN $A_IN[2]==1 DO ... waits for a retract key nobody presses); the condition is not
+        watched afterwards. One whose condition already holds would act now: 12550, not supported."""
+        if truth(evaluate(condition, self.names)):
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"synchronized action {word} ... DO with its condition "
+                                                       "true is not supported by the emulator")
+        self._log_once(f"SYNC{word}", f"synchronized action {word} ... DO accepted: its condition is false "
+                                      "now and not watched (actions not simulated)")
 
     # --- names ------------------------------------------------------------------------------------
     def axis_name(self, value: Any) -> str:
@@ -508,6 +535,9 @@ class Interpreter:
             elif kind is w.Setal:
                 self._setal(evaluate(item.number, names))
             elif kind is w.NoOp:
+                if item.name in _SYNC_WORDS:
+                    self._sync_action(item.name, item.args)
+                    continue
                 entry = G_FUNCTIONS.get(item.name)
                 if entry is not None and entry.modal:
                     self.modal.g_groups[entry.group] = item.name

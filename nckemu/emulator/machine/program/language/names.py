@@ -10,6 +10,7 @@ interpreter itself knows ($AA_IW, $P_GG, the frames ...) it reads from the inter
 
 from __future__ import annotations
 
+import math
 import re
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -205,6 +206,9 @@ class ProgramNames:
             if host.modal.chain is None:
                 return machine - host.modal.shift.get(axis, 0.0)
             return self._work_position(axis)
+        if name == "$AC_DRF" and len(indices) == 1:  # the handwheel's DRF offset: no handwheel turns here
+            self.axis_name(indices[0])
+            return 0.0
         if name in framing.FRAME_VARIABLES:
             return self._frame_variable(name, indices)
         if name == "$P_GG" and len(indices) == 1:  # the active G function of a group, as its number in it
@@ -212,6 +216,8 @@ class ProgramNames:
             active = f"G{host.modal.motion}" if group == 1 else host.modal.g_groups.get(group)
             return number_in_group(group, active or GROUP_DEFAULTS.get(group))
         if not indices:
+            if name == "$PI":  # the circle constant the control predefines (a cycle's wheel speed from its diameter)
+                return math.pi
             if name in ("$P_AXN1", "$P_AXN2", "$P_AXN3"):  # the plane's abscissa, ordinate, applicate
                 return PLANES[host.modal.plane][int(name[-1]) - 1]
             if name == "$P_MC":  # a modal call (MCALL) is active: cycles ask before they position
