@@ -124,7 +124,7 @@ def run_one(machine: str, main: str, stored: list[tuple[str, bytes]], max_time_s
     """Run one program in this process; the outcome as a dict (never raises)."""
     from nckemu.emulator.machine.clock import SimulatedClock
     from nckemu.emulator.machine.core import Emulator
-    from nckemu.emulator.machine.program.offline import run_offline
+    from nckemu.emulator.machine.offline import run_offline
     from nckemu.errors import NckError
 
     faults = _Faults()

@@ -47,10 +47,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from nckemu.emulator.machine.clock import LiveClock, SimulatedClock  # noqa: E402
 from nckemu.emulator.machine.core import Emulator  # noqa: E402
+from nckemu.emulator.machine.offline import run_offline  # noqa: E402
 from nckemu.emulator.machine.program.environment import ProgramEnvironment  # noqa: E402
 from nckemu.emulator.machine.program.language import Interpreter  # noqa: E402
 from nckemu.emulator.machine.program.motions import Block  # noqa: E402
-from nckemu.emulator.machine.program.offline import run_offline  # noqa: E402
 
 PATH = "/_N_MPF_DIR/_N_BENCH_MPF"
 SIZES = {"small": {"straight": 50_000, "loops": 10_000, "arcs": 10_000, "drilling": 5_000, "cam_lines": 100_000,

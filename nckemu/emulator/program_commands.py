@@ -17,10 +17,10 @@ from nckemu.catalogue.program_names import program_path
 from nckemu.cliutil import check_output, command_group
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.nck.run_geometry import path_axis_names
+from nckemu.emulator.machine.offline import recording_columns, run_offline
 from nckemu.emulator.machine.program.block_record import BlockRecord
-from nckemu.emulator.machine.program.geometry import path_axis_names
 from nckemu.emulator.machine.program.language.definitions import DefinitionRefused
-from nckemu.emulator.machine.program.offline import recording_columns, run_offline
 from nckemu.errors import NckConfigError, NckError
 
 RUN_EXAMPLE = """\

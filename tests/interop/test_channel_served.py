@@ -18,7 +18,7 @@ from nckemu.emulator.machine.clock import LiveClock, SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.machine_file import load_machine
 from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE, CHAN_INTERRUPTED, CHAN_RESET
-from nckemu.emulator.machine.program.offline import run_offline
+from nckemu.emulator.machine.offline import run_offline
 from nckemu.emulator.runner import EmulatorThread
 from nckemu.errors import NckError
 from tests.conftest import FIXTURES

@@ -17,7 +17,7 @@ from nckemu.clients.sync import NckClient
 from nckemu.emulator.faces.opcua import OpcUaFace
 from nckemu.emulator.machine.clock import LiveClock, SimulatedClock
 from nckemu.emulator.machine.core import Emulator
-from nckemu.emulator.machine.program.offline import recording_columns, run_offline
+from nckemu.emulator.machine.offline import recording_columns, run_offline
 from nckemu.emulator.runner import EmulatorThread
 
 from .opcua_tools import NS_URI, connect

@@ -3,10 +3,10 @@ count (bar-style checks count them: a type import is still a dependency a reader
 but the known ones, which may only shrink, and no class with more than 25 methods longer than 5 lines.
 
 import-linter (``make lint``) checks the layers and, in its ``acyclic`` contract (acyclic_siblings,
-type imports counted), that no siblings at any level of the package import each other round. That
-contract ignores the imports of its known knots (the program package and the NCK), and a circle of
-modules running through one of them would pass it, so the module graph is walked here as well (grimp,
-which import-linter uses).
+type imports counted), that no siblings at any level of the package import each other round. It
+compares siblings only: a package's ``__init__`` and a module inside it importing each other (plc/
+``__init__`` -> memory -> channel_signals -> plc/``__init__``) are parent and child, and pass it. So the
+module graph is walked here as well (grimp, which import-linter uses).
 """
 
 from __future__ import annotations

@@ -15,6 +15,8 @@ from nckemu.cli import main
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.machine_file import parse_machine
+from nckemu.emulator.machine.nck.program_run import BlockRecord
+from nckemu.emulator.machine.offline import run_offline
 from nckemu.emulator.machine.program.language.cycles import ALARM_THREAD_PITCH
 from nckemu.emulator.machine.program.motions import (
     ALARM_PROGRAM_NOT_FOUND,
@@ -24,8 +26,6 @@ from nckemu.emulator.machine.program.motions import (
     Move,
     SpindleCommand,
 )
-from nckemu.emulator.machine.program.offline import run_offline
-from nckemu.emulator.machine.program.run import BlockRecord
 from tests.unit.emulator.test_channel_programs import A_Z, MACHINE, V_Z
 from tests.unit.program_language_support import MAIN, DictEnvironment, run
 

@@ -9,6 +9,7 @@ import pytest
 
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
+from nckemu.emulator.machine.offline import run_offline
 from nckemu.emulator.machine.program.environment import ProgramEnvironment
 from nckemu.emulator.machine.program.language import Interpreter
 from nckemu.emulator.machine.program.language.definitions import (
@@ -18,7 +19,6 @@ from nckemu.emulator.machine.program.language.definitions import (
     parse_definitions,
 )
 from nckemu.emulator.machine.program.motions import Move
-from nckemu.emulator.machine.program.offline import run_offline
 
 MGUD = "/_N_DEF_DIR/_N_MGUD_DEF"
 GUD_TEXT = b"""%_N_MGUD_DEF

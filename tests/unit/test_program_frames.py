@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from nckemu.emulator.machine.nck.frame_math import Frame, rotation_rpy, rpy_angles
+from nckemu.emulator.machine.frame_math import Frame, rotation_rpy, rpy_angles
 from nckemu.emulator.machine.program.language.alarms import ALARM_FRAME
 from nckemu.emulator.machine.program.motions import Arc, Move
 from tests.unit.program_language_support import MAIN, DictEnvironment, run

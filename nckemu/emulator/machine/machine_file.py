@@ -45,6 +45,9 @@ class Axis:
 
 # The default allocation of SD42960's components to geometry axes, by the first letter of the axis name.
 TOOL_TEMP_COMP_COMPONENTS = {"Z": 1, "Y": 2, "X": 3}
+# MD20060 AXCONF_GEOAX_NAME_TAB, as SINUMERIK delivers it: the channel's geometry axes (the workpiece
+# view of the axes, nck/geometric_axes.py, and the path the planner plans, program/planner.py).
+GEOMETRY_AXIS_NAMES = ("X", "Y", "Z")
 
 
 # The bytes of each of the PLC's input, output and flag areas (plc/memory.py): a sensor's ``plc_input`` word

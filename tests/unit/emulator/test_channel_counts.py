@@ -8,7 +8,7 @@ import pytest
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.nck.channel_states import PROG_ABORTED
-from nckemu.emulator.machine.program.offline import run_offline
+from nckemu.emulator.machine.offline import run_offline
 from nckemu.emulator.machine.status import machine_status
 from nckemu.errors import NckPiStateError
 

@@ -13,8 +13,8 @@ from nckemu.catalogue.program_names import program_path
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.machine_file import parse_machine
-from nckemu.emulator.machine.program.offline import run_offline
-from nckemu.emulator.machine.program.run import BlockRecord
+from nckemu.emulator.machine.nck.program_run import BlockRecord
+from nckemu.emulator.machine.offline import run_offline
 
 # A five-axis mill: X, Y, Z at 30 m/min and 2 m/s², B and C at 36 000 °/min and 10 (taken as 10 000 °/s²).
 MILL = """

@@ -24,8 +24,8 @@ from nckemu.emulator.machine.nck.channel import (
     PROG_STOPPED,
     Channel,
 )
+from nckemu.emulator.machine.offline import run_offline
 from nckemu.emulator.machine.program.motions import Arc, Dwell, Move
-from nckemu.emulator.machine.program.offline import run_offline
 from nckemu.emulator.machine.program.planner import AxisLimits, MotionLimits, Overrides, Planner, ramp_time_s
 from nckemu.errors import NckNoSuchFile, NckPiStateError
 from nckemu.protocol.addresses import S7Area

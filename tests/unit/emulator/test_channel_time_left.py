@@ -7,7 +7,7 @@ import pytest
 
 from nckemu.emulator.machine.clock import SimulatedClock
 from nckemu.emulator.machine.core import Emulator
-from nckemu.emulator.machine.program.offline import run_offline
+from nckemu.emulator.machine.offline import run_offline
 from nckemu.emulator.machine.status import machine_status
 
 PATH = "/_N_MPF_DIR/_N_LEFT_MPF"

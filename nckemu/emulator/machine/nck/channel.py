@@ -5,7 +5,7 @@ The values HMIs and collectors poll from module S (0x7F), SSP (0x72), SPARP (0x7
 A channel is reset until it is started; the net program time runs while it is active; the end of a
 program counts a part. PI ``_N_SELECT``, OPC UA ``Select``, the PLC's ``DB21.DBX7.x`` edges and the
 extension variable ``NCKEMU_CHAN_COMMAND`` all end in the same calls. The program itself runs in
-:mod:`nckemu.emulator.machine.program.run`, one cycle at a time (:meth:`Channel.step`).
+:mod:`nckemu.emulator.machine.nck.program_run`, one cycle at a time (:meth:`Channel.step`).
 
 Value meanings (sources in ``catalogue/variables.toml``, docs/programs.md): chanStatus 0 reset,
 1 active, 2 interrupted (two sources); progStatus 1 interrupted, 2 stopped, 3 running, 4 waiting,
@@ -82,7 +82,7 @@ class ChannelParts(Protocol):
 
 
 class ChannelRun(Protocol):
-    """What the channel asks of its program run (program/run.py's ProgramRun). A protocol, and the run
+    """What the channel asks of its program run (program_run.py's ProgramRun). A protocol, and the run
     handed in as a factory by the model, so the channel does not import the run, which is typed against
     the whole NCK (issue 52: no circle through the channel)."""
 
@@ -115,7 +115,7 @@ class Spindle:
     # An actual speed measured on the machine (plc run --inputs drives it from a recording's
     # spindle_rpm): when set, actSpeed reports it whatever the channel and the commanded speed say.
     measured_rpm: float | None = None
-    # Set while a program drives the spindle: its speed ramps (program/run.py), whatever the channel's status.
+    # Set while a program drives the spindle: its speed ramps (program_run.py), whatever the channel's status.
     ramp: SpindleRamp | None = None
 
 

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from nckemu.emulator.machine.frame_math import GEOMETRY, IDENTITY_FRAME, Frame
 from nckemu.emulator.machine.machine_file import Machine
-from nckemu.emulator.machine.nck.frame_math import GEOMETRY, IDENTITY_FRAME, Frame
 from nckemu.errors import NckAddressOutOfRange
 
 ACTFRAME, IFRAME, PFRAME, EXTFRAME, TOTFRAME = 0, 1, 2, 3, 4

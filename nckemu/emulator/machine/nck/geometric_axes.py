@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Protocol
 
+from nckemu.emulator.machine.machine_file import GEOMETRY_AXIS_NAMES
 from nckemu.errors import NckAddressOutOfRange
 
 if TYPE_CHECKING:
@@ -26,8 +27,6 @@ if TYPE_CHECKING:
     from nckemu.emulator.machine.nck.axes import Axes
     from nckemu.emulator.machine.nck.frames import Frames
     from nckemu.emulator.machine.nck.tools import Tools
-
-GEOMETRY_AXIS_NAMES = ("X", "Y", "Z")  # MD20060 AXCONF_GEOAX_NAME_TAB, as SINUMERIK delivers it
 
 
 class ActiveEdge(Protocol):

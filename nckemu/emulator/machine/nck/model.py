@@ -33,13 +33,13 @@ from nckemu.emulator.machine.nck.compensation import (  # noqa: F401 (old import
 from nckemu.emulator.machine.nck.drives import Drives
 from nckemu.emulator.machine.nck.frames import Frames
 from nckemu.emulator.machine.nck.nck_io import NckIo
+from nckemu.emulator.machine.nck.program_run import ProgramRun
 from nckemu.emulator.machine.nck.programs import Programs
 from nckemu.emulator.machine.nck.sensors import Sensors
 from nckemu.emulator.machine.nck.sources import SOURCES
 from nckemu.emulator.machine.nck.store import VariableStore
 from nckemu.emulator.machine.nck.tools import Tools
 from nckemu.emulator.machine.program.motions import ProgramAlarm
-from nckemu.emulator.machine.program.run import ProgramRun
 from nckemu.errors import NckAccessDenied, NckConfigError, NckTypeInconsistent
 from nckemu.protocol.addresses import NckAddress, NckArea, NckType
 

@@ -1,7 +1,7 @@
 """What the NCK model's collaborators may use of it: its parts, by a narrow protocol.
 
 Named value sources (``sources``), PI services (``pi_services``) and a channel's program run
-(``program/run.py`` and its environment) are handed the model, but type against :class:`NckParts`,
+(``program_run.py`` and its environment and geometry) are handed the model, but type against :class:`NckParts`,
 not the model class, so they depend on the parts they touch (axes, channels, tools, ...) and the
 model depends on them, never the other way round.
 

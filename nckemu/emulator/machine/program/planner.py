@@ -38,7 +38,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
-from nckemu.emulator.machine.nck.geometric_axes import GEOMETRY_AXIS_NAMES
+from nckemu.emulator.machine.machine_file import GEOMETRY_AXIS_NAMES
 from nckemu.emulator.machine.program.motions import Arc, ConstantCuttingSpeed, Dwell, Move
 
 MM_PER_M = 1000.0

@@ -22,7 +22,7 @@ from .source import ProgramSource, decode_program, normalized
 from .variables import Variable
 
 if TYPE_CHECKING:
-    from nckemu.emulator.machine.nck.frame_math import Frame
+    from nckemu.emulator.machine.frame_math import Frame
 
     from ..environment import ProgramEnvironment
     from .blocks import BlockCompiler

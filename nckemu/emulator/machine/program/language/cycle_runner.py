@@ -9,7 +9,7 @@ from __future__ import annotations
 import logging
 from typing import TYPE_CHECKING, Any, Protocol
 
-from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame, rotation_rpy
+from nckemu.emulator.machine.frame_math import IDENTITY_FRAME, Frame, rotation_rpy
 
 from ..motions import (
     ALARM_NAME_NOT_DEFINED,

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from nckemu.emulator.machine.nck.frame_math import GEOMETRY, IDENTITY_FRAME, Frame, rotation_rpy
+from nckemu.emulator.machine.frame_math import GEOMETRY, IDENTITY_FRAME, Frame, rotation_rpy
 
 from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, Arc, Move, ProgramAlarm
 from .alarms import ALARM_FRAME

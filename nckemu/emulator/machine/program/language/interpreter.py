@@ -20,7 +20,7 @@ from collections.abc import Iterator
 from types import FunctionType
 from typing import Any
 
-from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame
+from nckemu.emulator.machine.frame_math import IDENTITY_FRAME, Frame
 
 from ..environment import ProgramEnvironment
 from ..motions import (

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame
+from nckemu.emulator.machine.frame_math import IDENTITY_FRAME, Frame
 
 from .feedrules import FeedRules
 from .polar import Polar

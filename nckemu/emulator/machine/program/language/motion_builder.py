@@ -12,7 +12,7 @@ import math
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Protocol
 
-from nckemu.emulator.machine.nck.frame_math import GEOMETRY, Frame
+from nckemu.emulator.machine.frame_math import GEOMETRY, Frame
 
 from ..motions import (
     ALARM_CIRCLE_END_POINT,

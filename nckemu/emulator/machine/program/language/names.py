@@ -14,7 +14,7 @@ import math
 import re
 from typing import TYPE_CHECKING, Any, Protocol
 
-from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME, Frame
+from nckemu.emulator.machine.frame_math import IDENTITY_FRAME, Frame
 
 from ..environment import ProgramEnvironment, UndefinedName
 from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, ProgramAlarm

@@ -2,7 +2,7 @@
 names), the motion limits the planner plans with, the travel a target must stay within, and where the
 axes are at an instant of the segment under way.
 
-:class:`ChannelGeometry` is the axis side of a program run (program/run.py's :class:`ProgramRun`
+:class:`ChannelGeometry` is the axis side of a program run (program_run.py's :class:`ProgramRun`
 consumes the interpreter's events and hands the motions here); it reads the state the channel shows
 only to name the block in an alarm.
 """

@@ -5,9 +5,9 @@ simulated time by the planner.
 simulated time (a move has arrived, a dwell has passed), so the interpreter's reads (``$AA_IM``,
 ``$AC_TIME``, R parameters) see the machine as the block sees it on a control. :meth:`ProgramRun.advance`
 runs up to a simulated time and at most a number of blocks, so an endless loop never holds the cycle.
-It is the event consumer of three parts: :class:`~nckemu.emulator.machine.program.nck_environment.NckEnvironment`
+It is the event consumer of three parts: :class:`~nckemu.emulator.machine.nck.nck_environment.NckEnvironment`
 answers what the interpreter may ask of the NCK (R parameters, positions, work offsets, tool lengths,
-system variables, subprograms), :class:`~nckemu.emulator.machine.program.geometry.ChannelGeometry`
+system variables, subprograms), :class:`~nckemu.emulator.machine.nck.run_geometry.ChannelGeometry`
 moves the channel's axes along the planner's segments. What the channel reports (the block, the
 message, the feed, the tool) the run tells the channel, which alone writes its state.
 """
@@ -19,14 +19,15 @@ from collections.abc import Iterator
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-from nckemu.emulator.machine.program.block_record import BlockRecord
-from nckemu.emulator.machine.program.geometry import (  # noqa: F401 (also imported from here)
+from nckemu.emulator.machine.nck.nck_environment import NckEnvironment  # noqa: F401 (also imported from here)
+from nckemu.emulator.machine.nck.run_geometry import (  # noqa: F401 (also imported from here)
     ChannelGeometry,
     PathMotion,
     channel_axes,
     motion_limits,
     path_axis_names,
 )
+from nckemu.emulator.machine.program.block_record import BlockRecord
 from nckemu.emulator.machine.program.motions import (
     ALARM_FEED_ZERO,
     Arc,
@@ -42,7 +43,6 @@ from nckemu.emulator.machine.program.motions import (
     SpindleCommand,
     ToolSelect,
 )
-from nckemu.emulator.machine.program.nck_environment import NckEnvironment  # noqa: F401 (also imported from here)
 from nckemu.emulator.machine.program.planner import (
     Overrides,
     Planner,
@@ -193,7 +193,7 @@ class ProgramRun:
     def _drop_programmable_frame(self) -> None:
         """Reset and program end delete the programmable frame (MD20110 RESET_MODE as delivered,
         UNCONFIRMED); the settable frame stays selected."""
-        from nckemu.emulator.machine.nck.frame_math import IDENTITY_FRAME
+        from nckemu.emulator.machine.frame_math import IDENTITY_FRAME
 
         self.parts.frames.set_programmable(self.channel.number, IDENTITY_FRAME)
 

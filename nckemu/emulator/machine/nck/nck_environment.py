@@ -2,8 +2,8 @@
 serves), machine positions, work offsets and frames, tool lengths and radii, system variables (part
 counters, machine and setting data, the clock, the NCK's I/O) and where a called subprogram is found.
 
-:class:`NckEnvironment` is one of the three parts of a program run: program/run.py consumes the
-interpreter's events, program/geometry.py moves the channel's axes, and this answers the
+:class:`NckEnvironment` is one of the three parts of a program run: program_run.py consumes the
+interpreter's events, run_geometry.py moves the channel's axes, and this answers the
 interpreter's questions. A part counter a program writes goes through the channel (``set_figure``).
 """
 
@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 
 from nckemu.emulator.machine.nck import nck_io
 from nckemu.emulator.machine.nck.programs import program_text
+from nckemu.emulator.machine.nck.run_geometry import channel_axes, path_axis_names
 from nckemu.emulator.machine.program.environment import ProgramEnvironment, UndefinedName
-from nckemu.emulator.machine.program.geometry import channel_axes, path_axis_names
 from nckemu.emulator.machine.program.motions import ALARM_NAME_NOT_DEFINED, ProgramAlarm
 from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments
 
@@ -113,7 +113,7 @@ class NckEnvironment(ProgramEnvironment):
             self._parts.frames.select(self._channel.number, index)
 
     def set_programmable_frame(self, frame: object) -> None:
-        from nckemu.emulator.machine.nck.frame_math import Frame
+        from nckemu.emulator.machine.frame_math import Frame
 
         if isinstance(frame, Frame):
             self._parts.frames.set_programmable(self._channel.number, frame)
