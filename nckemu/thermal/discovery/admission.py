@@ -11,11 +11,11 @@ import numpy as np
 from nckemu.thermal import stats
 from nckemu.thermal.model.terms import Term
 
+from . import selection_words as words
 from . import shapes
 from .library import Library, bounded, extends, time_constants
 from .records import Baseline, Evaluation, Guard, Move, Path
 from .run_figures import RunFigures
-from .selection_words import CANNOT_HAVE, per_parameter_words, percent
 from .settings import Settings
 
 
@@ -98,11 +98,9 @@ class Admission:
         passes = runs_improve(before, after, level, s.min_fold_share, s.runs_test_min)
         if not paired_test_applies(len(before), level, s.runs_test_min):
             improved, need = int(np.sum(after < before)), math.ceil(s.min_fold_share * len(before))
-            return Guard("runs improved", passes, f"{improved} of {len(before)} runs improve (at least {need} must)")
+            return Guard("runs improved", passes, words.improved_words(improved, len(before), "runs", need))
         p = stats.paired_improvement_p(before, after)
-        return Guard("paired test", passes,
-                     f"the runs' paired test gives p = {p:.2g} (level {level:.2g}, {s.runs_alpha:g} over "
-                     f"{max(self.paired_tests, 1)} candidate{'s' if self.paired_tests > 1 else ''})")
+        return Guard("paired test", passes, words.paired_test_words(p, level, s.runs_alpha, self.paired_tests))
 
     def heldout_figures(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
                         runs_with: np.ndarray | None = None) -> tuple[float, float, float, str]:
@@ -110,8 +108,8 @@ class Admission:
         (``heldout_gain``), for words that must follow it."""
         gain = self.heldout_gain(cv, base_cv, runs_with)
         if self.per_run:
-            return (*self.runs.run_medians(cv, base_cv, runs_with), gain, "the median over runs of held-out RMS")
-        return min(base_cv.rms_um, self.baseline.given_heldout_um), cv.rms_um, gain, "held-out RMS"
+            return (*self.runs.run_medians(cv, base_cv, runs_with), gain, words.MEDIAN_OVER_RUNS)
+        return min(base_cv.rms_um, self.baseline.given_heldout_um), cv.rms_um, gain, words.HELD_OUT
 
     def guards(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
                t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
@@ -127,21 +125,16 @@ class Admission:
         else:
             folds = len(base_cv.fold_rms_um)
             need = math.ceil(s.min_fold_share * folds)
-            out.append(Guard("blocks improved", fold_wins >= need,
-                             f"{fold_wins} of {folds} blocks improve (at least {need} must)"))
+            out.append(Guard("blocks improved", fold_wins >= need, words.improved_words(fold_wins, folds, "blocks", need)))
         counted = len(base_cv.fold_rms_um) if runs_with is None else int(np.sum(runs_with))
         judged_by_pairs = self.per_run and counted >= s.runs_test_min
         if not (judged_by_pairs and s.runs_replace_t_test):
             # Only where the runs' paired test judges this candidate (enough runs have its columns).
-            t_words = ", ".join(f"{t:.2f}" for t in t_values)
-            out.append(Guard("t-test", all(abs(t) >= t_crit for t in t_values),
-                             f"t = {t_words} (critical {t_crit:.2f})"))
+            out.append(Guard("t-test", all(abs(t) >= t_crit for t in t_values), words.t_test_words(t_values, t_crit)))
         physical = all(bounded(term) for term in terms)
         cannot = "; ".join(why for term in terms
                            if (why := term.spec.cannot_have(term.parameters, term.coefficient, s.structure)))
-        out.append(Guard("physical", physical and not cannot,
-                         "parameters outside what a machine can have" if not physical else
-                         f"{CANNOT_HAVE}: {cannot}" if cannot else "parameters a machine can have"))
+        out.append(Guard("physical", physical and not cannot, words.physical_words(physical, cannot)))
         if self.per_run:  # ... and it must not leave the worst run worse
             figures = self.runs.run_figures(cv, base_cv, runs_with)
             limit = (1 + s.equivalence) * figures.worst_before_um
@@ -149,14 +142,11 @@ class Admission:
             counted = np.ones(len(cv.fold_rms_um), dtype=bool) if runs_with is None else np.asarray(runs_with)
             harmed = [self.library.problem.runs[i].name for i in self.runs.harms_runs(
                 self.runs.reference_folds(base_cv), cv.fold_rms_um) if counted[i]]
-            harm_words = (f"; {len(harmed)} run{'s' if len(harmed) > 1 else ''} worse by more than "
-                          f"{s.run_harm_share:.0%} and {s.run_harm_floor_um:g} um: {', '.join(harmed[:4])}"
-                          f"{', ...' if len(harmed) > 4 else ''}" if harmed else "")
             # Named, not refused: a term that helps heavy days much and leaves light days a little worse
             # (issue 42's duty mix) stays admissible; the words name the runs it harms.
-            out.append(Guard("worst run", figures.worst_after_um <= limit,
-                             f"the worst run ({figures.worst_run}) {figures.worst_before_um:.3f} -> "
-                             f"{figures.worst_after_um:.3f} um (at most {limit:.3f}){harm_words}"))
+            out.append(Guard("worst run", figures.worst_after_um <= limit, words.worst_run_words(
+                figures.worst_run, figures.worst_before_um, figures.worst_after_um, limit,
+                words.harm_words(harmed, s.run_harm_share, s.run_harm_floor_um))))
         before_um, after_um, gain, figure = self.heldout_figures(cv, base_cv, runs_with)
         # A candidate only a few runs can judge (its columns missing in the others) clears the bar of a few.
         bar = self.bar if judged_by_pairs or not self.per_run else s.min_improvement
@@ -166,8 +156,7 @@ class Admission:
             # is judged over either of its terms alone instead).
             bar = shapes.parameter_bar(bar, shapes.parameters_of(terms[0]))
         out.append(Guard("held-out", gain >= bar,
-                         f"{figure} {before_um:.3f} -> {after_um:.3f} um ({gain:.1%}; the bar is {percent(bar)})"
-                         f"{per_parameter_words(bar, self.bar, terms)}", round(gain, 4)))
+                         words.heldout_words(figure, before_um, after_um, gain, bar, self.bar, terms), round(gain, 4)))
         return out
 
     def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
@@ -251,10 +240,9 @@ class Admission:
 
         other = min(simpler, key=figure)
         gain = 1.0 - figure(evaluation) / figure(other) if figure(other) > 0 else 0.0
-        what = "the median over runs of held-out RMS" if self.per_run else "held-out RMS without the sensors' noise"
-        return Guard("time constant", gain >= self.bar,
-                     f"its time constant against {other.candidate.label}: {what} {figure(other):.3f} -> "
-                     f"{figure(evaluation):.3f} um ({gain:.1%}; the bar is {self.bar:.0%})", round(gain, 4))
+        what = words.MEDIAN_OVER_RUNS if self.per_run else words.WITHOUT_NOISE
+        return Guard("time constant", gain >= self.bar, words.time_constant_words(
+            other.candidate.label, what, figure(other), figure(evaluation), gain, self.bar), round(gain, 4))
 
     def earned(self, evaluation: Evaluation, evaluations: list[Evaluation], passing: list[Evaluation]) -> bool:
         guard = self.time_constant_guard(evaluation, evaluations, passing)

@@ -13,6 +13,7 @@ from nckemu.thermal.model.families import Family
 from nckemu.thermal.model.terms import Term
 
 from . import explain
+from . import selection_words as words
 from .admission import Admission, t_critical
 from .findings import MoveAlternative, MoveEvidence, finding
 from .fits import Fits
@@ -101,8 +102,7 @@ class Moves:
         return [(int(first[k]), int(second[k])) for k in chosen]
 
     def admit_move(self, path: Path, move: Move, equivalent: list[Move], t_crit: float, *,
-                   why: str = "no single effect passed the guards; these two pass them together, and each is "
-                              "needed (the pair clears the held-out bar over either alone)",
+                   why: str = words.PAIR_WHY,
                    alternatives: list[MoveAlternative] | None = None,
                    preferred: Callable[[int], str] | None = None) -> None:
         folds = len(self.baseline.folds)
@@ -118,7 +118,7 @@ class Moves:
                 [MoveAlternative(m.label, round(m.cv.rms_um, 4)) for m in equivalent] + (alternatives or []),
                 why, round(move.shares[index], 3))
             record.preferred = preferred(index) if preferred is not None else \
-                f"{move.label}: a move of two effects ({move.shares[index]:.0%} of it this one)"
+                words.move_preferred(move.label, move.shares[index])
             record.runs = figures
             path.discovered.append(finding(term.effect, term.parameters, record))
             path.added.append(term)
@@ -173,44 +173,31 @@ class Moves:
         def named(what: str, move: Move) -> str:
             if what != "split":
                 return move.label
-            taus = " and ".join(f"{t.parameters['tau_s'] / 3600:.2g} h" for t in move.terms)
-            return f"{move.alone[0].candidate.label} at two time constants, {taus}"
+            return words.two_time_constants_label(move.alone[0].candidate.label,
+                                                  [t.parameters["tau_s"] for t in move.terms])
 
-        alternatives = [MoveAlternative(f"{chosen.candidate.label} alone", round(chosen.cv.rms_um, 4))] \
+        alternatives = [MoveAlternative(words.alone_label(chosen.candidate.label), round(chosen.cv.rms_um, 4))] \
             + [MoveAlternative(named(w, m), round(m.cv.rms_um, 4)) for w, m, _t in others]
-        hours = [f"{t.parameters['tau_s'] / 3600:.2g} h" for t in move.terms if "tau_s" in t.parameters]
+        hours = [words.hours(t.parameters["tau_s"]) for t in move.terms if "tau_s" in t.parameters]
         if what == "split":
-            why = (f"one sensor at two time constants (a fast skin and a slow core): {hours[0]} and {hours[1]} "
-                   f"together clear the held-out bar over {chosen.candidate.label} alone (held-out "
-                   f"{chosen.cv.rms_um:.3f} um against {move.cv.rms_um:.3f} um) and over either alone")
+            why = words.split_why(hours[0], hours[1], chosen.candidate.label, chosen.cv.rms_um, move.cv.rms_um)
 
             def preferred(index: int) -> str:
-                return (f"{chosen.candidate.label} at {hours[0]} and {hours[1]}: two time constants of one sensor "
-                        f"({move.shares[index]:.0%} of it this one)")
+                return words.split_preferred(chosen.candidate.label, hours[0], hours[1], move.shares[index])
         else:
             equivalent = [named(w, m) for w, m, _t in others if m.ranked_rms_um <= move.ranked_rms_um * (1 + margin)]
             plain = not time_constants(move.alone[0].candidate.term)
-            why = (f"{'two measured sensors in place of the time constant' if plain else 'a measured sensor beside the time constant'}: "
-                   f"{move.label} clears the held-out bar over "
-                   f"{chosen.candidate.label} alone (held-out {chosen.cv.rms_um:.3f} um against "
-                   f"{move.cv.rms_um:.3f} um) and over either alone; "
-                   + ("the time constant, searched again beside the second sensor, earned nothing over the sensor "
-                      "itself" if plain else
-                      "the time constant alone had absorbed part of what the measured sensor explains"))
+            why = words.partner_why(plain, move.label, chosen.candidate.label, chosen.cv.rms_um, move.cv.rms_um)
             if equivalent:
                 constructed = any(w == "split" for w, m, _t in others
                                   if m.ranked_rms_um <= move.ranked_rms_um * (1 + margin))
                 measured_too = any(w == "partner" for w, m, _t in others
                                    if m.ranked_rms_um <= move.ranked_rms_um * (1 + margin))
-                reasons = ([f"the measured partner that fits the record best (in-sample), {move.alone[1].candidate.label}"]
-                           if measured_too else []) + \
-                    (["the measured sensor, which needs no constructed signal and fewer parameters"] if constructed else [])
-                why += (f". Equivalent on these data (held-out without the sensors' noise within {margin:.0%}): "
-                        f"{', '.join(equivalent)}; the data cannot tell them apart. Named: {'; and '.join(reasons)}")
+                why += words.equivalent_partners_words(
+                    margin, equivalent, move.alone[1].candidate.label if measured_too else None, constructed)
 
             def preferred(index: int) -> str:
-                kind = "two measured sensors" if plain else "a time constant and a measured sensor"
-                return f"{move.label}: {kind} that share drivers, judged together ({move.shares[index]:.0%} of it this one)"
+                return words.partner_preferred(move.label, plain, move.shares[index])
         self.admit_move(path, move, [], t_crit, why=why, alternatives=alternatives, preferred=preferred)
         return True
 

@@ -11,13 +11,13 @@ import numpy as np
 from nckemu.thermal import stats
 
 from . import explain, shapes
+from . import selection_words as words
 from .admission import Admission, t_critical
 from .findings import Evidence, Finding, GainEvidence, Withdrawn, finding
 from .fits import Fits
 from .library import Library, present_key, time_constants
 from .moves import Moves
 from .records import Baseline, Evaluation, Path
-from .selection_words import CANNOT_HAVE, per_parameter_words, percent
 from .settings import Settings
 
 
@@ -42,7 +42,7 @@ class Search:
             path.present.add("gain_error")
             path.discovered.append(Finding("gain_error", {"gain": round(gain, 5)}, GainEvidence(
                 round(setup.baseline_rms, 4), round(gain_cv.rms_um, 4), round(setup.baseline_rms, 4),
-                round(gain_se, 5), [], "one common factor on the whole model explains the mismatch")))
+                round(gain_se, 5), [], words.GAIN_WHY)))
         else:
             path = Path(False, setup.base_design, setup.recal_cv, setup.base_noise)
         if self.library.problem.per_run_offset:
@@ -126,7 +126,7 @@ class Search:
             label = explain.label_with_time_constants(evaluation.candidate.term)
             guards = self.admission.guards_of(evaluation, path.base_cv, t_crit)
             failing = [g for g in guards if not g.passes]
-            cannot = len(failing) == 1 and failing[0].figure.startswith(CANNOT_HAVE)
+            cannot = len(failing) == 1 and failing[0].figure.startswith(words.CANNOT_HAVE)
             if cannot or (len(failing) == 1 and failing[0] is guards[-1] and guards[-1].gain >= self.admission.bar):
                 fitting.append(evaluation)
             if cannot and not any(item[0] == label for item in path.cannot_have):
@@ -225,11 +225,9 @@ class Search:
             gone = path.discovered.pop(index + offset).evidence
             path.design, path.noise = path.design[:, keep], path.noise[:, keep]
             path.withdrawn.append(Withdrawn(
-                term.effect, explain.label_with_time_constants(term), dict(term.parameters),
-                f"the terms named after it explain what it did: without it the median over runs of held-out RMS "
-                f"is {float(np.median(without.fold_rms_um)):.3f} um against {float(np.median(path.base_cv.fold_rms_um)):.3f} um "
-                f"with it ({loss:.1%}; the bar is {percent(bar)}){per_parameter_words(bar, self.admission.bar, (term,))}, "
-                f"the worst run {max(without.fold_rms_um):.3f} um against {max(path.base_cv.fold_rms_um):.3f} um"))
+                term.effect, explain.label_with_time_constants(term), dict(term.parameters), words.withdrawn_words(
+                    float(np.median(without.fold_rms_um)), float(np.median(path.base_cv.fold_rms_um)), loss, bar,
+                    self.admission.bar, term, max(without.fold_rms_um), max(path.base_cv.fold_rms_um))))
             path.base_cv = without
             if isinstance(gone, Evidence) and gone.move is not None:
                 self.leave_move(path, gone.move.terms, explain.label_with_time_constants(term))
@@ -240,7 +238,7 @@ class Search:
             record = found.evidence
             if isinstance(record, Evidence) and record.move is not None and record.move.terms == members:
                 record.move = None
-                record.preferred = f"named in a move with {withdrawn}, which the later terms made redundant (withdrawn)"
+                record.preferred = words.partner_withdrawn_words(withdrawn)
 
     def without_added(self, path: Path, index: int) -> tuple[stats.CrossValidation, list[int]]:
         """The path's design without the column of ``path.added[index]``, cross-validated, and the

@@ -22,6 +22,7 @@ from nckemu.thermal import stats
 from nckemu.thermal.model.terms import Term
 
 from . import explain
+from . import selection_words as words
 from .admission import Admission
 from .findings import Alternative, Evidence
 from .library import Library
@@ -95,8 +96,7 @@ class Selector:
         guards = self.admission.guards_of(evaluation, path.base_cv, path.rejected_t_critical)
         extra = [] if (found := self.admission.time_constant_guard(evaluation, path.rejected, [])) is None else [found]
         if path.at_limit:
-            extra.append(Guard("limit", False, f"the search stopped at {self.settings.max_effects} terms "
-                                               f"(Settings.max_effects)"))
+            extra.append(Guard("limit", False, words.limit_words(self.settings.max_effects)))
         return guards[:-1] + extra + [guards[-1]]
 
     def closest(self, path: Path, count: int = 3) -> list[tuple[Evaluation, list[Guard]]]:
@@ -143,31 +143,24 @@ class Selector:
         joint_gain, joint_se = (float(final.coefficients[0]), float(final.standard_errors[0])) \
             if final is not None else (math.nan, math.nan)
         cv_gain, cv_recal = with_gain.base_cv.rms_um, recalibrate.base_cv.rms_um
-        alternative = Alternative("recalibration" + "".join(f" + {d.effect}" for d in recalibrate.discovered),
+        alternative = Alternative(words.recalibration_label([d.effect for d in recalibrate.discovered]),
                                   round(cv_recal, 4))
         found = [d.effect for d in recalibrate.discovered]
         if not self.gain_physical(joint_gain, joint_se):
-            why = (f"a common gain was considered and withdrawn: with the other effects in, it is {joint_gain:.3g} "
-                   f"(physical range {s.gain_range[0]:g}..{s.gain_range[1]:g}, and it must depart from 1)")
+            why = words.gain_withdrawn_words(joint_gain, *s.gain_range)
             return recalibrate, explain.recalibration_words(found, setup.calibrated_here, why)
         single = setup.base_design.shape[1] <= 1
         if single or not recalibrate.discovered or cv_gain < (1 - s.equivalence) * cv_recal:
-            reason = ("the model has one coefficient: its refit is the gain" if single else
-                      "recalibrating the model's coefficients finds no physics the gain does not explain"
-                      if not recalibrate.discovered else
-                      f"gain x model explains held-out data better ({cv_gain:.3f} um) than recalibrating and "
-                      f"adding physics ({cv_recal:.3f} um)")
             if not single:  # with one coefficient, recalibration is the same model as the gain
                 with_gain.discovered[0].evidence.equivalent = [alternative]
-            words = f"gain_error preferred: {reason}"
-            with_gain.discovered[0].evidence.preferred = words
-            return with_gain, words
-        why = (f"a common gain of {joint_gain:.3g} was considered: held-out {cv_gain:.3f} um against "
-               f"{cv_recal:.3f} um for recalibration + physics, not better by {s.equivalence:.0%}")
+            preferred = words.gain_preferred_words(single, bool(recalibrate.discovered), cv_gain, cv_recal)
+            with_gain.discovered[0].evidence.preferred = preferred
+            return with_gain, preferred
+        why = words.gain_set_aside_words(joint_gain, cv_gain, cv_recal, s.equivalence)
         for record in recalibrate.discovered:
             evidence = record.evidence
             assert isinstance(evidence, Evidence)  # the recalibrated path names no gain
-            evidence.note = "a common gain on the model was considered and set aside"
+            evidence.note = words.GAIN_SET_ASIDE
         if recalibrate.discovered:
             recalibrate.discovered[0].evidence.equivalent.append(
                 Alternative("gain_error", round(cv_gain, 4), gain=round(joint_gain, 5)))
