@@ -14,7 +14,9 @@ programs of its folder in /_N_MPF_DIR). One line per program:
     timeout  still running after --max-time of simulated time or --wall seconds of real time
 
 then the tally, and the alarms ranked by the programs they stop. Each program runs in its own process,
-so a program that never ends costs --wall seconds and no more.
+so a program that never ends costs --wall seconds and no more. A [[program]] of the manifest may give
+itself more (max_time_s, wall_s, with why) and a file of GUD values of ours (values, under
+bench/corpus/), stored after its definition files.
 """
 
 from __future__ import annotations
