@@ -53,10 +53,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     find.add_argument("--split-runs", action="store_true",
                       help="cut each recording into runs at spindle-speed blocks and gaps over 1 h, then "
                            "discover over the runs")
-    find.add_argument("--group-by", metavar="REGEX",
+    find.add_argument("--group-by", metavar="REGEX|column:NAME",
                       help="several runs: a part of the run names (a regular expression, its first group: a date "
-                           "'(2017-0[23])', a cycle name '_(light|heavy)') whose groups a term may be fitted apart "
-                           "on; without it, discover finds a stretch of dates that follows another relation")
+                           "'(2017-0[23])', a cycle name '_(light|heavy)'), or a column of the recordings "
+                           "('column:spindle_rpm', 'column:coolant': each run's mean, cut into two groups where "
+                           "they are tightest) whose groups a term may be fitted apart on; without it, discover "
+                           "finds a stretch of dates that follows another relation")
     find.add_argument("--map", metavar="MAP.toml", help="read foreign files (workbooks, other column names) "
                                                         "through this map (docs/recordings.md)")
     find.add_argument("--json", action="store_true", help="print the findings as JSON on stdout")

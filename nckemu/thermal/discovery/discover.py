@@ -219,6 +219,8 @@ class Discoverer:
             prepared.append((name, coarse))
         self.problem = Problem(prepared, axis, model, per_run_offset=True)
         self.splitter = LeaveOneRunOut()
+        if group_by:  # a bad grouping is refused before the search, not after it
+            regimes.check_group_by(runs, group_by)
         self.group_by = group_by
         return self
 

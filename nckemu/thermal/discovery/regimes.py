@@ -23,6 +23,7 @@ import numpy as np
 
 from nckemu.errors import NckConfigError
 from nckemu.thermal import stats
+from nckemu.thermal.recordings.recording import Recording, column_kind
 
 from . import explain, shapes
 from .admission import runs_improve
@@ -57,6 +58,74 @@ def groups_by_names(names: list[str], pattern: str) -> np.ndarray | None:
         return None
     common = values[int(np.argmax(counts))]
     return np.array([0 if label == common else 1 for label in labels])
+
+
+COLUMN_PREFIX = "column:"
+
+
+def run_column(recording: Recording, column: str) -> np.ndarray | None:
+    """A run's column by its recording name (``spindle_rpm``, ``temp_bed_C``, ``pos_X_mm``) or short name
+    (a sensor, ``bed``; an axis's position, ``X``); None when the run has no such column."""
+    if column in ("spindle_rpm", "spindle"):
+        return recording.spindle_rpm
+    kind = column_kind(column)
+    if kind is not None:
+        table = {"temp": recording.temperatures_C, "pos": recording.positions_mm}.get(kind[0], {})
+        return table.get(column if kind[0] == "temp" else kind[1])
+    return recording.temperatures_C.get(f"temp_{column}_C", recording.positions_mm.get(column))
+
+
+def natural_break(values: np.ndarray) -> np.ndarray | None:
+    """Two groups of runs from one value each: equal values together (a cycle code: the most common value
+    against the rest); values that all differ (a mean speed) cut where the two groups are tightest (the
+    cut of least within-group sum of squares, two-class natural breaks). None: fewer than
+    ``MIN_GROUP_RUNS`` on a side, or one value everywhere."""
+    distinct, counts = np.unique(values, return_counts=True)
+    if len(distinct) < 2:
+        return None
+    if len(distinct) <= 3:
+        common = distinct[int(np.argmax(counts))]
+        groups = (values != common).astype(int)
+    else:
+        ordered = np.sort(values)
+        costs = [float(np.var(ordered[:k]) * k + np.var(ordered[k:]) * (len(ordered) - k))
+                 for k in range(MIN_GROUP_RUNS, len(ordered) - MIN_GROUP_RUNS + 1)]
+        if not costs:
+            return None
+        cut = ordered[MIN_GROUP_RUNS + int(np.argmin(costs))]
+        high = values >= cut
+        groups = (high if high.sum() <= (~high).sum() else ~high).astype(int)  # the smaller group apart
+    return groups if min(groups.sum(), len(groups) - groups.sum()) >= MIN_GROUP_RUNS else None
+
+
+def groups_by_column(recordings: list[Recording], column: str) -> np.ndarray | None:
+    """Run groups from a column of the recordings: each run's mean of it (``natural_break``)."""
+    values = []
+    for recording in recordings:
+        found = run_column(recording, column)
+        if found is None or not np.isfinite(found).any():
+            raise NckConfigError(f"--group-by column:{column}: the run {recording.name or recording.source!r} has "
+                                 f"no column {column!r} (a sensor, spindle_rpm or pos_<axis>_mm)",
+                                 path=recording.source, field="--group-by")
+        values.append(float(np.nanmean(found)))
+    return natural_break(np.round(np.asarray(values), 9))
+
+
+def check_group_by(recordings: list[Recording], group_by: str) -> None:
+    """Refuse a grouping that cannot be read (a bad regular expression, a column some run lacks)."""
+    if group_by.startswith(COLUMN_PREFIX):
+        groups_by_column(recordings, group_by[len(COLUMN_PREFIX):])
+    else:
+        groups_by_names([recording.name or recording.source for recording in recordings], group_by)
+
+
+def given_groups(selector: Selector, group_by: str) -> np.ndarray | None:
+    """The user's grouping: ``column:NAME`` (a column of the recordings) or a regular expression on the
+    run names."""
+    runs = selector.library.problem.runs
+    if group_by.startswith(COLUMN_PREFIX):
+        return groups_by_column([run.readings.raw for run in runs], group_by[len(COLUMN_PREFIX):])
+    return groups_by_names([run.name for run in runs], group_by)
 
 
 def slopes(selector: Selector, feature: np.ndarray, residual: np.ndarray) -> np.ndarray:
@@ -153,7 +222,7 @@ def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bo
     if not selector.settings.run_groups or not selector.paired_runs or path.gain_mode or not path.rejected:
         return False
     names = [run.name for run in problem.runs]
-    given = groups_by_names(names, pattern) if pattern else None
+    given = given_groups(selector, pattern) if pattern else None
     if pattern and given is None:
         return False
     split = best_split(selector, path, given)
@@ -164,7 +233,8 @@ def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bo
     members = [list(np.flatnonzero(split.groups == g)) for g in (0, 1)]
     before, pooled, after = (np.asarray(cv.fold_rms_um) for cv in (path.base_cv, evaluation.cv, split.cv))
     label = explain.label_with_time_constants(term)
-    found_by = f"the runs' names ({pattern})" if pattern else f"the sign of {label}'s slope on each run"
+    found_by = (f"the runs' {pattern[len(COLUMN_PREFIX):]} column" if pattern.startswith(COLUMN_PREFIX) else
+                f"the runs' names ({pattern})") if pattern else f"the sign of {label}'s slope on each run"
     records = []
     for group, runs in enumerate(members):
         coefficient = split.coefficients[group]
@@ -200,4 +270,4 @@ def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bo
     return True
 
 
-__all__ = ["Split", "groups_by_names", "split_runs"]
+__all__ = ["Split", "groups_by_column", "groups_by_names", "natural_break", "split_runs"]

@@ -11,14 +11,16 @@ import pytest
 
 from nckemu.errors import NckConfigError
 from nckemu.thermal.discovery.discover import Discovery, discover_runs
-from nckemu.thermal.discovery.regimes import consecutive, groups_by_names
+from nckemu.thermal.discovery.regimes import consecutive, groups_by_column, groups_by_names, natural_break
 from nckemu.thermal.discovery.wording import headline_lines
 from nckemu.thermal.synthetic.scenarios import (
     AXIS,
+    DUTY_MIX_LIGHT_RUNS,
     REGIME_RUNS,
     REGIME_UM_PER_K,
     SHAPE_SENSOR,
     RunFamily,
+    make_duty_mix_family,
     make_shape_family,
 )
 
@@ -64,6 +66,32 @@ def test_given_groups_name_the_same_stretch() -> None:
     result = discover_runs(family.runs, AXIS, family.model, group_by=r"2026-03-(1[1-9]|20)")
     apart = [m for m in result.missing_physics if m.evidence.regime is not None and m.evidence.regime.apart]
     assert apart and "the runs' names" in apart[0].evidence.why
+
+
+def test_groups_from_a_column_of_the_recordings() -> None:
+    # a code: the most common value against the rest; values that all differ: cut where groups are tightest
+    assert list(natural_break(np.array([1.0, 2.0, 1.0, 1.0, 2.0, 2.0, 1.0]))) == [0, 1, 0, 0, 1, 1, 0]
+    assert list(natural_break(np.array([0.1, 0.2, 0.15, 5.0, 5.5, 6.0, 4.8, 5.2]))) == [1, 1, 1, 0, 0, 0, 0, 0]
+    assert natural_break(np.array([1.0, 1.0, 2.0, 1.0])) is None  # one run apart: too few
+    family = make_duty_mix_family("duty_mix_days", 1)
+    light = groups_by_column(family.runs, "spindle_rpm")
+    assert light is not None and all(light[:DUTY_MIX_LIGHT_RUNS] == 1)  # the light days by their mean speed
+    with pytest.raises(NckConfigError, match="no column 'coolant_flow'"):
+        groups_by_column(family.runs, "coolant_flow")
+
+
+def test_a_column_names_the_same_stretch() -> None:
+    """A fixture's position (recorded, one value a run) marks the reversed days: offered as the grouping,
+    it names them; a column no run has is refused before the search."""
+    family = make_shape_family("regime_days", 2)
+    for index, run in enumerate(family.runs):
+        run.positions_mm["W"] = np.full(len(run.t_s), 100.0 if index in REGIME_RUNS else 0.0)
+    result = discover_runs(family.runs, AXIS, family.model, group_by="column:W")
+    apart = [m for m in result.missing_physics if m.evidence.regime is not None and m.evidence.regime.apart]
+    assert apart and set(apart[0].evidence.regime.runs) == {family.runs[i].name for i in REGIME_RUNS}
+    assert "the runs' W column" in apart[0].evidence.why
+    with pytest.raises(NckConfigError, match="no column"):
+        discover_runs(family.runs, AXIS, family.model, group_by="column:V")
 
 
 def test_the_null_names_no_group() -> None:
