@@ -142,11 +142,13 @@ class Admission:
             counted = np.ones(len(cv.fold_rms_um), dtype=bool) if runs_with is None else np.asarray(runs_with)
             harmed = [self.library.problem.runs[i].name for i in self.runs.harms_runs(
                 self.runs.reference_folds(base_cv), cv.fold_rms_um) if counted[i]]
-            # Named, not refused: a term that helps heavy days much and leaves light days a little worse
-            # (issue 42's duty mix) stays admissible; the words name the runs it harms.
             out.append(Guard("worst run", figures.worst_after_um <= limit, words.worst_run_words(
-                figures.worst_run, figures.worst_before_um, figures.worst_after_um, limit,
-                words.harm_words(harmed, s.run_harm_share, s.run_harm_floor_um))))
+                figures.worst_run, figures.worst_before_um, figures.worst_after_um, limit, "")))
+            # A term that harms runs is first tried fitted apart over two groups of runs (the search's
+            # fit_apart: issue 42's light days, on which its sensor tells a coolant pump's cycling more
+            # than the structure); refused when it cannot be only with Settings.run_harm_refuses.
+            out.append(Guard(words.HARM, not harmed or not s.run_harm_refuses,
+                             words.harm_guard_words(harmed, s.run_harm_share, s.run_harm_floor_um)))
         before_um, after_um, gain, figure = self.heldout_figures(cv, base_cv, runs_with)
         # A candidate only a few runs can judge (its columns missing in the others) clears the bar of a few.
         bar = self.bar if judged_by_pairs or not self.per_run else s.min_improvement

@@ -305,6 +305,9 @@ class Discoverer:
             return self._nothing_to_explain(still)
         setup = self.baseline()
         selector = Selector(self.y, self.problem.t_s, Library(self.problem, self.settings), self.settings, setup)
+        if self.problem.per_run_offset:
+            selector.searcher.fit_apart = lambda path, evaluation, t_crit: regimes.fit_apart(
+                selector, path, evaluation, t_crit, self.group_by)
         recalibrate = selector.search(gain_mode=False)
         regimes.split_runs(selector, recalibrate, self.group_by)
         chosen, preferred = recalibrate, explain.recalibration_words(

@@ -28,6 +28,7 @@ from nckemu.thermal.recordings.recording import Recording, column_kind
 from . import explain, shapes
 from .admission import runs_improve
 from .findings import Evidence, RegimeGroup, finding
+from .library import present_key
 from .records import Evaluation, Path
 from .selector import Selector
 
@@ -156,6 +157,39 @@ def consecutive(names: list[str], groups: np.ndarray) -> bool:
     return len(positions) > 0 and int(positions[-1] - positions[0]) == len(positions) - 1
 
 
+def best_stretch(selector: Selector, feature: np.ndarray, residual: np.ndarray, names: list[str]) -> np.ndarray | None:
+    """The stretch of consecutive runs in name order (a date range) whose own coefficient beside the rest's
+    lowers the in-sample residual most (each group's coefficient from its runs' moments of the residual
+    on the feature, both centred per run); at least ``MIN_GROUP_RUNS`` runs on each side. None: too few runs."""
+    groups = selector.library.problem.groups
+    runs = len(names)
+    moment = np.bincount(groups, weights=feature * residual, minlength=runs)
+    gram = np.bincount(groups, weights=feature * feature, minlength=runs)
+    order = np.argsort(names, kind="stable")
+    moment, gram = moment[order], gram[order]
+    total_moment, total_gram = float(moment.sum()), float(gram.sum())
+    best: tuple[float, int, int] | None = None
+    for start in range(runs):
+        inside_moment = inside_gram = 0.0
+        for stop in range(start, runs):
+            inside_moment += float(moment[stop])
+            inside_gram += float(gram[stop])
+            size = stop - start + 1
+            if size < MIN_GROUP_RUNS or runs - size < MIN_GROUP_RUNS:
+                continue
+            outside_gram = total_gram - inside_gram
+            if inside_gram <= 0 or outside_gram <= 0:
+                continue
+            explained = inside_moment ** 2 / inside_gram + (total_moment - inside_moment) ** 2 / outside_gram
+            if best is None or explained > best[0]:
+                best = (explained, start, stop)
+    if best is None:
+        return None
+    labels = np.zeros(runs, dtype=int)
+    labels[order[best[1]:best[2] + 1]] = 1
+    return labels
+
+
 def grouped_columns(selector: Selector, feature: np.ndarray, groups: np.ndarray) -> np.ndarray:
     sample_groups = groups[selector.library.problem.groups]
     return np.column_stack([feature * (sample_groups == 0), feature * (sample_groups == 1)])
@@ -187,12 +221,39 @@ def best_split(selector: Selector, path: Path, given: np.ndarray | None) -> Spli
     full = np.column_stack([design, grouped_columns(selector, evaluation.candidate.feature, groups)])
     cv = selector.baseline.cross_validate(full, y, selector.baseline.folds)
     fitted = stats.least_squares(full, y)
+    named = named_term_split(selector, path, groups)
+    if named is not None:
+        bar = shapes.parameter_bar(selector.bar, shapes.parameters_of(evaluation.candidate.term))
+        if selector.heldout_gain(cv, named) < bar:
+            return None
     return Split(evaluation, groups, cv, (float(fitted[-2]), float(fitted[-1])))
 
 
-def judged(selector: Selector, path: Path, split: Split) -> bool:
+def named_term_split(selector: Selector, path: Path, groups: np.ndarray) -> stats.CrossValidation | None:
+    """The path with the named term whose split over the groups lowers the in-sample residual most
+    fitted apart (its column replaced by one a group), cross-validated; None without named terms.
+
+    A group whose runs a named term acts on with another size (light days on which a sensor's reading
+    is mostly a coolant pump's cycling) is told by that term at another size there. A new candidate
+    split over the same groups must beat it (by the bar for its parameters): else it stands in for the
+    named term's other size, with a sign that says nothing about the machine."""
+    y, design = selector.y, path.design
+    first = design.shape[1] - len(path.added)
+    best: tuple[float, np.ndarray] | None = None
+    for index in range(len(path.added)):
+        column = first + index
+        rest = np.delete(design, column, axis=1)
+        full = np.column_stack([rest, grouped_columns(selector, design[:, column], groups)])
+        left = stats.rms(y - full @ stats.least_squares(full, y))
+        if best is None or left < best[0]:
+            best = (left, full)
+    return None if best is None else selector.baseline.cross_validate(best[1], y, selector.baseline.folds)
+
+
+def judged(selector: Selector, path: Path, split: Split, reversed_only: bool = True) -> bool:
     """A split clears what a term with its parameters must: the runs' paired test, the held-out bar
-    for its parameters (two coefficients and the term's time constants) and no run harmed."""
+    for its parameters (two coefficients and the term's time constants) and no run harmed; and
+    (``reversed_only``) the two groups' coefficients are of opposite signs."""
     s = selector.settings
     term = split.evaluation.candidate.term
     bar = shapes.parameter_bar(selector.bar, shapes.parameters_of(term) + 1)
@@ -200,7 +261,7 @@ def judged(selector: Selector, path: Path, split: Split) -> bool:
     before = np.square(np.asarray(path.base_cv.fold_rms_um))
     after = np.square(np.asarray(split.cv.fold_rms_um))
     improves = runs_improve(before, after, s.runs_alpha, s.min_fold_share, s.runs_test_min)
-    one_sign_each = split.coefficients[0] * split.coefficients[1] < 0
+    one_sign_each = split.coefficients[0] * split.coefficients[1] < 0 or not reversed_only
     return gain >= bar and improves and one_sign_each \
         and not selector.harms_runs(path.base_cv.fold_rms_um, split.cv.fold_rms_um)
 
@@ -218,23 +279,76 @@ def describe(names: list[str], members: list[int]) -> str:
 def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bool:
     """Name a group of runs that follows another relation, when one clears the guards (module doc).
     True when it was named: the path then carries the candidate's term twice, one per group."""
-    problem = selector.library.problem
     if not selector.settings.run_groups or not selector.paired_runs or path.gain_mode or not path.rejected:
         return False
-    names = [run.name for run in problem.runs]
     given = given_groups(selector, pattern) if pattern else None
     if pattern and given is None:
         return False
     split = best_split(selector, path, given)
     if split is None or not judged(selector, path, split):
         return False
+    label = explain.label_with_time_constants(split.evaluation.candidate.term)
+    name_split(selector, path, split, found_words(pattern, f"the sign of {label}'s slope on each run"),
+               path.rejected_t_critical)
+    path.final = stats.fit(path.design, selector.y)
+    return True
+
+
+def found_words(pattern: str | None, otherwise: str) -> str:
+    if not pattern:
+        return otherwise
+    if pattern.startswith(COLUMN_PREFIX):
+        return f"the runs' {pattern[len(COLUMN_PREFIX):]} column"
+    return f"the runs' names ({pattern})"
+
+
+def fit_apart(selector: Selector, path: Path, evaluation: Evaluation, t_crit: float,
+              pattern: str | None = None) -> bool:
+    """A candidate that passes every guard but leaves runs worse than the harm tolerance (issue 51: no
+    run made worse in silence) is named only fitted apart over two groups of runs, one coefficient a
+    group (each run held out, its group's coefficient from the other runs of its group). The groups are
+    the user's (``pattern``) or found: each run's slope of the residual on the candidate, cut into two
+    groups where they are tightest (``natural_break``), taken only when the smaller group is one stretch
+    of runs in name order (a date range). The split must clear the runs' paired test, the bar for its
+    parameters and harm no run; the groups' coefficients may share a sign (a sensor that tells the
+    structure's heat on heavy days and a coolant pump's cycling on light ones). True when named."""
+    problem = selector.library.problem
+    if not selector.settings.run_groups or not selector.paired_runs or path.gain_mode \
+            or evaluation.candidate.runs_with is not None:
+        return False
+    names = [run.name for run in problem.runs]
+    feature = evaluation.candidate.feature
+    if pattern:
+        groups = given_groups(selector, pattern)
+    else:
+        design = path.design
+        residual = selector.y - design @ stats.least_squares(design, selector.y) if design.shape[1] else selector.y
+        groups = best_stretch(selector, feature, residual, names)
+    if groups is None:
+        return False
+    full = np.column_stack([path.design, grouped_columns(selector, feature, groups)])
+    cv = selector.baseline.cross_validate(full, selector.y, selector.baseline.folds)
+    fitted = stats.least_squares(full, selector.y)
+    split = Split(evaluation, groups, cv, (float(fitted[-2]), float(fitted[-1])))
+    if not judged(selector, path, split, reversed_only=False):
+        return False
+    label = explain.label_with_time_constants(evaluation.candidate.term)
+    name_split(selector, path, split, found_words(pattern, f"the stretch of dates on which {label} acts otherwise"), t_crit,
+               because=f"one coefficient for all runs leaves runs worse than before by more than "
+                       f"{selector.settings.run_harm_share:.0%} and {selector.settings.run_harm_floor_um:g} um")
+    path.present.add(present_key(evaluation.candidate.term))
+    return True
+
+
+def name_split(selector: Selector, path: Path, split: Split, found_by: str, t_crit: float,
+               because: str = "") -> None:
+    """The split's term named once a group, with the group, its runs and both models' figures."""
+    names = [run.name for run in selector.library.problem.runs]
     evaluation = split.evaluation
     term = evaluation.candidate.term
     members = [list(np.flatnonzero(split.groups == g)) for g in (0, 1)]
     before, pooled, after = (np.asarray(cv.fold_rms_um) for cv in (path.base_cv, evaluation.cv, split.cv))
     label = explain.label_with_time_constants(term)
-    found_by = (f"the runs' {pattern[len(COLUMN_PREFIX):]} column" if pattern.startswith(COLUMN_PREFIX) else
-                f"the runs' names ({pattern})") if pattern else f"the sign of {label}'s slope on each run"
     records = []
     for group, runs in enumerate(members):
         coefficient = split.coefficients[group]
@@ -245,7 +359,8 @@ def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bo
     other = records[1]
     why = (f"{other.runs_words} follow another relation: {label} {split.coefficients[1]:+.3g} um/K there against "
            f"{split.coefficients[0]:+.3g} um/K in the other {len(members[0])} runs (grouped by {found_by}); "
-           f"fitted apart (each run held out, its group's coefficient from the other runs of its group)")
+           f"fitted apart (each run held out, its group's coefficient from the other runs of its group)"
+           + (f"; {because}" if because else ""))
     design = np.column_stack([path.design, grouped_columns(selector, evaluation.candidate.feature, split.groups)])
     noise_columns = grouped_columns(selector, evaluation.candidate.noise, split.groups)
     gain = selector.heldout_gain(split.cv, path.base_cv)
@@ -254,7 +369,7 @@ def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bo
         evidence = Evidence(
             heldout_rms_before_um=round(path.base_cv.rms_um, 4), heldout_rms_after_um=round(split.cv.rms_um, 4),
             heldout_rms_without_sensor_noise_um=round(split.cv.rms_um, 4), t_value_ar1_corrected=None,
-            t_critical=round(path.rejected_t_critical, 3) if math.isfinite(path.rejected_t_critical) else 0.0,
+            t_critical=round(t_crit, 3) if math.isfinite(t_crit) else 0.0,
             folds_improved=f"{int(np.sum(after < before))}/{len(before)}", window=None,
             equivalent=[], why=why, preferred=(f"{label} per group of runs: the median over runs of held-out RMS "
                                                f"{float(np.median(before)):.3f} -> {float(np.median(after)):.3f} um "
@@ -266,8 +381,6 @@ def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bo
     path.design = design
     path.noise = np.column_stack([path.noise, noise_columns])
     path.base_cv = split.cv
-    path.final = stats.fit(path.design, selector.y)
-    return True
 
 
-__all__ = ["Split", "groups_by_column", "groups_by_names", "natural_break", "split_runs"]
+__all__ = ["Split", "fit_apart", "groups_by_column", "groups_by_names", "natural_break", "split_runs"]

@@ -5,6 +5,7 @@ the shapes named, the terms the later ones made redundant withdrawn, and twins' 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -32,6 +33,9 @@ class Search:
         self.admission = admission
         self.fits = Fits(y, baseline, admission)
         self.moves = Moves(y, library, settings, baseline, admission, self.fits)
+        # A candidate that harms runs, tried fitted apart over two groups of runs (discovery/regimes.py,
+        # wired by discover.py): True when it was named so.
+        self.fit_apart: Callable[[Path, Evaluation, float], bool] | None = None
 
     def search(self, gain_mode: bool) -> Path:
         """Add effects one round at a time to the recalibrated model (or to gain x the model as given)."""
@@ -89,6 +93,8 @@ class Search:
         passing = [e for e in evaluations if self.admission.passes(e, path.base_cv, t_crit)]
         fitting = self.note_cannot_have(path, [e for e in evaluations if e not in passing], t_crit)
         passing = [e for e in passing if self.admission.earned(e, evaluations, passing)]
+        if self.fit_apart is not None and self.fitted_apart(path, evaluations, passing, t_crit):
+            return True
         if not passing and s.pair_moves and len(path.added) + 2 <= s.max_effects \
                 and self.moves.pair_round(path, evaluations, tests):
             return True
@@ -116,6 +122,38 @@ class Search:
         path.noise = np.column_stack([path.noise, chosen.candidate.noise])
         path.base_cv = chosen.cv
         return True
+
+    def fitted_apart(self, path: Path, evaluations: list[Evaluation], passing: list[Evaluation],
+                     t_crit: float) -> bool:
+        """Candidates that pass every guard but leave runs worse than the harm tolerance (refused by it
+        or not: ``Settings.run_harm_refuses``), better than every candidate that harms none: the best
+        few tried fitted apart over two groups of runs (``fit_apart``). True when one was named so."""
+        admission = self.admission
+        reference = admission.runs.reference_folds(path.base_cv)
+
+        def harms(e: Evaluation) -> bool:
+            return bool(admission.runs.harms_runs(reference, e.cv.fold_rms_um))
+
+        best_harmless = min((e.ranked_rms_um for e in passing if not harms(e)), default=math.inf)
+        harming = []
+        for evaluation in evaluations:
+            if evaluation.ranked_rms_um >= best_harmless or not harms(evaluation):
+                continue
+            if evaluation not in passing:
+                failing = [g for g in admission.guards_of(evaluation, path.base_cv, t_crit) if not g.passes]
+                if not (len(failing) == 1 and failing[0].name == words.HARM
+                        and admission.earned(evaluation, evaluations, passing)):
+                    continue
+            harming.append(evaluation)
+        if not harming:
+            return False
+        # The simplest of those as good as the best first, as a round picks (a sensor before a gradient
+        # with a sensor the baseline holds).
+        _best, _margin, equivalent = admission.equivalent(harming)
+        order = sorted(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um)) \
+            + sorted((e for e in harming if e not in equivalent), key=lambda e: e.ranked_rms_um)
+        assert self.fit_apart is not None
+        return any(self.fit_apart(path, e, t_crit) for e in order[:3])
 
     def note_cannot_have(self, path: Path, refused: list[Evaluation], t_crit: float) -> list[Evaluation]:
         """Candidates that pass every guard but what a machine can have: never named, listed with
@@ -206,8 +244,8 @@ class Search:
             weakest: tuple[float, int, stats.CrossValidation, list[int], float] | None = None
             for index in range(len(path.added)):
                 record = path.discovered[index + offset].evidence
-                if not isinstance(record, Evidence):
-                    continue
+                if not isinstance(record, Evidence) or record.regime is not None:
+                    continue  # a term fitted apart over groups of runs was judged as a split
                 without, keep = self.without_added(path, index)
                 median_with, median_without = (float(np.median(cv.fold_rms_um)) for cv in (path.base_cv, without))
                 loss = 1.0 - median_with / median_without if median_without > 0 else 0.0

@@ -15,6 +15,7 @@ CANNOT_HAVE = "fits, but a machine cannot have it"
 MEDIAN_OVER_RUNS = "the median over runs of held-out RMS"
 HELD_OUT = "held-out RMS"
 WITHOUT_NOISE = "held-out RMS without the sensors' noise"
+HARM = "runs harmed"
 
 
 def percent(share: float) -> str:
@@ -61,6 +62,12 @@ def harm_words(harmed: list[str], share: float, floor_um: float) -> str:
         return ""
     return (f"; {len(harmed)} {plural(len(harmed), 'run')} worse by more than {share:.0%} and {floor_um:g} um: "
             f"{', '.join(harmed[:4])}{', ...' if len(harmed) > 4 else ''}")
+
+
+def harm_guard_words(harmed: list[str], share: float, floor_um: float) -> str:
+    """The harm guard's figure: the runs a term leaves worse than the tolerance, or that none is."""
+    return harm_words(harmed, share, floor_um)[2:] if harmed else \
+        f"no run worse by more than {share:.0%} and {floor_um:g} um"
 
 
 def worst_run_words(run: str, before_um: float, after_um: float, limit_um: float, harmed: str) -> str:

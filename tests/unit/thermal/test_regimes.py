@@ -106,3 +106,22 @@ def test_the_report_leads_with_the_headline(regime: tuple[RunFamily, Discovery],
     write_report(tmp_path / "r.html", result, "regime")
     page = (tmp_path / "r.html").read_text(encoding="utf-8")
     assert page.index("one coefficient for all runs") < page.index("Missing physics")
+
+
+@pytest.mark.slow  # 30 runs searched: 5-20 s on two cores
+def test_a_term_that_harms_the_light_days_is_fitted_apart_on_them() -> None:
+    """Seed 14 of the duty mix: temperature(rear) helps the heavy days and leaves light days worse
+    (0.6 -> 1.4 um: the coolant pump cycles the rear sensor). Fitted apart over the stretch of light days
+    it harms none, and each group has its own size: the heavy days the 1.5 um/K the family left out, the
+    light days next to nothing. (Before: the light days split off later on a front-rear gradient, and the
+    rear's own size halved.)"""
+    family = make_duty_mix_family("duty_mix_days", 14)
+    result = discover_runs(family.runs, AXIS, family.model)
+    groups = {m.evidence.regime.apart: m for m in result.missing_physics if m.evidence.regime is not None}
+    assert set(groups) == {False, True} and all(m.parameters["sensor"] == "rear" for m in groups.values())
+    assert set(groups[True].evidence.regime.runs) == {run.name for run in family.runs[:DUTY_MIX_LIGHT_RUNS]}
+    assert abs(groups[False].parameters["coeff_um_per_K"] - 1.5) <= 0.3 * 1.5
+    assert abs(groups[True].parameters["coeff_um_per_K"]) < 0.3
+    assert "leaves runs worse than before" in groups[True].evidence.why
+    assert not [row for row in result.runs
+                if row["heldout_rms_after_um"] > 1.1 * row["heldout_rms_before_um"] + 0.3]
