@@ -65,7 +65,7 @@ def _guards_follow_their_figures(result: Discovery) -> None:
 def test_many_runs_the_paired_test_replaces_the_t_test_and_the_bar_is_five_percent(month: Discovery) -> None:
     _guards_follow_their_figures(month)
     for item in month.closest:
-        assert _names(item.guards) == ["paired test", "physical", "worst run", "held-out"]
+        assert _names(item.guards) == ["paired test", "physical", "worst run", "runs harmed", "held-out"]
         assert "the bar is 5%" in item.guards[-1].figure
 
 
@@ -73,7 +73,7 @@ def test_a_few_runs_count_the_runs_that_improve_and_keep_the_t_test() -> None:
     family = make_correlated_family("correlated_lag_bed", 1)
     result = discover_runs(family.runs, AXIS, family.model)
     _guards_follow_their_figures(result)
-    assert _names(result.closest[0].guards) == ["runs improved", "t-test", "physical", "worst run", "held-out"]
+    assert _names(result.closest[0].guards) == ["runs improved", "t-test", "physical", "worst run", "runs harmed", "held-out"]
     assert "the bar is 10%" in result.closest[0].guards[-1].figure
     assert re.search(r"\d+ of \d+ runs improve \(at least \d+ must\)", result.closest[0].guards[0].figure)
 
@@ -231,9 +231,9 @@ def test_a_candidate_few_runs_can_judge_keeps_the_t_test_and_the_bar_of_a_few() 
     after = stats.CrossValidation(2.8, tuple([2.8] * 12))
     term = (Term("temperature", {"sensor": "bed", "t_ref_C": 20.0, "coeff_um_per_K": 1.0}),)
     everywhere = selector.guards(after, 12, None, (2.0,), term, before, 4.0)
-    assert [g.name for g in everywhere] == ["paired test", "physical", "worst run", "held-out"]
+    assert [g.name for g in everywhere] == ["paired test", "physical", "worst run", "runs harmed", "held-out"]
     assert everywhere[-1].passes and "the bar is 5%" in everywhere[-1].figure  # 6.7 % over 12 runs
     some = np.array([True] * 7 + [False] * 5)  # the candidate's columns in 7 runs of 12
     few = selector.guards(after, 12, some, (2.0,), term, before, 4.0)
-    assert [g.name for g in few] == ["runs improved", "t-test", "physical", "worst run", "held-out"]
+    assert [g.name for g in few] == ["runs improved", "t-test", "physical", "worst run", "runs harmed", "held-out"]
     assert not few[1].passes and not few[-1].passes and "the bar is 10%" in few[-1].figure
