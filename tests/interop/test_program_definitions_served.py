@@ -91,3 +91,31 @@ def test_opc_ua_copy_file_to_server_activates_a_definition_file_or_refuses_it() 
         assert asyncio.run(copy(face, "UGUD.DEF", b"DEF NCK REAL OFFSETS[10]\nOFFSETS[1]=2\n")) == \
             "BadInvalidArgument"
         assert "OFFSETS" in emulator.call(lambda: emulator.emulator.nck.programs.definitions.variables())
+
+
+def test_gud_values_put_over_s7_and_the_machine_files_plc_answers_the_served_program(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A grinder's day on the server: its definitions and the values an operator entered sent as a DNC
+    tool sends them, then a program that waits for the guard its M48 closes (the machine file's PLC)."""
+    from nckemu.emulator.machine.machine_file import machine_text
+
+    machine = tmp_path / "grinder.toml"
+    machine.write_text(machine_text(None)[0] + '\n[[nck_io.answer]]\nm = 48\nset = { "$A_IN[10]" = 1 }\n'
+                                               'after_s = 0.5\n')
+    (tmp_path / "MGUD.DEF").write_bytes(b"DEF NCK REAL INI[100]\n")
+    (tmp_path / "WHEEL.GUD").write_bytes(b"CHANDATA(1)\nINI[5]=4 ; the pitch an operator entered\nM17\n")
+    (tmp_path / "GRIND.MPF").write_bytes(b"M48\nWHILE $A_IN[10]==0\n  G4 F0.1\nENDWHILE\nR7=360/INI[5]\nM30\n")
+    with EmulatorThread(machine) as emu:
+        port = ["--port", str(emu.port)]
+        for name in ("MGUD.DEF", "WHEEL.GUD", "GRIND.MPF"):
+            assert main(["program", "put", str(tmp_path / name), *port]) == 0
+        assert "/_N_DEF_DIR/_N_WHEEL_GUD" in capsys.readouterr().out
+        assert main(["program", "select", "GRIND.MPF", *port]) == 0
+        assert main(["program", "start", *port]) == 0
+        _wait_ended(emu)
+        assert main(["get", "R7", *port]) == 0 and "90" in capsys.readouterr().out
+        (tmp_path / "WHEEL.GUD").write_bytes(b"INI[5]=4\nINI[500]=1\n")
+        assert main(["program", "put", str(tmp_path / "WHEEL.GUD"), *port]) == 1
+        assert emu.call(lambda: emu.nck.programs.definitions.variables()["INI"].get((5,))) == 4.0
+        alarms = emu.call(lambda: emu.nck.alarm_list.active)
+        assert any("/_N_DEF_DIR/_N_WHEEL_GUD line 2" in text for text in alarms), alarms
