@@ -36,6 +36,8 @@ class Heat:
         # The fitted responses' lag states, by sensor; their rise is what they add to the sensor.
         self._responses = {sensor.name: ResponseState(sensor.response) for sensor in machine.sensors
                            if sensor.response}
+        self._reads_sensors = any(state.reads_sensors for state in self._responses.values())
+        self._plain_sensors = [sensor for sensor in machine.sensors if sensor.name not in self._responses]
 
     def inputs(self) -> tuple[float, float]:
         """The program-driven spindle speed (rpm) and path speed (m/min) now."""
@@ -77,13 +79,13 @@ class Heat:
         heat = self.nck.sensors.heat_C
         if self._responses:
             drives = {SPINDLE: spindle_rpm, PATH: path_m_min}
-            now_C = {sensor.name: self.nck.sensor_temperature_C(sensor.name) for sensor in self.machine.sensors}
+            # the sensors' temperatures only where a term reads another sensor (a reading costs)
+            now_C = {sensor.name: self.nck.sensor_temperature_C(sensor.name) for sensor in self.machine.sensors} \
+                if self._reads_sensors else {}
             for name, state in self._responses.items():
                 state.step(dt_s, drives, now_C)
                 heat[name] = state.rise_K
-        for sensor in self.machine.sensors:
-            if sensor.name in self._responses:
-                continue
+        for sensor in self._plain_sensors:
             target_K = sensor.heat_spindle_K_per_krpm * spindle_rpm / 1000.0 + sensor.heat_axes_K_per_m_min * path_m_min
             now_K = heat.get(sensor.name, 0.0)
             if target_K == 0.0 and now_K == 0.0:
