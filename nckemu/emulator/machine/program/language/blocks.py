@@ -105,7 +105,18 @@ class Compiled:
 # A block of address words with constant values only (most CAM blocks): N10 G1 X12.5 Y-3 F1200
 _SIMPLE_BLOCK = re.compile(r"(?:[ \t]*[A-Z]+[ \t]*=?[ \t]*[+-]?(?:\d+\.?\d*|\.\d+))+[ \t]*", re.IGNORECASE)
 _SIMPLE_WORD = re.compile(r"([A-Z]+)[ \t]*=?[ \t]*([+-]?(?:\d+\.?\d*|\.\d+))", re.IGNORECASE)
+# The same words as a CAM post writes them (ASCII letters, an optional '=', a number, blanks after it),
+# found in one pass: (letters, digits, "") per word, and ("", "", char) for a character no such word
+# takes. Without one of those the words are _SIMPLE_WORD's and _SIMPLE_BLOCK matches (a word's
+# boundaries are forced: it starts at a letter, its number ends at the next letter or blank); with one,
+# the pair of scans over any text decides as before (X = 10, the Kelvin sign IGNORECASE takes for K,
+# Arabic digits \d takes). Possessive quantifiers: nothing after a word's part can need it shorter.
+# A third of the cost of the pair.
+_CAM_WORDS = re.compile(r"([A-Za-z]++)=?+([+-]?+(?:[0-9]++\.?+[0-9]*+|\.[0-9]++))[ \t]*+|(.)", re.DOTALL)
 _SIMPLE_ADDRESSES = frozenset({"M", "S", "F", "T", "D", "H", "CR", "TURN"})
+# The digits of a G a STRAIGHT block may hold, as written (G1, G01, G90), to the G number
+_STRAIGHT_G_DIGITS = {digits: code for code in STRAIGHT_G
+                      for digits in (str(code), f"{code:02d}", f"{code:03d}")}
 
 
 class BlockCompiler:
@@ -124,16 +135,26 @@ class BlockCompiler:
 
     def compile_simple(self, text: str) -> Compiled | None:
         """The fast way for a block of constant address words, or None (then :meth:`compile`)."""
-        if _SIMPLE_BLOCK.fullmatch(text) is None:
-            return None
-        words = _SIMPLE_WORD.findall(text)
+        words = _CAM_WORDS.findall(text)
         straight = self._straight(words, text)
         if straight is not None:
             return straight
+        for word in words:
+            if word[2]:  # a character no CAM word takes: the scans over any text decide
+                return self._compile_simple_any(text)
+        return self._simple_words(words, text)
+
+    def _compile_simple_any(self, text: str) -> Compiled | None:
+        if _SIMPLE_BLOCK.fullmatch(text) is None:
+            return None
+        words = [(letters, digits, "") for letters, digits in _SIMPLE_WORD.findall(text)]
+        return self._straight(words, text) or self._simple_words(words, text)
+
+    def _simple_words(self, words: list[tuple[str, str, str]], text: str) -> Compiled | None:
         items: list[tuple] = []
         number = ""
         axes = self.axes
-        for index, (letters, digits) in enumerate(words):
+        for index, (letters, digits, _) in enumerate(words):
             letters = letters.upper()
             value: float | int = float(digits) if "." in digits else int(digits)
             if letters in axes:
@@ -157,37 +178,38 @@ class BlockCompiler:
         _check_groups(items)
         return Compiled(number, WORDS, items, text)
 
-    def _straight(self, words: list[tuple[str, str]], text: str) -> Compiled | None:
+    def _straight(self, words: list[tuple[str, str, str]], text: str) -> Compiled | None:
         """A STRAIGHT block (only modal G of STRAIGHT_G, each axis once, F), or None."""
         known = self._straight_words
         g_codes: list[int] = []
-        axis_words: list[tuple[str, float]] = []
-        seen: set[str] = set()
+        targets: dict[str, float] = {}
         feed = None
         number = ""
-        for index, (letters, digits) in enumerate(words):
+        for letters, digits, _ in words:
             entry = known.get(letters)
             if entry is None:
-                return None
+                return None  # not a STRAIGHT letter, or ("", "", char): not a word at all
             kind, name = entry
             if kind == 0:
-                if name in seen:
+                if name in targets:
                     return None
-                seen.add(name)
-                axis_words.append((name, float(digits)))
+                targets[name] = float(digits)
             elif kind == 1:
-                if not digits.isdigit() or int(digits) not in STRAIGHT_G:
-                    return None
-                g_codes.append(int(digits))
+                code = _STRAIGHT_G_DIGITS.get(digits)
+                if code is None:
+                    if not digits.isdigit() or int(digits) not in STRAIGHT_G:
+                        return None
+                    code = int(digits)
+                g_codes.append(code)
             elif kind == 2 and feed is None:
                 feed = float(digits)
-            elif kind == 3 and index == 0 and digits.isdigit():
-                number = "N" + digits
+            elif kind == 3 and not number and not targets and not g_codes and feed is None and digits.isdigit():
+                number = "N" + digits  # the block number: the first word
             else:
                 return None
         if len(g_codes) > 1:
             check_block([f"G{code}" for code in g_codes])
-        return Compiled(number, STRAIGHT, (tuple(g_codes), tuple(axis_words), feed), text)
+        return Compiled(number, STRAIGHT, (tuple(g_codes), targets, feed), text)  # targets: read only
 
     def compile(self, text: str, tokens: list) -> Compiled:
         parser = Parser(tokens, self.resolver)
