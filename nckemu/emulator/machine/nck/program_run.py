@@ -205,7 +205,8 @@ class ProgramRun:
         return "ended"
 
     def _begin_block(self, block: Block) -> None:
-        self._finish_record(self.t_s)
+        if self.record is not None:
+            self._finish_record(self.t_s)
         self.block_start_s = self.t_s
         self.channel.show_block(block)
         if self.channel.block_listeners:
@@ -237,8 +238,8 @@ class ProgramRun:
             self.t_s = max(self.t_s, until_s)
             return False
         start_s = self.t_s
-        if feed_move and self._wait_for_spindle:
-            start_s = max(start_s, self._spindle_ready_s)
+        if feed_move and self._wait_for_spindle and self._spindle_ready_s > start_s:
+            start_s = self._spindle_ready_s
         positions, axes = self.parts.axes.positions_mm, self.axes
         targets = event.target_mm
         if not axes.keys() >= targets.keys():  # names as the interpreter wrote them: ours are upper case

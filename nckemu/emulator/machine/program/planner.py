@@ -310,7 +310,7 @@ class Planner:
         length = math.sqrt(squares)
         if length <= EPSILON_MM:
             return 0.0, 0.0, 0.0, None
-        factor = max(feed_pct, 0.0) / 100.0
+        factor = (0.0 if 0.0 > feed_pct else feed_pct) / 100.0  # max(feed_pct, 0.0) without the call
         if feed_mode == "G95":
             speed_mm_s = feed * abs(spindle_rpm) / S_PER_MIN
         elif feed_mode == "G93":

@@ -48,7 +48,7 @@ from .alarms import (
     MAX_M_PER_BLOCK,
     located,
 )
-from .blocks import BlockCompiler, Compiled
+from .blocks import STRAIGHT, BlockCompiler, Compiled
 from .calls import Calls, as_text
 from .control_flow import ControlFlow, ProgramLevel
 from .cycle_runner import CycleRunner
@@ -274,7 +274,7 @@ class Interpreter:
                     raise located(alarm, source.path, line, raw) from None
                 if compiled is None:
                     continue
-                if source.subprogram or source.has_jumps or source.in_loop(pos):
+                if source.subprogram or source.has_jumps or (source.loop_spans and source.in_loop(pos)):
                     if len(cache) >= MAX_CACHED_BLOCKS:
                         cache.clear()
                     cache[pos] = compiled
@@ -283,7 +283,8 @@ class Interpreter:
                 yield block  # type: ignore[misc]
                 block = None
             try:
-                events = self._execute(compiled, frame, pos)
+                events = self._straight(compiled, frame) if compiled.kind == STRAIGHT else \
+                    self._execute(compiled, frame, pos)
             except ProgramAlarm as alarm:
                 raise located(alarm, source.path, line, compiled.text) from None
             except ArithmeticError as exc:  # an overflow deep in a conversion is still arithmetic
@@ -345,38 +346,42 @@ class Interpreter:
     # --- control flow -----------------------------------------------------------------------------
     def _straight(self, compiled: Compiled, frame: ProgramLevel) -> list[Event] | None:
         """A block of constant axis words, F and modal G only (most CAM blocks), the short way."""
-        g_codes, axis_words, feed = compiled.items
+        g_codes, axis_words, feed = compiled.items  # axis_words: name -> value (the compiled block's: copied)
+        modal = self.modal
         for code in g_codes:
             if code <= 1:
-                self.modal.motion = code
+                modal.motion = code
             else:
                 self._g(code, {})
+                modal = self.modal
         if feed is not None:
-            self.feed_mm = feed * INCH_MM if (self.modal.inch_feed and self.modal.feed_mode != "G93") else feed
+            self.feed_mm = feed * INCH_MM if (modal.inch_feed and modal.feed_mode != "G93") else feed
         if not axis_words:
             return None
-        motion = self.modal.motion
-        if self.modal.inch_geometry or not self.modal.absolute or motion > 1 or self.modal.chain is not None \
-                or not self.modal.feed_rules.plain:
-            moved = self._motion([(axis, value, None) for axis, value in axis_words], {}, {})
+        motion = modal.motion
+        if modal.inch_geometry or not modal.absolute or motion > 1 or modal.chain is not None \
+                or not modal.feed_rules.plain:
+            moved = self._motion([(axis, value, None) for axis, value in axis_words.items()], {}, {})
             events: list[Event] = moved if moved.__class__ is list else [moved]  # type: ignore[assignment,list-item]
         else:
-            shift = self.modal.shift
+            shift = modal.shift
             work_pos = self.work_pos
-            targets = {}
-            for axis, value in axis_words:
-                work_pos[axis] = value
-                targets[axis] = value + shift[axis] if axis in shift else value
-            if self.stale_mm:
-                for axis, _ in axis_words:
-                    self.stale_mm.pop(axis, None)
+            programmed = axis_words.copy()
+            work_pos.update(axis_words)
+            if shift:
+                targets = {axis: value + shift[axis] if axis in shift else value for axis, value in axis_words.items()}
+            else:
+                targets = axis_words.copy()
+            stale = self.stale_mm
+            if stale:
+                for axis in programmed:
+                    stale.pop(axis, None)
             if motion == 0:
-                events = [Move(targets, None, self.modal.feed_mode, self.modal.exact_stop, dict(axis_words))]  # type: ignore[arg-type]
+                events = [Move(targets, None, modal.feed_mode, modal.exact_stop, programmed)]  # type: ignore[arg-type]
             else:
                 if self.feed_mm <= 0:
                     raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity less than or equal to zero (no F)")
-                events = [Move(targets, self.feed_mm, self.modal.feed_mode, self.modal.exact_stop,  # type: ignore[arg-type]
-                               dict(axis_words))]
+                events = [Move(targets, self.feed_mm, modal.feed_mode, modal.exact_stop, programmed)]  # type: ignore[arg-type]
         calls = self.calls
         if calls.modal_call is not None and calls.may_call_modal(frame):
             events += calls.call_modal(frame)
