@@ -360,6 +360,16 @@ def test_a_synchronized_action_whose_condition_is_false_is_accepted_and_one_that
     assert bad is not None and bad.line == 1
 
 
+def test_words_packed_without_spaces_are_the_words_a_control_reads() -> None:
+    # an identifier begins with two letters or _: G01G90X and R12F800 are address words run together
+    env = DictEnvironment(programs={"CYCLE_A1.SPF": "PROC CYCLE_A1(REAL _V)\nR3=_V\nRET"})
+    result = run("R12=5\nN10G01G90X=R12F800\nG1X=R12+1Y2F=R12*100\nT01M06\nCYCLE_A1(R12)\nM30", env)
+    assert result.alarm is None, result.alarm
+    assert [(move.target_mm, move.feed) for move in result.moves] == [({"X": 5.0}, 800.0),
+                                                                       ({"X": 6.0, "Y": 2.0}, 500.0)]
+    assert [block.number for block in result.blocks][1] == "N10" and env.r_parameter(3) == 5.0
+
+
 def test_modal_call_of_a_program_runs_after_each_motion_block() -> None:
     env = DictEnvironment(programs={"DRILL.SPF": "PROC DRILL(REAL _DEPTH)\nR1 = R1 + 1\nR2 = _DEPTH\nRET"})
     result = run("MCALL DRILL(-5)\nG0 X1\nX2\nR3 = 1\nMCALL\nX3\nM30", env)

@@ -31,6 +31,13 @@ _TOKEN = re.compile(
 )
 
 
+# A name that starts with one letter and a digit is no identifier (those begin with two letters or _):
+# address words packed without spaces, split at each letter after a digit (N10G1X=R12F800 is N10 G1
+# X=R12 F800). Only letters and digits: CYCLE81, X1 and F_ZC_START stay whole.
+_PACKED = re.compile(r"[A-Z]\d+[A-Z][A-Z0-9]*$")
+_PACKED_WORD = re.compile(r"[A-Z]+\d*")
+
+
 def strip_comment(line: str) -> str:
     """The block without its ``;`` comment (a ``;`` inside a string is text)."""
     cut = line.find(";")
@@ -82,7 +89,13 @@ def tokenize(text: str) -> list[tuple[int, object, str | None]]:
             raise ProgramAlarm(ALARM_SYNTAX, f"syntax error at {text[position:position + 12].strip()!r}")
         kind = match.lastgroup
         if kind == "name" or kind == "frac":
-            append((NAME, match.group("name").upper(), match.group("frac")))
+            name = match.group("name").upper()
+            if _PACKED.match(name) is not None:  # G01G90X, R12F800: address words written without spaces
+                *words, last = _PACKED_WORD.findall(name)
+                for word in words:
+                    append((NAME, word, None))
+                name = last
+            append((NAME, name, match.group("frac")))
         elif kind == "num":
             append((NUM, _number(match.group("num")), None))
         elif kind == "op":
