@@ -73,13 +73,16 @@ def _files(tree: Path, repository: dict, main: Path) -> list[tuple[str, bytes]]:
 
 
 def _values(entry: dict) -> list[tuple[str, bytes]]:
-    """The program's GUD values (``values`` in the manifest: a file of ours under bench/corpus/), stored
-    after its definition files as a shop's archive of the HMI's values would be loaded."""
-    name = entry.get("values")
-    if not name:
-        return []
-    path = MANIFEST_DIR / name
-    return [(f"/_N_DEF_DIR/_N_{_stem(path.name)}_GUD", path.read_bytes())]
+    """The program's GUD and R values (``values`` in the manifest: a file of ours under bench/corpus/, or a
+    list, NAME.GUD or NAME.RPA), stored after its definition files as a shop's archive of the HMI's
+    values would be loaded."""
+    names = entry.get("values") or []
+    stored = []
+    for name in [names] if isinstance(names, str) else names:
+        path = MANIFEST_DIR / name
+        kind = path.suffix.upper().lstrip(".")
+        stored.append((f"/_N_DEF_DIR/_N_{_stem(path.name)}_{kind}", path.read_bytes()))
+    return stored
 
 
 class _Faults(logging.Handler):

@@ -14,11 +14,14 @@ import re
 from nckemu.errors import NckPiBadArguments
 
 # File types and the directory a bare name of that type lives in.
-TYPE_DIRECTORIES = {"MPF": "_N_MPF_DIR", "SPF": "_N_SPF_DIR", "DEF": "_N_DEF_DIR", "GUD": "_N_DEF_DIR"}
+# GUD and R values files (NAME.GUD, NAME.RPA) go beside the definitions (our choice: a control keeps them
+# in a workpiece's directory or a data backup).
+TYPE_DIRECTORIES = {"MPF": "_N_MPF_DIR", "SPF": "_N_SPF_DIR", "DEF": "_N_DEF_DIR", "GUD": "_N_DEF_DIR",
+                    "RPA": "_N_DEF_DIR"}
 # Directories every NCK has (part programs, subprograms, workpieces), even when empty.
 DIRECTORIES = ("/_N_MPF_DIR", "/_N_SPF_DIR", "/_N_WKS_DIR")
-_CONTROL_NAME = re.compile(r"_N_([A-Z0-9_]+)_(MPF|SPF|DEF|GUD|INI|WPD)")
-_USER_NAME = re.compile(r"([A-Z0-9_]+)\.(MPF|SPF|DEF|GUD|INI)")
+_CONTROL_NAME = re.compile(r"_N_([A-Z0-9_]+)_(MPF|SPF|DEF|GUD|RPA|INI|WPD)")
+_USER_NAME = re.compile(r"([A-Z0-9_]+)\.(MPF|SPF|DEF|GUD|RPA|INI)")
 _DIRECTORY = re.compile(r"_N_[A-Z0-9_]+_(DIR|WPD)")
 MAX_NAME_CHARS = 24
 

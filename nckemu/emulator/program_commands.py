@@ -94,7 +94,7 @@ def _store(emulator: Emulator, main: Path, extra: list[str]) -> str:
     programs = emulator.nck.programs
     siblings = sorted(main.parent.glob("*")) if main.parent.is_dir() else []
     # definitions first, GUD values last: the values go into the variables the definitions make
-    order = {".DEF": 0, ".MPF": 1, ".SPF": 1, ".GUD": 2}
+    order = {".DEF": 0, ".MPF": 1, ".SPF": 1, ".GUD": 2, ".RPA": 2}
     for sibling in sorted(siblings, key=lambda path: order.get(path.suffix.upper(), 3)):
         if sibling != main and sibling.suffix.upper() in order and sibling.is_file():
             try:

@@ -25,6 +25,17 @@ def test_the_manifest_names_40_programs_of_8_repositories_each_at_a_commit() -> 
         assert (Path(__file__).parents[2] / repositories[entry["repo"]]["machine"]).is_file()
 
 
+def test_the_manifests_own_budgets_say_why_and_its_gud_values_are_files_of_ours() -> None:
+    manifest_dir = Path(__file__).parents[2] / "bench" / "corpus"
+    for entry in load_manifest()["program"]:
+        if "max_time_s" in entry or "wall_s" in entry:
+            assert entry.get("why"), entry
+        values = entry.get("values", [])
+        for name in [values] if isinstance(values, str) else values:
+            text = (manifest_dir / name).read_text()
+            assert "of ours" in text and text.rstrip().endswith("M17"), name
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(3600)  # 55 programs of up to 30 s of real time each
 def test_no_program_of_the_corpus_crashes() -> None:

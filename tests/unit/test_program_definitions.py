@@ -318,3 +318,20 @@ def test_a_faulty_nck_io_table_is_refused_naming_its_field(table: str, field: st
     with pytest.raises(NckConfigError) as refused:
         parse_machine(machine_text(None)[0] + "\n" + table + "\n")
     assert refused.value.field == field, refused.value
+
+
+def test_an_r_value_file_sets_channel_1s_r_parameters_or_is_refused_whole() -> None:
+    emulator = _emulator()
+    programs, store = emulator.nck.programs, emulator.nck.store
+    programs.write("/_N_DEF_DIR/_N_TAP_RPA", b"%_N_TAP_RPA\nCHANDATA(1)\nR1=2.5 R[8]=4 ; pitch, flutes\nR99=-1\nM17\n")
+    assert store.read_lines(store.spec("R"), 1, 2, 1) == [2.5]
+    assert store.read_lines(store.spec("R"), 1, 9, 1) == [4.0] and store.read_lines(store.spec("R"), 1, 100, 1) == [-1.0]
+    with pytest.raises(DefinitionRefused) as refused:
+        programs.write("/_N_DEF_DIR/_N_BAD_RPA", b"R1=7\nR100=1\n")
+    alarm = refused.value.alarm
+    assert (alarm.number, alarm.line) == (12550, 2) and "R0...R99" in str(alarm)
+    assert store.read_lines(store.spec("R"), 1, 2, 1) == [2.5]
+    with pytest.raises(DefinitionRefused):
+        programs.write("/_N_DEF_DIR/_N_BAD_RPA", b"INI[5]=1\n")
+    _run(emulator, "TAP", b"R2=R1*R8\nM30\n")
+    assert store.read_lines(store.spec("R"), 1, 3, 1) == [10.0]

@@ -90,6 +90,7 @@ class NckModel:
         # $A_IN/$A_OUT and the PLC-NCK data area ($A_DBB ...) programs use; the machine file's PLC answers
         self.nck_io = NckIo(machine.nck_io)
         self.programs.definitions.on_checked = self._definition_checked
+        self._r_value_files(machine)
         spindles = sum(axis.spindle for axis in machine.axes)
         # The channels' runs work on the whole NCK (programs, axes, alarms, tools, frames, store), read
         # when a program runs: the tools and frames below come before any.
@@ -107,6 +108,17 @@ class NckModel:
     def _start_run(self, channel: Channel, path: str, text: str, start_s: float) -> ProgramRun:
         """A channel's run of a program, on this NCK."""
         return ProgramRun(channel, self, path, text, start_s)
+
+    def _r_value_files(self, machine: Machine) -> None:
+        """An R value file (NAME.RPA) written to the NCK sets channel 1's R parameters."""
+        try:
+            r_spec = self.store.spec("R")
+        except KeyError:
+            return
+        r_offset = machine.settings.r_parameter_line_offset
+        self.programs.r_parameters = (
+            r_spec.lines - r_offset + 1,
+            lambda index, value: self.store.write_lines(r_spec, 1, index + r_offset, [value]))
 
     def _definition_checked(self, path: str, alarm: ProgramAlarm | None) -> None:
         """A definition file refused stays on the alarm list (with its file and line) until a good

@@ -14,7 +14,7 @@ from typing import Any
 
 from nckemu.catalogue.program_names import DIRECTORIES, directory_path, program_path
 from nckemu.emulator.machine.program.language.definitions import GlobalDefinitions, is_definition_file
-from nckemu.emulator.machine.program.language.gud_values import is_values_file
+from nckemu.emulator.machine.program.language.gud_values import is_r_values_file, is_values_file
 from nckemu.emulator.machine.program.language.source import decode_program
 from nckemu.errors import NckNoSuchFile, NckPiStateError
 
@@ -43,6 +43,9 @@ class Programs:
         # The activated definition files (GUD variables, macros): a file of those names is parsed
         # when it is written, and refused whole (its old definitions stay) when it has an error.
         self.definitions = GlobalDefinitions()
+        # Channel 1's R parameters for an R value file (gud_values.py): how many, and how to write one
+        # (the NCK model sets it; without it such a file is stored and assigns nothing).
+        self.r_parameters: tuple[int, Callable[[int, float], None]] | None = None
 
     def add(self, path: str) -> None:
         self.paths.add(path)
@@ -63,6 +66,9 @@ class Programs:
             self.definitions.activate(path, bytes(text))  # raises DefinitionRefused
         elif is_values_file(path):
             self.definitions.assign_values(path, bytes(text))  # raises DefinitionRefused
+        elif is_r_values_file(path) and self.r_parameters is not None:
+            count, write_r = self.r_parameters
+            self.definitions.assign_r_values(path, bytes(text), count, write_r)  # raises DefinitionRefused
         self.texts[path] = bytes(text)
         self.paths.add(path)
         self.stamps.pop(path, None)

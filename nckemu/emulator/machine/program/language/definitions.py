@@ -204,6 +204,20 @@ class GlobalDefinitions:
             self.on_checked(path, None)
         apply_values(assignments)
 
+    def assign_r_values(self, path: str, text: bytes, r_parameters: int,
+                        write_r: Callable[[int, float], None]) -> None:
+        """Assign the R parameters of the R value file ``text`` through ``write_r`` (raises
+        DefinitionRefused with the line; then none is assigned)."""
+        try:
+            assignments = parse_values(path, text, {}, r_parameters)
+        except ProgramAlarm as alarm:
+            if self.on_checked is not None:
+                self.on_checked(path, alarm)
+            raise DefinitionRefused(alarm) from None
+        if self.on_checked is not None:
+            self.on_checked(path, None)
+        apply_values(assignments, write_r)
+
     def remove(self, path: str) -> None:
         if self.files.pop(path, None) is not None:
             self._merge()

@@ -1,4 +1,5 @@
-"""Values of global user data (GUD) as a shop keeps them beside its programs: a ``.GUD`` file.
+"""Values of global user data (GUD) and R parameters as a shop keeps them beside its programs: a
+``.GUD`` and a ``.RPA`` file.
 
 What an operator enters on the HMI into GUD arrays (a grinder's wheel diameter in ``INI[5]``, the
 axis name in ``AXIS_EW``) is not in any program; a control's data backup and a workpiece directory
@@ -17,6 +18,9 @@ workpiece's value files when it selects its program). ``CHANDATA(n)`` names the 
 after it are for (the emulated NCK has channel 1's values only; another channel's are refused). A
 name no activated definition file defines, a value of the wrong type or an index outside the array
 refuses the whole file with the line (:class:`ProgramAlarm`), and no value of it is kept.
+
+``_N_<NAME>_RPA`` (``NAME.RPA``) holds R parameters the same way (``R1=2.5`` or ``R[1]=2.5``, channel
+1's), as a data backup keeps a channel's R parameters (the file type's name is UNCONFIRMED).
 """
 
 from __future__ import annotations
@@ -31,6 +35,8 @@ from .source import decode_program
 from .variables import Variable, convert
 
 _VALUES_LEAF = re.compile(r"_N_[A-Z0-9_]+_GUD")
+_R_VALUES_LEAF = re.compile(r"_N_[A-Z0-9_]+_RPA")
+_R_NAME = re.compile(r"R(\d+)")
 _BLOCK_NUMBER = re.compile(r"N\d+")
 _ENDS = frozenset({"M17", "M30", "M02", "M2", "RET"})
 # A value file is a page of assignments, like a definition file; larger is refused before it is read.
@@ -42,17 +48,24 @@ def is_values_file(path: str) -> bool:
     return bool(_VALUES_LEAF.fullmatch(path.rsplit("/", 1)[-1]))
 
 
+def is_r_values_file(path: str) -> bool:
+    """``/_N_DEF_DIR/_N_TAP_RPA``: R parameters the NCK assigns when written."""
+    return bool(_R_VALUES_LEAF.fullmatch(path.rsplit("/", 1)[-1]))
+
+
 def _constant_only(parser: Any, name: str) -> Any:
     # A value is a constant: the file is read once, with no program running (a name is 12550).
     raise undefined(name)
 
 
-Assignment = tuple[Variable, tuple[Any, ...], Any]
+Assignment = tuple[Variable | int, tuple[Any, ...], Any]   # a variable and its indices, or an R's number
 
 
-def parse_values(path: str, text: str | bytes, variables: dict[str, Variable]) -> list[Assignment]:
-    """The assignments of the value file ``text``, each checked against ``variables`` (raises
-    ProgramAlarm with the path and line of the first faulty block)."""
+def parse_values(path: str, text: str | bytes, variables: dict[str, Variable],
+                 r_parameters: int = 0) -> list[Assignment]:
+    """The assignments of the value file ``text``, each checked against ``variables`` (or, with
+    ``r_parameters`` > 0, R0 ... R<r_parameters - 1> only; raises ProgramAlarm with the path and line
+    of the first faulty block)."""
     if len(text) > MAX_VALUES_BYTES:
         raise ProgramAlarm(ALARM_SYNTAX, f"GUD value file of {len(text)} bytes (at most {MAX_VALUES_BYTES})",
                            program=path, line=1)
@@ -65,7 +78,7 @@ def parse_values(path: str, text: str | bytes, variables: dict[str, Variable]) -
         if not block or block[0] == "%":
             continue
         try:
-            channel = _parse_block(block, channel, variables, assignments)
+            channel = _parse_block(block, channel, variables, assignments, r_parameters)
         except ProgramAlarm as alarm:
             raise ProgramAlarm(alarm.number, alarm.args[0], program=path, line=number, block=block) from None
         except ArithmeticError as exc:
@@ -74,7 +87,8 @@ def parse_values(path: str, text: str | bytes, variables: dict[str, Variable]) -
     return assignments
 
 
-def _parse_block(block: str, channel: int, variables: dict[str, Variable], out: list[Assignment]) -> int:
+def _parse_block(block: str, channel: int, variables: dict[str, Variable], out: list[Assignment],
+                 r_parameters: int = 0) -> int:
     """Append the block's assignments to ``out``; the channel the next blocks are for."""
     tokens = tokenize(block)
     if tokens and tokens[0][0] == NAME and _BLOCK_NUMBER.fullmatch(tokens[0][1]):
@@ -97,6 +111,9 @@ def _parse_block(block: str, channel: int, variables: dict[str, Variable], out: 
             raise ProgramAlarm(ALARM_SYNTAX, "a GUD value file holds NAME=value and NAME[index]=value only")
         name = token[1]
         parser.pos += 1
+        if r_parameters:
+            out.append(_r_assignment(name, parser, r_parameters))
+            continue
         variable = variables.get(name)
         if variable is None:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined (no activated definition file "
@@ -122,7 +139,29 @@ def _parse_block(block: str, channel: int, variables: dict[str, Variable], out: 
     return channel
 
 
-def apply_values(assignments: list[Assignment]) -> None:
-    """Assign the checked values, in the file's order."""
+def _r_assignment(name: str, parser: Parser, r_parameters: int) -> Assignment:
+    """``R12=value`` or ``R[12]=value`` of an R value file."""
+    numbered = _R_NAME.fullmatch(name)
+    if numbered is not None:
+        index: Any = int(numbered.group(1))
+    elif name == "R" and parser.at_op("["):
+        parser.pos += 1
+        index = evaluate(parser.expression(), None)  # type: ignore[arg-type]
+        parser.expect_op("]")
+    else:
+        raise ProgramAlarm(ALARM_SYNTAX, f"{name}: an R value file holds R<n>=value only")
+    if isinstance(index, float) and index.is_integer():
+        index = int(index)
+    if not isinstance(index, int) or not 0 <= index < r_parameters:
+        raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name R{index} not defined (R0...R{r_parameters - 1})")
+    parser.expect_op("=")
+    return index, (), convert("REAL", evaluate(parser.expression(), None), f"R{index}")  # type: ignore[arg-type]
+
+
+def apply_values(assignments: list[Assignment], write_r: Any = None) -> None:
+    """Assign the checked values, in the file's order (an R parameter's through ``write_r(n, value)``)."""
     for variable, indices, value in assignments:
-        variable.set(indices, value)
+        if isinstance(variable, int):
+            write_r(variable, value)
+        else:
+            variable.set(indices, value)
