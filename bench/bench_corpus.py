@@ -15,8 +15,8 @@ programs of its folder in /_N_MPF_DIR). One line per program:
 
 then the tally, and the alarms ranked by the programs they stop. Each program runs in its own process,
 so a program that never ends costs --wall seconds and no more. A [[program]] of the manifest may give
-itself more (max_time_s, wall_s, with why) and a file of GUD values of ours (values, under
-bench/corpus/), stored after its definition files.
+itself more (max_time_s, wall_s, with why) and files of ours (values, under bench/corpus/: GUD and R
+values, a machine's macros), stored after its definition files.
 """
 
 from __future__ import annotations
@@ -73,9 +73,9 @@ def _files(tree: Path, repository: dict, main: Path) -> list[tuple[str, bytes]]:
 
 
 def _values(entry: dict) -> list[tuple[str, bytes]]:
-    """The program's GUD and R values (``values`` in the manifest: a file of ours under bench/corpus/, or a
-    list, NAME.GUD or NAME.RPA), stored after its definition files as a shop's archive of the HMI's
-    values would be loaded."""
+    """The program's GUD and R values and the machine's macros (``values`` in the manifest: a file of ours
+    under bench/corpus/, or a list: NAME.GUD, NAME.RPA, MMAC.DEF), stored after its repository's
+    definition files as a shop's archive of the HMI's values would be loaded."""
     names = entry.get("values") or []
     stored = []
     for name in [names] if isinstance(names, str) else names:
