@@ -200,6 +200,8 @@ def programs(corpus: Path, manifest: dict, only: str = "",
     found = []
     for entry in manifest["program"]:
         repository = dict(repositories[entry["repo"]])
+        if entry.get("machine"):  # a program of another machine than its repository's others
+            repository["machine"] = entry["machine"]
         if machine:
             repository["machine"] = machine
         tree = repository_dir(corpus, entry["repo"])

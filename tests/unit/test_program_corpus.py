@@ -25,6 +25,17 @@ def test_the_manifest_names_40_programs_of_8_repositories_each_at_a_commit() -> 
         assert (Path(__file__).parents[2] / repositories[entry["repo"]]["machine"]).is_file()
 
 
+def test_every_machine_the_manifest_names_loads() -> None:
+    from nckemu.emulator.machine.machine_file import load_machine
+
+    manifest = load_manifest()
+    root = Path(__file__).parents[2]
+    machines = {entry["machine"] for entry in manifest["repository"]}
+    machines |= {entry["machine"] for entry in manifest["program"] if "machine" in entry}
+    for machine in sorted(machines):
+        assert load_machine(root / machine).axes, machine
+
+
 def test_the_manifests_own_budgets_say_why_and_its_gud_values_are_files_of_ours() -> None:
     manifest_dir = Path(__file__).parents[2] / "bench" / "corpus"
     for entry in load_manifest()["program"]:

@@ -335,3 +335,22 @@ def test_an_r_value_file_sets_channel_1s_r_parameters_or_is_refused_whole() -> N
         programs.write("/_N_DEF_DIR/_N_BAD_RPA", b"INI[5]=1\n")
     _run(emulator, "TAP", b"R2=R1*R8\nM30\n")
     assert store.read_lines(store.spec("R"), 1, 3, 1) == [10.0]
+
+
+def test_an_inch_machine_reads_f_in_inch_per_minute_under_g70_and_g71(tmp_path, capsys) -> None:
+    from nckemu.cli import main
+    from nckemu.emulator.machine.machine_file import machine_text
+
+    machine = tmp_path / "inch.toml"
+    machine.write_text(machine_text(None)[0] + "\n[program]\ninch_basic_system = true\n")
+    program = tmp_path / "INCH.MPF"
+    # by hand: 1 in at F10 in/min is 6 s; G71 X2 (mm) from 25.4 mm is 23.4 mm at 10 in/min (254 mm/min),
+    # 5.528 s; G710 X12 is 10 mm at F254 mm/min, 2.362 s; the ramps of a slow feed take milliseconds
+    program.write_bytes(b"G1 X1 F10\nG71 X2\nG710 X12 F254\nM30\n")
+    assert main(["program", "run", str(program), "--machine", str(machine), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["outcome"] == "ended"
+    assert summary["net_time_s"] == pytest.approx(6.0 + 23.4 / 254 * 60 + 10 / 254 * 60, abs=0.05)
+    program.write_bytes(b"G70 G1 X1 F10\nM30\n")  # on a metric machine G70 leaves F in mm/min: 25.4 mm at 10
+    assert main(["program", "run", str(program), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["net_time_s"] == pytest.approx(152.4, abs=0.05)

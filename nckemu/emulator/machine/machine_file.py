@@ -208,6 +208,9 @@ class ProgramSettings:
     mode_refused_alarm: int = 16913
     # The alarm a move beyond an axis' travel raises (10720 software limit switch; from memory, unconfirmed).
     travel_alarm: int = 10720
+    # The basic system is inch (MD10240 SCALING_SYSTEM_IS_METRIC = 0): G70 after reset, and F in inch/min
+    # under G70 and G71 alike (G700/G710 set both); an inch post's program on its own machine.
+    inch_basic_system: bool = False
 
 
 @dataclass(frozen=True)
@@ -605,7 +608,7 @@ def _program_settings(table: Any, text: str, source: str) -> ProgramSettings:
     _check_keys(table, "program.", "program.", source, line)
     defaults = ProgramSettings()
     flags = {}
-    for key in ("wait_for_spindle", "optional_stop"):
+    for key in ("wait_for_spindle", "optional_stop", "inch_basic_system"):
         value = table.get(key, getattr(defaults, key))
         if not isinstance(value, bool):
             raise NckConfigError(f"expected true or false, got {value!r}", path=source, line=line,

@@ -59,6 +59,7 @@ class NckEnvironment(ProgramEnvironment):
         self._now_s = now_s or parts.clock.now_s
         self._axes = channel_axes(parts)
         super().__init__(axes=path_axis_names(parts, self._axes), r_parameters=self._r_spec_lines())
+        self.reset_inch = parts.machine.program.inch_basic_system  # MD10240 as the machine file has it
 
     def _r_spec_lines(self) -> int:
         # R is read and written in nearly every block of a computed contour: its entry and line offset

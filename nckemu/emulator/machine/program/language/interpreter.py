@@ -108,7 +108,7 @@ class Interpreter:
         env = self.env
         plane = env.reset_plane if env.reset_plane in _PLANES else "G17"
         self.modal = ModalState(motion=1 if env.reset_motion == 1 else 0, plane=plane,
-                                inch_geometry=bool(env.reset_inch),
+                                inch_geometry=bool(env.reset_inch), inch_feed=bool(env.reset_inch),
                                 g_groups={6: plane, 13: "G70" if env.reset_inch else "G71"})
         self.feed_mm = 0.0
         self.spindle_speed: dict[int, float] = {}
@@ -435,7 +435,8 @@ class Interpreter:
 
     def _g_units(self, code: int, flags: dict) -> None:            # group 13
         self.modal.inch_geometry = code in (70, 700)
-        self.modal.inch_feed = code == 700
+        # G70/G71 switch the geometry only: F stays in the basic system (MD10240); G700/G710 switch both
+        self.modal.inch_feed = code == 700 or (code in (70, 71) and bool(self.env.reset_inch))
 
     def _g_dimensions(self, code: int, flags: dict) -> None:       # group 14
         self.modal.absolute = code == 90
