@@ -308,10 +308,13 @@ class Interpreter:
             return None
         if self._macros:
             text = expand_macros(text, self._macros)
+        simple = self._compiler.compile_simple(text)  # most CAM blocks: the short way, checked first
+        if simple is not None:
+            return simple
         sync = _SYNC_ACTION.match(text)
         if sync is not None:
             return self._compile_sync_action(text, sync)
-        return self._compiler.compile_simple(text) or self._compiler.compile(text, tokenize(text))
+        return self._compiler.compile(text, tokenize(text))
 
     def _compile_sync_action(self, text: str, sync: re.Match[str]) -> Compiled:
         """``[ID=n] WHEN|WHENEVER|FROM|EVERY condition DO actions``: the condition compiled, the actions not
