@@ -55,7 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument("--machine", help="machine TOML (default: the built-in default machine)")
     parser.add_argument("--with", dest="extra", action="append", default=[], metavar="FILE",
                         help="another program to store first (a subprogram in another folder, a .DEF definition file, a .GUD "
-                             "file of GUD values); repeatable, stored in the order given")
+                             "file of GUD values, a .RPA file of R parameters); repeatable, stored in the order given")
     parser.add_argument("--blocks", metavar="BLOCKS.csv", help="write the executed blocks to this CSV file")
     parser.add_argument("--out", metavar="SIM.csv", help="write the recording the run would have made")
     parser.add_argument("--sample", type=float, default=1.0, metavar="S",
