@@ -43,10 +43,10 @@ lint: $(VENV)/.installed-test
 	$(VENV)/bin/ruff check nckemu awlsimhw_nckemu tests bench examples
 	$(VENV)/bin/lint-imports --no-cache
 
-# node-opcua-client, the outside OPC UA client of tests/interop/test_opcua_node.py (skips without npm).
+# node-opcua-client, the outside OPC UA client of tests/emulator/faces/opcua/test_opcua_node.py (skips without npm).
 npm:
 	@if command -v npm >/dev/null 2>&1; then \
-	  (cd tests/interop/node_opcua && npm install --no-audit --no-fund --silent >/dev/null) \
+	  (cd tests/emulator/faces/opcua/node_opcua && npm install --no-audit --no-fund --silent >/dev/null) \
 	  || echo "npm install failed: the node-opcua tests will skip"; \
 	else echo "npm is missing: the node-opcua tests will skip"; fi
 

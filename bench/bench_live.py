@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 from nckemu.plcsim.replay import run_on_recording  # noqa: E402
 from nckemu.thermal.recordings.recording import load_recording  # noqa: E402
-from tests.interop.live_tools import poll, serve  # noqa: E402
+from tests.support.live_tools import poll, serve  # noqa: E402
 
 MACHINE = ROOT / "fixtures/machines/loop_mill.toml"
 RECORDING = ROOT / "fixtures/thermal/loop_bed_program_spindle_lag.csv"

@@ -1,7 +1,7 @@
 """Long fuzz run of the sans-IO session (the in-process input path): N mutated frames, counts crashes.
 
 A crash is any exception escaping ``ServerSession.receive``; a hang is a receive call over 1 s.
-The mutations are those of tests/property/test_session_fuzz.py, driven by ``random`` for speed.
+The mutations are those of tests/emulator/faces/s7/test_session_fuzz.py, driven by ``random`` for speed.
 
 Usage: .venv/bin/python bench/fuzz_session.py [--frames 1000000] [--seed 1]
 """
@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from nckemu.emulator.faces.s7.dispatch import Dispatcher
 from nckemu.emulator.faces.s7.session import ServerSession, SessionLimits  # noqa: E402
 from nckemu.emulator.machine.core import Emulator  # noqa: E402
-from tests.property.test_session_fuzz import CR, SETUP, VALID_JOBS, dt  # noqa: E402
+from tests.emulator.faces.s7.test_session_fuzz import CR, SETUP, VALID_JOBS, dt  # noqa: E402
 
 
 def mutate(rng: random.Random, frame: bytes) -> bytes:

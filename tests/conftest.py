@@ -1,8 +1,10 @@
-"""Shared test settings: hypothesis profiles, the location of ../shared, results computed once per run."""
+"""Shared test settings: hypothesis profiles, the location of ../shared, results computed once per run, and
+the real emulator (127.0.0.1, a free port) with an 828D collector's python-snap7 client that many areas use."""
 
 from __future__ import annotations
 
 import fcntl
+import logging
 import os
 import pickle
 from collections.abc import Callable, Iterator
@@ -11,7 +13,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import snap7
 from hypothesis import HealthCheck, settings
+
+from nckemu.emulator.runner import EmulatorThread
 
 settings.register_profile(
     "ci", max_examples=150, deadline=None,
@@ -102,3 +107,22 @@ def once_per_run(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, Cal
         return loaded[name]
 
     return get
+
+@pytest.fixture
+def emulator() -> Iterator[EmulatorThread]:
+    """The built-in default machine; a test module may override it (e.g. with other limits)."""
+    with EmulatorThread() as emu:
+        yield emu
+
+
+@pytest.fixture
+def collector(emulator: EmulatorThread) -> Iterator[snap7.Client]:
+    """python-snap7 with an 828D collector's TSAPs (IOT and LSC): calling 0x0400, called 0x0D04
+    (connection type 0x0D, rack 0, slot 4 in python-snap7's encoding)."""
+    logging.getLogger("snap7").setLevel(logging.WARNING)
+    client = snap7.Client()
+    client.local_tsap = 0x0400
+    client.connection_type = 0x0D
+    client.connect("127.0.0.1", 0, 4, emulator.port)
+    yield client
+    client.disconnect()

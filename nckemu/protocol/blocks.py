@@ -20,7 +20,7 @@ A PLC PI service's parameter block is the number of blocks, one unknown byte, an
 
 Sources: Wireshark's s7comm dissector (``s7comm_decode_plc_controls_updownload``,
 ``s7comm_decode_pi_service``; function, block type and file system names); tshark 4.0.17's decoding
-of the frames of ``tests/unit/traces/test_field_corpus.py``.
+of the frames of ``tests/traces/test_field_corpus.py``.
 """
 
 from __future__ import annotations

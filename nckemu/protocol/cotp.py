@@ -27,7 +27,7 @@ PARAM_CALLING_TSAP = 0xC1
 PARAM_CALLED_TSAP = 0xC2
 
 # The declared formats (construct); the hand-written parse/build below are the fast path and
-# tests/unit/protocol check that both agree.
+# tests/protocol check that both agree.
 PARAMETER = Struct("code" / Int8ub, "value" / Prefixed(Int8ub, GreedyBytes))
 CONNECT_TPDU = Prefixed(Int8ub, Struct(
     "code" / Int8ub,

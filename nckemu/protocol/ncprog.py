@@ -21,7 +21,7 @@ data is a 16-bit length, two bytes (``00 FB``) and the bytes.
 
 Sources: Wireshark's s7comm dissector (subfunction names, the reassembly and the content fields),
 libnodave's NC transfer functions (what a client sends and checks), tshark 4.0.17's decoding of the
-byte vectors in ``tests/unit/protocol/test_ncprog.py``; the byte meanings and what is inferred are
+byte vectors in ``tests/protocol/test_ncprog.py``; the byte meanings and what is inferred are
 listed in docs/programs-transfer.md.
 """
 

@@ -2,7 +2,7 @@
 
 The formats are declared once with construct (``HEADER``, ``S7ANY_ITEM``, ``NCK_ITEM``,
 ``DATA_ITEM_HEADER``...). The parse/build functions below are hand-written on ``struct`` because
-they sit on the server's hot path; ``tests/unit/protocol`` checks them against the declarations.
+they sit on the server's hot path; ``tests/protocol`` checks them against the declarations.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ length and the payload.
 
 Names: Wireshark's s7comm dissector as packaged in tshark 4.0.17 (Debian 12), read off its Info
 column for every group 0..7, 0xF and subfunction 0..0x16 of frames built here
-(``tests/unit/traces/test_field_corpus.py`` checks them against it).
+(``tests/traces/test_field_corpus.py`` checks them against it).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ discovery searches (where a second time constant and a measured partner are sear
 proposes its candidates,
 its place among the detectable sizes (the registry's order) and its form in a PLC program (the name
 of one of ``PLC_FORMS``, which ``plcsim/stlgen.py`` writes as STL, or None with the reason). A new
-family is one ``register(Family(...))``; ``tests/unit/thermal/test_families.py`` shows a toy one
+family is one ``register(Family(...))``; ``tests/thermal/discovery/test_families.py`` shows a toy one
 reaching the candidates, the detectable sizes and the STL generator.
 
 Candidate generation sees discovery through ``CandidateSource`` (the library of a round), so this

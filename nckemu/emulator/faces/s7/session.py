@@ -273,7 +273,7 @@ class ServerSession:
         """The answer frame when ``data`` is exactly one read job in one DT on a ready connection
         with nothing half-received, within the limits; None: ``receive`` it. The common case (clients
         poll), answered from the dispatcher's plan for the frame, without the framing loop and
-        without parsing: what ``receive`` would answer, byte for byte (tests/property/test_fast_read.py)."""
+        without parsing: what ``receive`` would answer, byte for byte (tests/emulator/faces/s7/test_fast_read.py)."""
         if self.state is not _READY or self._buffer or self._fragments:
             return None
         return self._framed_answer(data)

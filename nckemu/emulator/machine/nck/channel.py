@@ -442,7 +442,7 @@ class Channel:
 
     # ------------------------------------------------------------------ what a run shows
     # The program run and the NCK tell the channel what it reports through these; only the channel
-    # assigns ChannelState's fields (tests/unit/emulator/test_channel_life.py checks it).
+    # assigns ChannelState's fields (tests/emulator/machine/nck/test_channel_life.py checks it).
     def show_block(self, block: Block) -> None:
         """The block now executing: its program, line, block number and text (SPARP, S columns)."""
         state = self.state
