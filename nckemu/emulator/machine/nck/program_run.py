@@ -31,6 +31,7 @@ from nckemu.emulator.machine.program.block_record import BlockRecord
 from nckemu.emulator.machine.program.motions import (
     ALARM_FEED_ZERO,
     Arc,
+    AxesWait,
     Block,
     CycleCall,
     Dwell,
@@ -38,16 +39,19 @@ from nckemu.emulator.machine.program.motions import (
     Message,
     MFunction,
     Move,
+    Positioning,
     ProgramAlarm,
     ProgramEnd,
     SpindleCommand,
     ToolSelect,
 )
 from nckemu.emulator.machine.program.planner import (
+    S_PER_MIN,
     Overrides,
     Planner,
     SpindleRamp,
     css_rpm,
+    ramp_time_s,
 )
 
 if TYPE_CHECKING:
@@ -78,6 +82,8 @@ class ProgramRun:
         self._events: Iterator[Event] = self.interpreter.events()
         self._pending: Event | None = None   # a move held by an override of 0, dispatched again next cycle
         self._motion: PathMotion | None = None
+        # positioning axes under way (POS, POSA), by machine axis number: each its own motion beside the path
+        self._positioning: dict[int, PathMotion] = {}
         self._paused_at: float | None = None
         self._spindle_ready_s = self.t_s
         self.blocks = 0
@@ -96,6 +102,8 @@ class ProgramRun:
     def pause(self, now_s: float) -> None:
         if self._paused_at is None:
             self.geometry.move(self._motion, now_s)
+            for motion in self._positioning.values():
+                self.geometry.move(motion, now_s)
             self._paused_at = now_s
 
     def resume(self, now_s: float) -> None:
@@ -106,15 +114,19 @@ class ProgramRun:
         self.t_s += shift
         self.block_start_s += shift
         self._spindle_ready_s += shift
-        if self._motion is not None:
-            self._motion.start_s += shift
-            self._motion.end_s += shift
+        for motion in (self._motion, *self._positioning.values()):
+            if motion is not None:
+                motion.start_s += shift
+                motion.end_s += shift
 
     def close(self, now_s: float) -> None:
         """Reset or end: motion stops where it is, the spindle runs down, the interpreter is closed."""
         if self._paused_at is None:
             self.geometry.move(self._motion, now_s)
+            for motion in self._positioning.values():
+                self.geometry.move(motion, now_s)
         self._motion = None
+        self._positioning.clear()
         self._finish_record(now_s)
         self._drop_programmable_frame()
         close = getattr(self._events, "close", None)
@@ -132,6 +144,8 @@ class ProgramRun:
         blocks = 0
         channel = self.channel
         self.geometry.catch_up()  # once a cycle, not once a move: the clock stands meanwhile
+        if self._positioning:
+            self._move_positioning(until_s)
         while True:
             motion = self._motion
             if motion is not None:
@@ -179,10 +193,63 @@ class ProgramRun:
                 self._cycle(event)  # type: ignore[arg-type]
             elif isinstance(event, Message):
                 channel.show_message(event.text)
+            elif kind is Positioning:
+                self._start_positioning(event)  # type: ignore[arg-type]
+            elif kind is AxesWait:
+                self._hold_for_axes(event, {self.axes[self.geometry.axis_name(axis)]  # type: ignore[attr-defined]
+                                            for axis in event.axes} or None)  # type: ignore[attr-defined]
             elif isinstance(event, ProgramEnd):
+                if self._positioning and self._hold_for_axes(event, None):
+                    continue  # the program ends when its positioning axes have arrived
                 if self.record is not None and event.code and event.code not in self.record.m_codes:
                     self.record.m_codes.append(event.code)
                 return self._end()
+
+    # ------------------------------------------------------------------ positioning axes
+    def _start_positioning(self, event: Positioning) -> None:
+        """POS/POSA: the axis starts for its end point on its own trapezoid at FA (or MD32060), within
+        its MD32000/MD32300; an axis still under way from an earlier POSA is waited for first."""
+        name = self.geometry.axis_name(event.axis)
+        number = self.axes[name]
+        if self._hold_for_axes(event, {number}):
+            return
+        moving, deltas = self.geometry.check_travel({name: event.target_mm}, self.parts.axes.positions_mm)
+        if not deltas:
+            return
+        length_mm = abs(deltas[0][1])
+        limits = self.planner.limits.axis(name)
+        feed_mm_min = event.feed_mm_min
+        if feed_mm_min is None:
+            feed_mm_min = float(self.parts.store.active_value("POS_AX_VELO", number))
+        feed_mm_min = min(feed_mm_min, limits.max_velocity_mm_min)
+        if feed_mm_min <= 0.0:
+            state = self.channel.state
+            raise ProgramAlarm(ALARM_FEED_ZERO, f"positioning axis {name} without a velocity (FA and MD32060 "
+                               "are 0)", program=state.program, line=state.line_number, block=state.block_number)
+        speed_mm_s, accel_mm_s2 = feed_mm_min / S_PER_MIN, limits.accel_mm_s2
+        duration_s = ramp_time_s(length_mm, speed_mm_s, accel_mm_s2, 2)
+        self._positioning[number] = PathMotion(self.t_s, self.t_s + duration_s, moving, feed_mm_min,
+                                               (length_mm, speed_mm_s, accel_mm_s2, True, True))
+
+    def _hold_for_axes(self, event: Event, numbers: set[int] | None) -> bool:
+        """True when ``event`` must wait for positioning axes (``numbers``; None: all) still under way: the
+        run waits until the last arrives and then takes ``event`` again. False when none is moving now
+        (those arrived are put at their end points)."""
+        end_s = max((motion.end_s for number, motion in self._positioning.items()
+                     if numbers is None or number in numbers), default=-math.inf)
+        if end_s > self.t_s:
+            self._pending = event
+            self._motion = PathMotion(self.t_s, end_s, [], 0.0)
+            return True
+        self._move_positioning(self.t_s)
+        return False
+
+    def _move_positioning(self, t_s: float) -> None:
+        """The positioning axes where their motions put them at ``t_s``; those arrived are done."""
+        for number, motion in list(self._positioning.items()):
+            self.geometry.move(motion, t_s, caught_up=True)
+            if motion.end_s <= t_s:
+                del self._positioning[number]
 
     def _cycle(self, call: CycleCall) -> None:
         if not call.simulated:
@@ -244,6 +311,8 @@ class ProgramRun:
         targets = event.target_mm
         if not axes.keys() >= targets.keys():  # names as the interpreter wrote them: ours are upper case
             targets = {self.geometry.axis_name(axis): value for axis, value in targets.items()}
+        if self._positioning and self._hold_for_axes(event, {axes[name] for name in targets}):
+            return True  # an axis of the block still runs as a positioning axis (POSA): the block waits
         moving, deltas = self.geometry.check_travel(targets, positions)
         arc = law = None
         if event.__class__ is Move and event.css is None and not event.thread:

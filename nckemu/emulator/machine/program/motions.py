@@ -136,7 +136,29 @@ class CycleCall:
     note: str = ""
 
 
-Event = Block | Move | Arc | Dwell | SpindleCommand | MFunction | ToolSelect | Message | ProgramEnd | CycleCall
+@dataclass(frozen=True, slots=True)
+class Positioning:
+    """``POS[U]=10`` / ``POSA[U]=10``: a positioning axis starts for ``target_mm`` (machine coordinates) on
+    its own, beside the path, at ``feed_mm_min`` (FA; degrees/min on a rotary axis), or, None, at the
+    axis' MD32060 POS_AX_VELO. It does not hold the block by itself: a POS block is followed by an
+    :class:`AxesWait` for its axes, a POSA axis runs on past the block's end."""
+
+    axis: str
+    target_mm: float
+    feed_mm_min: float | None = None
+    programmed: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class AxesWait:
+    """The block does not change until the positioning axes ``axes`` have arrived (POS at its block's
+    end, ``WAITP(U)``); ``axes`` empty: every positioning axis (the program's end)."""
+
+    axes: tuple[str, ...] = ()
+
+
+Event = (Block | Move | Arc | Dwell | SpindleCommand | MFunction | ToolSelect | Message | ProgramEnd | CycleCall
+         | Positioning | AxesWait)
 
 
 # Alarm numbers the interpreter raises (programs.md §8; texts are ours).

@@ -31,10 +31,12 @@ from .words import (
     ModalCall,
     Msg,
     NoOp,
+    PositionWord,
     Return,
     Setal,
     Spos,
     Suppress,
+    WaitPosition,
     Word,
 )
 
@@ -53,7 +55,10 @@ EXTENDED = frozenset("MSHTD")
 FRAME_WORDS = frozenset({"TRANS", "ATRANS", "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR"})
 JUMPS = frozenset({"GOTOF", "GOTOB", "GOTO", "GOTOC", "GOTOS"})
 # Per-axis settings written as NAME[axis]=value; kept so a program can read them back (ACC[X]).
-AXIS_SETTINGS = frozenset({"ACC", "FA", "FL", "FGREF", "OVRA", "VELOLIM", "JERKLIM", "POS", "POSA"})
+AXIS_SETTINGS = frozenset({"ACC", "FA", "FL", "FGREF", "OVRA", "VELOLIM", "JERKLIM"})
+# Positioning axes: POS (the block waits for the axis), POSA (it runs on past the block), POSP (in
+# sections; run here as POS to its end point)
+POSITIONING = frozenset({"POS", "POSA", "POSP"})
 
 # Words that change nothing the emulator models: accepted, logged once (docs/programs-language.md).
 NO_OP_WORDS = frozenset({
@@ -67,7 +72,7 @@ NO_OP_WORDS = frozenset({
     "CDOF", "CDOF2", "DISC", "OFFN", "FENDNORM", "TOFFON", "TOFFOF", "G40", "RESET", "WAITMC",
     "FGROUP", "FTOCON", "FTOCOF", "ORISON", "ORISOF", "PAROT", "PAROTOF", "TOROT", "TOROTOF",
     "TCARR", "TCOABS", "TCOFR", "SUPD", "CPROTDEF", "LIFTFAST", "SETMS", "PROTA", "PROTS",
-    "WAITP", "WAITS",  # the positioning axes (POS, POSA) and spindles they wait for move at once here
+    "WAITS",  # the spindles it waits for (SPOS, SPOSA) stop at once here
 }) | frozenset(name for name, entry in G_FUNCTIONS.items() if entry.number is None and entry.emulation is NO_EFFECT)
 # Named G functions of the control that the emulator cannot run right (CIP, CT, REPOSA, ...): 12550.
 NOT_SUPPORTED_WORDS = frozenset(
@@ -517,7 +522,7 @@ class BlockCompiler:
                 items.append(AxisWord(name, axis_value, mode))
                 continue
             if frac is None and following is not None and following[0] == OP and following[1] == "(" \
-                    and name not in ("MSG", "SETAL") and name not in FUNCTIONS and name not in NO_OP_WORDS:
+                    and name not in ("MSG", "SETAL", "WAITP") and name not in FUNCTIONS and name not in NO_OP_WORDS:
                 if name in ("IC", "AC"):
                     raise ProgramAlarm(ALARM_SYNTAX, f"{name}() stands after an address and '='")
                 args = parser.arguments()
@@ -623,6 +628,12 @@ class BlockCompiler:
                 axis_value, mode = self._axis_value(parser, None)
                 items.append(IndirectAxisWord(indices[0], axis_value, mode))
                 continue
+            if name in POSITIONING and frac is None and following is not None and following[1] == "[":
+                items.append(self._positioning(parser, name))
+                continue
+            if name == "WAITP" and frac is None:
+                items.append(WaitPosition(parser.arguments() if parser.at_op("(") else []))
+                continue
             if name in AXIS_SETTINGS and following is not None and following[1] == "[":
                 indices = parser.indices()
                 parser.expect_op("=")
@@ -642,6 +653,22 @@ class BlockCompiler:
             # a bare name: a subprogram without parameters (or a name the program never defined)
             items.append(Call(name, None, self._repeat(parser)))
         return items
+
+    def _positioning(self, parser: Parser, name: str) -> PositionWord:
+        """``POS[U]=value`` (or ``=IC(..)``, ``=AC(..)``), ``POSP[U]=(end, section length, mode)``."""
+        indices = parser.indices()
+        if len(indices) != 1 or indices[0] is None:
+            raise ProgramAlarm(ALARM_SYNTAX, f"{name}[axis]=position")
+        if name == "POSP":
+            parser.expect_op("=")
+            args = parser.arguments()
+            if not args or args[0] is None:
+                raise ProgramAlarm(ALARM_SYNTAX, "POSP[axis]=(end point, section length, mode)")
+            return PositionWord(name, indices[0], args[0])
+        if not parser.at_op("="):
+            raise ProgramAlarm(ALARM_SYNTAX, f"{name}[axis]=position")
+        value, mode = self._axis_value(parser, None)
+        return PositionWord(name, indices[0], value, mode)
 
     def _repeat(self, parser: Parser) -> Any:
         token = parser.peek()

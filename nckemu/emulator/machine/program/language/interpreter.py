@@ -27,6 +27,7 @@ from ..motions import (
     ALARM_FEED_ZERO,
     ALARM_NAME_NOT_DEFINED,
     ALARM_SYNTAX,
+    AxesWait,
     Block,
     Dwell,
     Event,
@@ -479,6 +480,8 @@ class Interpreter:
         jump = call = None
         ret = False
         spos: list[int] = []
+        positions: list[tuple[str, str, Any, str | None]] = []  # POS/POSA/POSP: kind, axis, value, mode
+        waits: list[Event] = []
         for item in items:
             kind = item.__class__
             if kind is w.AxisWord:
@@ -530,6 +533,12 @@ class Interpreter:
                 if len(indices) != 1:
                     raise ProgramAlarm(ALARM_SYNTAX, f"{item.name}[axis]=value")
                 names.settings[(item.name, names.axis_name(indices[0]))] = evaluate(item.value, names)
+            elif kind is w.PositionWord:
+                value = item.value
+                positions.append((item.kind, names.axis_name(evaluate(item.axis, names)),
+                                  value(names) if value.__class__ is FunctionType else value, item.mode))
+            elif kind is w.WaitPosition:
+                waits.append(AxesWait(tuple(names.axis_name(evaluate(axis, names)) for axis in item.axes)))
             elif kind is w.Fill:
                 target_kind, name, indices = item.target
                 variable = names.variable(name) if target_kind == "VAR" else None
@@ -567,6 +576,9 @@ class Interpreter:
                 events.append(MFunction(m_code, extension))
         if flags.get("pole") or "AP" in address or "RP" in address:
             axis_words = self.paths.polar(axis_words, address, flags)
+        if waits or positions:  # WAITP first; positioning axes start with the block's path motion
+            events += waits
+            events += self.paths.positioning(positions, names.settings)
         moved = False
         if flags.get("dwell"):
             if axis_words:
@@ -584,6 +596,8 @@ class Interpreter:
             else:
                 events.append(motion)  # type: ignore[arg-type]
             moved = True
+        if positions and any(kind != "POSA" for kind, _, _, _ in positions):  # POS: the block waits for them
+            events.append(AxesWait(tuple(axis for kind, axis, _, _ in positions if kind != "POSA")))
         end_code = None
         for extension, m_code in m_codes:
             if m_code in _END_CODES:

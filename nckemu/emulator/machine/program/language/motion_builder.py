@@ -22,6 +22,7 @@ from ..motions import (
     Arc,
     Event,
     Move,
+    Positioning,
     ProgramAlarm,
 )
 from . import framing
@@ -191,6 +192,32 @@ class MotionBuilder:
             return self.with_feed_rules(Move(targets, self.it.feed_mm, self.it.modal.feed_mode, exact_stop,  # type: ignore[arg-type]
                                               programmed))
         return self.with_feed_rules(self.arc(targets, programmed, start_machine, address, flags, exact_stop))
+
+    def positioning(self, words: list[tuple[str, str, Any, str | None]],
+                    settings: dict[tuple[str, str], Any]) -> list[Event]:
+        """``POS[U]=..``/``POSA``/``POSP`` as :class:`Positioning` events: each end point in the work system
+        like an axis word's (G90/G91, IC/AC, inch), through the work offset and tool length, at the axis'
+        FA when the program set one (in the feed's unit), else at its MD32060 (the channel's)."""
+        modal, work_pos = self.it.modal, self.it.work_pos
+        events: list[Event] = []
+        for kind, axis, raw, mode in words:
+            if modal.chain is not None and axis in GEOMETRY:
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{kind}[{axis}] in a rotated, scaled or mirrored frame "
+                                                           "is not supported by the emulator")
+            rotary = self.it.is_rotary(axis)
+            unit = INCH_MM if modal.inch_geometry and not rotary else 1.0
+            value = raw if raw.__class__ is float else float(number(raw))
+            incremental = mode == "IC" or (mode is None and not modal.absolute)
+            work = (work_pos.get(axis, 0.0) + value * unit) if incremental else value * unit
+            work_pos[axis] = work
+            self.it.stale_mm.pop(axis, None)
+            feed = settings.get(("FA", axis))
+            feed_mm_min = float(number(feed)) if feed is not None else 0.0
+            if modal.inch_feed and not rotary:
+                feed_mm_min *= INCH_MM
+            events.append(Positioning(axis, work + modal.shift.get(axis, 0.0),
+                                      feed_mm_min if feed_mm_min > 0.0 else None, work / unit))
+        return events
 
     def with_feed_rules(self, motion: Move | Arc) -> Move | Arc:
         """The feed group and G96 on a motion at feed (nothing to add in the common case)."""

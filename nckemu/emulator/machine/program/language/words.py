@@ -145,6 +145,24 @@ class AxisSetting:
 
 
 @dataclass(frozen=True, slots=True)
+class PositionWord:
+    """``POS[U]=10``, ``POSA[U]=IC(5)``, ``POSP[U]=(100, 10, 0)``: a positioning axis (an expression
+    naming it), its end point and dimension mode; ``kind`` "POS", "POSA" or "POSP"."""
+
+    kind: str
+    axis: Any
+    value: Any
+    mode: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class WaitPosition:
+    """``WAITP(U, V)``: the block waits until the positioning axes named have arrived."""
+
+    axes: list
+
+
+@dataclass(frozen=True, slots=True)
 class Spos:
     """``SPOS=...``: the spindle stops (positioning is not modelled)."""
 
@@ -162,4 +180,4 @@ class NoOp:
 
 
 Word = (AxisWord | IndirectAxisWord | GWord | AddressWord | CentreWord | Assign | Fill | Call | ModalCall | Jump | Msg | Setal
-        | FrameWord | Suppress | Return | AxisSetting | Spos | NoOp)
+        | FrameWord | Suppress | Return | AxisSetting | PositionWord | WaitPosition | Spos | NoOp)
