@@ -64,6 +64,15 @@ def cross_validate(design: np.ndarray, target: np.ndarray, folds: list[np.ndarra
     return CrossValidation(float(np.sqrt(np.mean(squared))), tuple(per_fold))
 
 
+def held_out_rows(mask: np.ndarray) -> slice | np.ndarray:
+    """A fold's held-out samples as a slice when they are one contiguous block (a run, a block of
+    time): indexing by it is a view, not a copy, and gives the same numbers as the mask."""
+    rows = np.flatnonzero(mask)
+    if len(rows) and rows[-1] - rows[0] + 1 == len(rows):
+        return slice(int(rows[0]), int(rows[-1]) + 1)
+    return rows
+
+
 def cross_validate_gram(design: np.ndarray, target: np.ndarray, folds: list[np.ndarray]) -> CrossValidation:
     """``cross_validate`` through each fold's normal equations: the training fit of a fold is the sum
     over all samples minus the fold's own share, so many folds (one per run) cost one pass over the
@@ -72,13 +81,15 @@ def cross_validate_gram(design: np.ndarray, target: np.ndarray, folds: list[np.n
     per_fold = []
     if design.shape[1] == 0:
         return cross_validate(design, target, folds)
-    grams = [design[test].T @ design[test] for test in folds]
-    moments = [design[test].T @ target[test] for test in folds]
+    held_out = [held_out_rows(test) for test in folds]
+    parts = [design[rows] for rows in held_out]
+    grams = [part.T @ part for part in parts]
+    moments = [part.T @ target[rows] for part, rows in zip(parts, held_out, strict=True)]
     gram, moment = sum(grams), sum(moments)
-    for test, fold_gram, fold_moment in zip(folds, grams, moments, strict=True):
+    for rows, part, fold_gram, fold_moment in zip(held_out, parts, grams, moments, strict=True):
         coefficients, *_ = np.linalg.lstsq(gram - fold_gram, moment - fold_moment, rcond=None)
-        errors = target[test] - design[test] @ coefficients
-        squared[test] = errors ** 2
+        errors = target[rows] - part @ coefficients
+        squared[rows] = errors ** 2
         per_fold.append(rms(errors))
     return CrossValidation(float(np.sqrt(np.mean(squared))), tuple(per_fold))
 
