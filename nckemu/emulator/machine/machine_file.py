@@ -211,6 +211,12 @@ class ProgramSettings:
     # The basic system is inch (MD10240 SCALING_SYSTEM_IS_METRIC = 0): G70 after reset, and F in inch/min
     # under G70 and G71 alike (G700/G710 set both); an inch post's program on its own machine.
     inch_basic_system: bool = False
+    # Two G functions of one group that does not define the block's syntax (G90 G91): "last_wins" (the
+    # last written is active) or "alarm" (12060 "same G group programmed repeatedly"); both UNCONFIRMED.
+    repeated_g_group: str = "last_wins"
+
+
+REPEATED_G_GROUP_CHOICES = ("last_wins", "alarm")
 
 
 @dataclass(frozen=True)
@@ -617,7 +623,12 @@ def _program_settings(table: Any, text: str, source: str) -> ProgramSettings:
     alarms = {key: _whole(table.get(key, getattr(defaults, key)), 1, 999999, "an alarm number", source, line,
                           f"program.{key}")
               for key in ("start_refused_alarm", "mode_refused_alarm", "travel_alarm")}
+    repeated = table.get("repeated_g_group", defaults.repeated_g_group)
+    if repeated not in REPEATED_G_GROUP_CHOICES:
+        raise NckConfigError(f"expected one of {', '.join(map(repr, REPEATED_G_GROUP_CHOICES))}, got {repeated!r}",
+                             path=source, line=line, field="program.repeated_g_group")
     return ProgramSettings(
+        repeated_g_group=repeated,
         cycle_s=_positive(table, "cycle_s", defaults.cycle_s, "program.", source, line, high=3600.0),
         max_blocks_per_cycle=_whole(table.get("max_blocks_per_cycle", defaults.max_blocks_per_cycle), 1, 10**7,
                                     "a number of blocks", source, line, "program.max_blocks_per_cycle"),

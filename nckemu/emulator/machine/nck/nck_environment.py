@@ -60,6 +60,7 @@ class NckEnvironment(ProgramEnvironment):
         self._axes = channel_axes(parts)
         super().__init__(axes=path_axis_names(parts, self._axes), r_parameters=self._r_spec_lines())
         self.reset_inch = parts.machine.program.inch_basic_system  # MD10240 as the machine file has it
+        self.repeated_g_group = parts.machine.program.repeated_g_group
 
     def _r_spec_lines(self) -> int:
         # R is read and written in nearly every block of a computed contour: its entry and line offset

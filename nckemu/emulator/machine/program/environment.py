@@ -22,6 +22,9 @@ class ProgramEnvironment:
     reset_plane: str = "G17"       # MD20150 group 6 after reset (a lathe: G18)
     tool_change_mode: int = 1      # MD22550 TOOL_CHANGE_MODE: 1 = T preselects and M6 changes; 0 = T changes
     subprogram_end_returns: bool = True  # M2/M30 in a subprogram return like M17 (UNCONFIRMED); False: end all
+    # two G functions of one group that does not define the syntax (G90 G91): "last_wins" or "alarm" (12060);
+    # which the control does is UNCONFIRMED ([program] repeated_g_group)
+    repeated_g_group: str = "last_wins"
 
     def __init__(self, axes: Sequence[str] = ("X", "Y", "Z"), r_parameters: int = 100) -> None:
         self.axes = tuple(axes)

@@ -23,6 +23,10 @@ ALARM_UNKNOWN_G = 12470
 # UNCONFIRMED: two G functions of one syntax-defining group (1 motion, 2 non-modal motion, 3 frames)
 # in one block ("too many syntax-defining G functions": G0 G1 X10).
 ALARM_SYNTAX_G_TWICE = 12070
+# UNCONFIRMED ("same G group programmed repeatedly", as we remember the number): two G functions of one
+# group that does not define the block's syntax (G90 G91), on a machine whose [program] repeated_g_group
+# is "alarm"; by default the last one written is active.
+ALARM_G_GROUP_TWICE = 12060
 # UNCONFIRMED: subprogram calls nested deeper than the control allows.
 ALARM_CALL_DEPTH = 14000
 # Subprogram levels a program may open below the main program (840D sl: 16 levels in all; UNCONFIRMED).

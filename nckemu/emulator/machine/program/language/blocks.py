@@ -127,9 +127,11 @@ _STRAIGHT_G_DIGITS = {digits: code for code in STRAIGHT_G
 class BlockCompiler:
     """Compiles blocks for one interpreter (it knows the axes and how names resolve)."""
 
-    def __init__(self, axes: tuple[str, ...], resolver: Any) -> None:
+    def __init__(self, axes: tuple[str, ...], resolver: Any, repeated_g_alarm: bool = False) -> None:
         self.axes = frozenset(axis.upper() for axis in axes)
         self.resolver = resolver
+        # two G functions of one group that does not define the syntax: 12060 (True) or the last wins
+        self.repeated_g_alarm = repeated_g_alarm
         # letters of a STRAIGHT block in either case -> (kind, upper-case name); kind 0 axis, 1 G, 2 F, 3 N
         self._straight_words: dict[str, tuple[int, str]] = {}
         for axis in self.axes:
@@ -180,7 +182,7 @@ class BlockCompiler:
                 items.append(CentreWord(letters, value))
             else:
                 return None
-        _check_groups(items)
+        _check_groups(items, self.repeated_g_alarm)
         return Compiled(number, WORDS, items, text)
 
     def _straight(self, words: list[tuple[str, str, str]], text: str) -> Compiled | None:
@@ -213,7 +215,7 @@ class BlockCompiler:
             else:
                 return None
         if len(g_codes) > 1:
-            check_block([f"G{code}" for code in g_codes])
+            check_block([f"G{code}" for code in g_codes], self.repeated_g_alarm)
         return Compiled(number, STRAIGHT, (tuple(g_codes), targets, feed), text)  # targets: read only
 
     def compile(self, text: str, tokens: list) -> Compiled:
@@ -284,7 +286,7 @@ class BlockCompiler:
             if keyword == "EXTERN":
                 return Compiled(number, EXTERN, (), text)
         items = self._words(parser)
-        _check_groups(items)
+        _check_groups(items, self.repeated_g_alarm)
         return Compiled(number, WORDS, items, text)
 
     # --- pieces ----------------------------------------------------------------------------------
@@ -720,7 +722,7 @@ class BlockCompiler:
 
 
 
-def _check_groups(items: list) -> None:
+def _check_groups(items: list, every_group: bool = False) -> None:
     """The control's alarm for two G functions of one group in the block (gfunctions.check_block)."""
     names = []
     for item in items:
@@ -732,7 +734,7 @@ def _check_groups(items: list) -> None:
         elif kind is FrameWord and item.word in G_FUNCTIONS:
             names.append(item.word)
     if len(names) > 1:
-        check_block(names)
+        check_block(names, every_group)
 
 
 # Attributes a GUD declaration may carry before its type or name (access levels APR/APW.. n,

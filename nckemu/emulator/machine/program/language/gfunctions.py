@@ -17,7 +17,8 @@ A G number that is not in the table is no SINUMERIK G function (G43 of an ISO co
 Two different G functions of one of the syntax-defining groups 1 to 3 (motion, non-modal motion,
 frames) in one block raise 12070 (UNCONFIRMED number, alarms.py: ``G0 G1 X10``); of another group the
 one written last is active (``G90 G91`` is G91), as we remember the control's rule for groups that do
-not define the syntax of the block.
+not define the syntax of the block, or, where the machine file says ``repeated_g_group = "alarm"``, they
+raise 12060 (both UNCONFIRMED).
 
 Named members of a group (CIP, BRISK, TRANS, ...) are in the table too, for the group check and the
 documentation list; their words are read by blocks.py.
@@ -29,7 +30,7 @@ import enum
 from dataclasses import dataclass
 
 from ..motions import ProgramAlarm
-from .alarms import ALARM_SYNTAX_G_TWICE
+from .alarms import ALARM_G_GROUP_TWICE, ALARM_SYNTAX_G_TWICE
 
 
 class Emulation(enum.Enum):
@@ -196,13 +197,13 @@ def group_of(name: str) -> int | None:
     return entry.group if entry is not None else None
 
 
-def conflict(names: list[str]) -> tuple[str, str, int] | None:
-    """Two different G functions of one syntax-defining group among ``names`` (block order):
-    (first, second, group), else None."""
+def conflict(names: list[str], every_group: bool = False) -> tuple[str, str, int] | None:
+    """Two different G functions of one syntax-defining group (of any group: ``every_group``) among
+    ``names`` (block order): (first, second, group), else None."""
     seen: dict[int, str] = {}
     for name in names:
         entry = G_FUNCTIONS.get(name)
-        if entry is None or entry.group not in SYNTAX_DEFINING_GROUPS:
+        if entry is None or (not every_group and entry.group not in SYNTAX_DEFINING_GROUPS):
             continue
         earlier = seen.get(entry.group)
         if earlier is not None and earlier != name:
@@ -211,16 +212,22 @@ def conflict(names: list[str]) -> tuple[str, str, int] | None:
     return None
 
 
-def check_block(names: list[str]) -> None:
+def check_block(names: list[str], every_group: bool = False) -> None:
     """Raise 12070 when ``names`` (a block's G functions, in order) hold two of one syntax-defining group.
 
     Two of another group (G90 G91, SOFT BRISK) are no alarm: the one written last is active, as the
-    control does with groups that do not define the block's syntax."""
+    control does with groups that do not define the block's syntax; with ``every_group`` (the machine
+    file's ``repeated_g_group = "alarm"``) they raise 12060."""
     clash = conflict(names)
     if clash is not None:
         first, second, group = clash
         raise ProgramAlarm(ALARM_SYNTAX_G_TWICE, f"too many syntax-defining G functions: {first} and {second} "
                                                  f"(group {group}, {GROUP_TITLES[group]}) in one block")
+    clash = conflict(names, every_group=True) if every_group else None
+    if clash is not None:
+        first, second, group = clash
+        raise ProgramAlarm(ALARM_G_GROUP_TWICE, f"same G group programmed repeatedly: {first} and {second} "
+                                                f"(group {group}, {GROUP_TITLES[group]}) in one block")
 
 
 def markdown_table() -> str:

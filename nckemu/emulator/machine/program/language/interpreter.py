@@ -91,7 +91,7 @@ class Interpreter:
         self._main = ProgramSource(path, as_text(text))
         self._axes = tuple(axis.upper() for axis in env.axes)
         self.names = ProgramNames(self, self._axes)  # the expressions' environment: variables, R, $...
-        self._compiler = BlockCompiler(self._axes, self.names.resolve)
+        self._compiler = BlockCompiler(self._axes, self.names.resolve, env.repeated_g_group == "alarm")
         self._macros: dict[str, str] = env.macros()
         self._logged: set[str] = set()
         self._compensation: RadiusCompensation | None = None  # G41/G42 active (radius_compensation.py)

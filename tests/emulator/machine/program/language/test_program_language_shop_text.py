@@ -8,7 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from nckemu.emulator.machine.program.language.alarms import ALARM_SYNTAX_G_TWICE, ALARM_UNKNOWN_G
+from nckemu.emulator.machine.program.language.alarms import (
+    ALARM_G_GROUP_TWICE,
+    ALARM_SYNTAX_G_TWICE,
+    ALARM_UNKNOWN_G,
+)
 from nckemu.emulator.machine.program.language.gfunctions import (
     BY_NUMBER,
     NO_EFFECT,
@@ -51,6 +55,39 @@ def test_the_same_g_twice_and_two_of_another_group_are_no_alarm() -> None:
     # G90 G91: the one written last is active, as the control does for groups that define no syntax
     assert xs("G0 X5\nG90 G91 X5\nX5\nM30") == [5.0, 10.0, 15.0]
     assert xs("G0 X5\nN20 G91 G90 X5\nM30") == [5.0, 5.0]
+
+
+@pytest.mark.parametrize("block", ["G90 G91 X5", "N20 G91 G90 X5", "G17 G18", "SOFT BRISK G1 X1 F10",
+                                   "G1 G90 X=R1 G91 F100", "G54 G500"])
+def test_two_of_another_group_are_12060_where_the_machine_says_alarm(block: str) -> None:
+    env = DictEnvironment()
+    env.repeated_g_group = "alarm"  # the machine file's [program] repeated_g_group
+    result = run(f"G0 X5\n{block}\nM30", env)
+    assert result.alarm is not None
+    assert (result.alarm.number, result.alarm.line) == (ALARM_G_GROUP_TWICE, 2)
+    assert "same G group programmed repeatedly" in str(result.alarm)
+    assert len(result.moves) == 1  # the faulty block moved nothing
+    # the same G function twice is no repetition of the group; a syntax-defining group keeps its 12070
+    assert run("G1 G1 X10 F100\nG90 G90 X1\nM30", env).alarm is None
+    assert run("G0 G1 X1 G90 G91\nM30", env).alarm.number == ALARM_SYNTAX_G_TWICE  # type: ignore[union-attr]
+
+
+def test_repeated_g_group_is_a_machine_file_setting() -> None:
+    from nckemu.emulator.machine.clock import SimulatedClock
+    from nckemu.emulator.machine.core import Emulator
+    from nckemu.emulator.machine.machine_file import parse_machine
+    from nckemu.emulator.machine.offline import run_offline
+    from nckemu.errors import NckConfigError
+
+    machine = parse_machine('name = "m"\n[program]\nrepeated_g_group = "alarm"\n', "m.toml")
+    assert machine.program.repeated_g_group == "alarm"
+    emulator = Emulator(machine, clock=SimulatedClock())
+    emulator.nck.programs.write("/_N_MPF_DIR/_N_GG_MPF", b"R1=1\nG90 G91\nM30\n")
+    result = run_offline(emulator, "/_N_MPF_DIR/_N_GG_MPF")
+    assert result.outcome == "alarm" and "12060" in result.alarms[0] and "line 2" in result.alarms[0]
+    assert parse_machine('name = "m"\n', "m.toml").program.repeated_g_group == "last_wins"
+    with pytest.raises(NckConfigError, match="repeated_g_group"):
+        parse_machine('name = "m"\n[program]\nrepeated_g_group = "first"\n', "m.toml")
 
 
 @pytest.mark.parametrize("block", ["G43 H01 Z50", "G999", "G620", "G61 X1"])
