@@ -83,7 +83,9 @@ def cross_validate_gram(design: np.ndarray, target: np.ndarray, folds: list[np.n
         return cross_validate(design, target, folds)
     held_out = [held_out_rows(test) for test in folds]
     parts = [design[rows] for rows in held_out]
-    grams = [part.T @ part for part in parts]
+    # Against a copy: numpy sends an array times its own transpose to BLAS's syrk, whose last digits
+    # differ from the gemm of two arrays that the figures have always come from.
+    grams = [part.T @ part.copy() for part in parts]
     moments = [part.T @ target[rows] for part, rows in zip(parts, held_out, strict=True)]
     gram, moment = sum(grams), sum(moments)
     for rows, part, fold_gram, fold_moment in zip(held_out, parts, grams, moments, strict=True):
