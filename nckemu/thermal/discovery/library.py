@@ -71,23 +71,31 @@ def extends(complex_term: Term, simple_term: Term) -> bool:
 CACHE_BYTES = 400_000_000
 
 
-def asymmetric_lags(t_s: np.ndarray, signal: np.ndarray, pairs: list[tuple[float, float]]) -> np.ndarray:
-    """``terms.asymmetric_lag`` for every (tau_heat_s, tau_cool_s) pair at once, one column each: the
-    same operations in the same order per pair (so the same numbers), one pass over time."""
-    count = len(signal)
-    out = np.empty((count, len(pairs)))
-    if count == 0:
-        return out
-    dt = np.diff(t_s)
-    heat = np.stack([1.0 - np.exp(-dt / tau_heat) for tau_heat, _ in pairs], axis=1)
-    cool = np.stack([1.0 - np.exp(-dt / tau_cool) for _, tau_cool in pairs], axis=1)
-    previous = np.full(len(pairs), float(signal[0]))
+def asymmetric_lags(series: list[tuple[np.ndarray, np.ndarray]], pairs: list[tuple[float, float]]) -> list[np.ndarray]:
+    """``lags.asymmetric_lag`` of every (t_s, signal) series (a run each) for every (tau_heat_s,
+    tau_cool_s) pair, one (samples, pairs) array per series: the same operations in the same order per
+    series and pair (so the same numbers), one pass over time for all of them (the loop over time is in
+    Python; a shorter series is padded at its end with its last value, and the padding dropped)."""
+    longest = max((len(signal) for _t, signal in series), default=0)
+    if longest == 0:
+        return [np.empty((0, len(pairs))) for _ in series]
+    signals = np.zeros((longest, len(series)))
+    steps_s = np.ones((longest - 1, len(series)))
+    for index, (t_s, signal) in enumerate(series):
+        if len(signal):
+            signals[:len(signal), index] = signal
+            signals[len(signal):, index] = signal[-1]
+            steps_s[:len(signal) - 1, index] = np.diff(t_s)
+    heat = 1.0 - np.exp(-steps_s[:, :, None] / np.array([tau_heat for tau_heat, _ in pairs]))
+    cool = 1.0 - np.exp(-steps_s[:, :, None] / np.array([tau_cool for _, tau_cool in pairs]))
+    out = np.empty((longest, len(series), len(pairs)))
+    previous = np.repeat(signals[0][:, None], len(pairs), axis=1)
     out[0] = previous
-    for k in range(1, count):
-        target = signal[k]
+    for k in range(1, longest):
+        target = signals[k][:, None]
         previous = previous + np.where(target > previous, heat[k - 1], cool[k - 1]) * (target - previous)
         out[k] = previous
-    return out
+    return [out[:len(signal), index] for index, (_t, signal) in enumerate(series)]
 
 
 class Library:
@@ -388,14 +396,17 @@ class Library:
                    or self._version != self.problem.version]
         if len(missing) > 1:
             t_ref = self.t_ref(sensor)
+            having = [run for run in self.problem.runs if f"temp_{sensor}_C" in run.readings.recording.temperatures_C]
+            lags = dict(zip(map(id, having), asymmetric_lags([self._decimated(run, sensor) for run in having],
+                                                             missing), strict=True))
             per_run = []
             for run in self.problem.runs:
                 t_gauge = run.readings.recording.t_s[run.mask]
-                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
+                if id(run) not in lags:
                     per_run.append([np.zeros(len(t_gauge))] * len(missing))
                     continue
-                t_coarse, signal = self._decimated(run, sensor)
-                lagged = asymmetric_lags(t_coarse, signal, missing)
+                t_coarse, _signal = self._decimated(run, sensor)
+                lagged = lags[id(run)]
                 per_run.append([np.interp(t_gauge, t_coarse, lagged[:, k]) - t_ref for k in range(len(missing))])
             for k, pair in enumerate(missing):
                 column = self.problem.within(np.concatenate([columns[k] for columns in per_run]))
