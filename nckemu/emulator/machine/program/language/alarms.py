@@ -40,6 +40,19 @@ MAX_M_PER_BLOCK = 5
 ALARM_FRAME = 18311
 
 
+# UNCONFIRMED ("value range exceeded", as we remember the number): a constant beyond the REAL range
+# (1EX400), and an axis end point, a frame's value or a positioning axis' end point beyond the range an
+# address takes (±999 999 999.9999, as we remember the programming manual's table; UNCONFIRMED).
+ALARM_VALUE_RANGE = 12160
+VALUE_LIMIT = 999_999_999.9999
+
+
+def out_of_range(what: str, value: float) -> ProgramAlarm:
+    """The alarm for ``value`` of ``what`` (``X``, ``SCALE X``) beyond :data:`VALUE_LIMIT` (the caller raises it)."""
+    return ProgramAlarm(ALARM_VALUE_RANGE, f"value range exceeded: {what} = {value:g} (the control takes "
+                                           f"at most ±{VALUE_LIMIT:,.4f})".replace(",", " "))
+
+
 def located(alarm: ProgramAlarm, program: str, line: int, block: str) -> ProgramAlarm:
     """``alarm`` naming ``program``, ``line`` and ``block`` unless it names a program already (one
     raised inside a subprogram, located there)."""

@@ -47,7 +47,9 @@ from .alarms import (
     ALARM_AUXILIARY,
     ALARM_UNKNOWN_G,
     MAX_M_PER_BLOCK,
+    VALUE_LIMIT,
     located,
+    out_of_range,
 )
 from .blocks import STRAIGHT, BlockCompiler, Compiled
 from .calls import Calls, as_text
@@ -507,7 +509,8 @@ class Interpreter:
                 elif letter == "L":
                     call = (f"L{int(number(value))}", [], None)
                 elif letter == "E":
-                    raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "name E not defined (no axis E)")
+                    raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, "name E not defined (no axis E; a number's exponent "
+                                                               "is written EX: 1EX3)")
                 else:
                     address[letter] = value
             elif kind is w.CentreWord:
@@ -694,6 +697,8 @@ class Interpreter:
         values: list[tuple[str, float]] = []
         for axis, raw in pairs:
             value = float(number(evaluate(raw, self.names)))
+            if not -VALUE_LIMIT <= value <= VALUE_LIMIT:
+                raise out_of_range(f"{word} {axis}", value)
             if word.endswith("TRANS") and not self.is_rotary(axis) and self.modal.inch_geometry:
                 value *= INCH_MM
             values.append((axis, value))

@@ -12,6 +12,7 @@ import math
 import re
 
 from ..motions import ALARM_SYNTAX, ProgramAlarm
+from .alarms import ALARM_VALUE_RANGE
 
 # Token kinds
 NUM = 1     # value: float or int
@@ -72,7 +73,7 @@ def _number(text: str) -> float | int:
     except OverflowError:
         value = math.inf
     if value.__class__ is float and not math.isfinite(value):
-        raise ProgramAlarm(ALARM_SYNTAX, f"number {text} out of range")
+        raise ProgramAlarm(ALARM_VALUE_RANGE, f"value range exceeded: the number {text} is beyond REAL's range")
     return value
 
 

@@ -26,6 +26,7 @@ from ..motions import (
     ProgramAlarm,
 )
 from . import framing
+from .alarms import VALUE_LIMIT, out_of_range
 from .expressions import number
 from .feedrules import THREAD_MOTIONS, TRANSVERSE_AXIS
 
@@ -100,6 +101,8 @@ class MotionBuilder:
         programmed: dict[str, float] = {}
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
+            if not -VALUE_LIMIT <= value <= VALUE_LIMIT:
+                raise out_of_range(axis, value)
             unit = unit_mm if not self.it.is_rotary(axis) else 1.0
             incremental = mode == "IC" or (mode is None and not self.it.modal.absolute)
             work = (work_pos[axis] + value * unit) if incremental else value * unit
@@ -166,6 +169,8 @@ class MotionBuilder:
         rules = self.it.modal.feed_rules
         for axis, raw, mode in axis_words:
             value = raw if raw.__class__ is float else float(number(raw))
+            if not -VALUE_LIMIT <= value <= VALUE_LIMIT:
+                raise out_of_range(axis, value)
             unit = INCH_MM if inch and not self.it.is_rotary(axis) else 1.0
             incremental = mode == "IC" or (mode is None and not absolute)
             value = rules.radius_of(axis, value, incremental)
@@ -207,6 +212,8 @@ class MotionBuilder:
             rotary = self.it.is_rotary(axis)
             unit = INCH_MM if modal.inch_geometry and not rotary else 1.0
             value = raw if raw.__class__ is float else float(number(raw))
+            if not -VALUE_LIMIT <= value <= VALUE_LIMIT:
+                raise out_of_range(f"{kind}[{axis}]", value)
             incremental = mode == "IC" or (mode is None and not modal.absolute)
             work = (work_pos.get(axis, 0.0) + value * unit) if incremental else value * unit
             work_pos[axis] = work

@@ -235,3 +235,24 @@ def test_p_gg_reads_the_active_g_function_of_a_group_by_its_place_in_the_list() 
     assert run(text, env).alarm is None
     # G71 G17 | G700 G18 G91 G64 SOFT | G0, G1 | inch (the test Siemens' cycles make)
     assert [env.r_parameter(i) for i in range(1, 11)] == [2, 1, 3, 2, 2, 2, 2, 1, 2, 1]
+
+
+# --- values beyond the control's range ---------------------------------------------------------------
+@pytest.mark.parametrize(("block", "what"), [
+    ("SCALE X=1EX300", "SCALE X"), ("X=1EX300", "X"), ("G1 Y=-2EX9 F100", "Y"), ("TRANS Z=1EX10", "TRANS Z"),
+    ("R1=1EX400", "1EX400"), ("C=1EX12", "C"), ("AROT RPL=1EX10", "AROT RPL")])
+def test_a_value_beyond_the_controls_range_is_12160_with_program_and_line(block: str, what: str) -> None:
+    from nckemu.emulator.machine.program.language.alarms import ALARM_VALUE_RANGE
+
+    result = run(f"G0 X0\n{block}\nM30")
+    assert result.alarm is not None
+    assert (result.alarm.number, result.alarm.line, result.alarm.program) == (ALARM_VALUE_RANGE, 2, "/_N_MPF_DIR/_N_TEST_MPF")
+    assert "value range exceeded" in str(result.alarm) and what in str(result.alarm)
+    assert len(result.moves) == 1  # the faulty block moved nothing
+    assert xs("G0 X=999999999\nX=1EX300/1EX300\nM30") == [999999999.0, 1.0]  # within the range: runs
+
+
+def test_an_e_exponent_is_no_sinumerik_number_and_the_alarm_says_how_to_write_it() -> None:
+    result = run("G0 X0\nSCALE X1E300\nM30")
+    assert result.alarm is not None and (result.alarm.number, result.alarm.line) == (ALARM_NAME_NOT_DEFINED, 2)
+    assert "EX" in str(result.alarm)
