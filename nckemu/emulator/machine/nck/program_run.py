@@ -348,10 +348,18 @@ class ProgramRun:
             raise ProgramAlarm(ALARM_FEED_ZERO, "programmed path velocity is zero (F0, or G95 with the "
                                                 "spindle standing)", program=state.program,
                                line=state.line_number, block=state.block_number)
-        self._motion = PathMotion(start_s, start_s + duration_s, moving, feed_mm_min, law, arc)
+        end_s = start_s + duration_s
         if self.record is not None:
             self.record.feed_mm_min = feed or 0.0
         self.channel.set_commanded_feed(feed if feed_move else 0.0)
+        if end_s <= until_s:
+            # It ends within this cycle (most blocks of a CAM program): the axes arrive now, as the next
+            # turn of advance's loop would have them, without a segment made and dropped.
+            self.geometry.arrive_axes(moving)
+            self.t_s = end_s
+            self.channel.set_path_feed(0.0)
+        else:
+            self._motion = PathMotion(start_s, end_s, moving, feed_mm_min, law, arc)
         return True
 
     def _spindle_rpm(self, t_s: float) -> float:

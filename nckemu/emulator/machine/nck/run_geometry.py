@@ -175,6 +175,10 @@ class ChannelGeometry:
     def arrive(self, motion: PathMotion) -> None:
         """Every axis of ``motion`` at its target (checked against the travel when the motion began;
         the compensation caught up when this cycle began: ProgramRun.advance)."""
+        self.arrive_axes(motion.axes)
+
+    def arrive_axes(self, axes: list[tuple[int, float, float]]) -> None:
+        """Every axis of a motion's (number, start, target) list at its target (as :meth:`arrive`)."""
         positions = self._parts_axes.positions_mm
-        for number, _, target in motion.axes:
+        for number, _, target in axes:
             positions[number] = target
