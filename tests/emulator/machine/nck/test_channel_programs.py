@@ -149,6 +149,38 @@ def test_arc_by_its_length_and_dwell_exact() -> None:
     assert planner.dwell(Dwell(spindle_revolutions=30.0), 600.0).duration_s == pytest.approx(3.0)
 
 
+def test_a_circle_above_the_axes_speed_runs_at_the_slower_plane_axis() -> None:
+    # F10000 on a full circle of radius 10 mm (62.83 mm): X may go 6000 mm/min, Y only 3000; each plane axis
+    # carries the whole path speed where the tangent runs along it, so the circle runs at Y's 50 mm/s and
+    # ramps at the smaller acceleration (Y, 0.5 m/s²): 62.83 / 50 + 50 / 500 s
+    planner = Planner(MotionLimits({"X": AxisLimits(6000.0, 1.0), "Y": AxisLimits(3000.0, 0.5)}))
+    circle = planner.arc({"X": 10.0, "Y": 0.0}, Arc({"X": 10.0, "Y": 0.0}, {"X": 0.0, "Y": 0.0}, clockwise=True,
+                                                     feed=10000.0), Overrides(), 0.0)
+    length = 2.0 * math.pi * 10.0
+    assert circle.length_mm == pytest.approx(length)
+    assert circle.feed_mm_min == pytest.approx(3000.0)
+    assert circle.duration_s == pytest.approx(length / 50.0 + 50.0 / 500.0)
+
+
+def test_a_helix_is_held_to_its_slow_infeed_axis() -> None:
+    # One turn of radius 10 mm while Z goes down 50 mm at F6000: the path is hypot(62.83, 50) = 80.30 mm,
+    # of which Z carries 50/80.30; Z's 600 mm/min (10 mm/s) hold the path to 10 / (50/80.30) = 16.06 mm/s
+    # (the plane axes would allow 100 / (62.83/80.30)), and Z's 0.1 m/s² its acceleration likewise
+    limits = {"X": AxisLimits(6000.0, 1.0), "Y": AxisLimits(6000.0, 1.0), "Z": AxisLimits(600.0, 0.1)}
+    planner = Planner(MotionLimits(limits))
+    helix = planner.arc({"X": 10.0, "Y": 0.0, "Z": 0.0},
+                        Arc({"X": 10.0, "Y": 0.0, "Z": -50.0}, {"X": 0.0, "Y": 0.0}, clockwise=False, feed=6000.0),
+                        Overrides(), 0.0)
+    length = math.hypot(2.0 * math.pi * 10.0, 50.0)
+    speed_mm_s = 10.0 * length / 50.0
+    accel_mm_s2 = 100.0 * length / 50.0
+    assert helix.length_mm == pytest.approx(length)
+    assert helix.feed_mm_min == pytest.approx(speed_mm_s * 60.0)
+    assert helix.duration_s == pytest.approx(length / speed_mm_s + speed_mm_s / accel_mm_s2)
+    # Z never runs faster than it may: its share of the path speed is its own limit
+    assert speed_mm_s * 50.0 / length == pytest.approx(10.0)
+
+
 # ------------------------------------------------------------------ a program on the channel
 PROGRAM = """; a test program
 N10 G0 X100
