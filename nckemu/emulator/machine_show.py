@@ -46,6 +46,17 @@ def _heat_words(heat: dict[str, Any]) -> str:
             f"per m/min of path speed, tau {heat['heat_time_constant_s']:g} s")
 
 
+def _dynamics(machine: Machine, axis: int) -> dict[str, dict[str, Any]]:
+    """MD32000, MD32060, MD32300 of an axis with their units; a rotary axis' MD32300 also as the
+    degrees/s² the planner times with (1000 per unit, UNCONFIRMED: docs/programs.md)."""
+    shown: dict[str, dict[str, Any]] = {}
+    for number, (value, unit) in axis_dynamics(machine, axis).items():
+        shown[number] = {"value": value, "unit": unit}
+        if unit == "rev/s^2":
+            shown[number]["timed_as_deg_s2"] = value * 1000.0
+    return shown
+
+
 def machine_document(machine: Machine, opcua: OpcUaSettings) -> dict[str, Any]:
     blocks = dict(sorted({**machine.data_blocks, CHANNEL_DB: machine.data_blocks.get(CHANNEL_DB, 64)}.items()))
     builtin = {spec.name: spec for spec in load_table()}
@@ -56,8 +67,7 @@ def machine_document(machine: Machine, opcua: OpcUaSettings) -> dict[str, Any]:
         "ipo_cycle_s": machine.ipo_cycle_s, "pdu_size_max": machine.pdu_size_max, "max_amq": machine.max_amq,
         "axes": [{"number": a.number, "name": a.name, "travel_mm": [a.travel_min_mm, a.travel_max_mm],
                   "rotary": a.rotary, "spindle": a.spindle, "referenced": a.referenced,
-                  **({} if a.spindle else {number: {"value": value, "unit": unit} for number, (value, unit)
-                                           in axis_dynamics(machine, a.number).items()}),
+                  **({} if a.spindle else _dynamics(machine, a.number)),
                   "thermal_um_per_K": dict(a.thermal_um_per_K)}
                  for a in machine.axes],
         "sensors": [{"name": s.name, "plc_input": s.plc_input, "temperature_C": s.temperature_C, "heat": _heat(s)}
@@ -103,6 +113,8 @@ def print_machine(doc: dict[str, Any]) -> None:
         kind = "spindle" if axis["spindle"] else "rotary" if axis["rotary"] else f"travel {low:g}..{high:g} mm"
         # how fast its moves are: the machine data the planner takes (a rotary axis: degrees for mm)
         dynamics = "".join(f", {number} {DYNAMICS_NAMES[number]} {axis[number]['value']:g} {axis[number]['unit']}"
+                           + (f" (timed as {axis[number]['timed_as_deg_s2']:g} deg/s^2)"
+                              if "timed_as_deg_s2" in axis[number] else "")
                            for number in DYNAMICS_NAMES if number in axis)
         print(f"  axis {axis['number']} {axis['name']}: {kind}{dynamics}"
               f"{'' if axis['referenced'] else ', not referenced'}")

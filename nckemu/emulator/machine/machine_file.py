@@ -741,16 +741,24 @@ def load_machine(path: str | Path | None = None) -> Machine:
 
 
 # The axis machine data that say how fast a program's moves are, as `machine show` lists them.
-AXIS_DYNAMICS = (("MD32000", "MAX_AX_VELO"), ("MD32300", "MAX_AX_ACCEL"))
+AXIS_DYNAMICS = (("MD32000", "MAX_AX_VELO"), ("MD32060", "POS_AX_VELO"), ("MD32300", "MAX_AX_ACCEL"))
+# A catalogue row has one unit, the linear axis' one; a rotary axis' value is in these (the planner
+# takes MD32000/MD32060 as degrees/min, and MD32300 as 1000 degrees/s² per unit: UNCONFIRMED).
+ROTARY_UNITS = {"mm/min": "deg/min", "m/s^2": "rev/s^2"}
 
 
 def axis_dynamics(machine: Machine, axis: int) -> dict[str, tuple[float, str]]:
-    """MD32000 and MD32300 of ``axis`` at power-on: the file's [initial] value (by number or name),
-    else the catalogue's default; each with its unit."""
+    """MD32000, MD32060 and MD32300 of ``axis`` at power-on: the file's [initial] value (by number or
+    name), else the catalogue's default; each with its unit (a rotary axis': :data:`ROTARY_UNITS`)."""
     specs = {spec.name: spec for spec in (machine.variables or load_table())}
     found: dict[str, tuple[float, str]] = {}
+    declared = machine.axis(axis)
+    rotary = declared is not None and declared.rotary
     for number, name in AXIS_DYNAMICS:
-        spec = specs[name]
+        spec = specs.get(name)
+        if spec is None:  # a machine whose own [[var]] table leaves the row out
+            continue
         per_unit = machine.initial.get(number) or machine.initial.get(name) or {}
-        found[number] = (float(per_unit.get(axis, spec.default)), spec.unit)  # type: ignore[arg-type]
+        unit = ROTARY_UNITS.get(spec.unit, spec.unit) if rotary else spec.unit
+        found[number] = (float(per_unit.get(axis, spec.default)), unit)  # type: ignore[arg-type]
     return found

@@ -146,11 +146,21 @@ def test_machine_show_lists_the_dynamics_and_travel_of_every_axis(machine: str, 
     assert main(["machine", "show", "--machine", path]) == 0
     axis_lines = [line for line in capsys.readouterr().out.splitlines()
                   if line.startswith("  axis ") and "spindle" not in line]
-    assert axis_lines and all("MD32000 MAX_AX_VELO" in line and "MD32300 MAX_AX_ACCEL" in line for line in axis_lines)
+    assert axis_lines and all("MD32000 MAX_AX_VELO" in line and "MD32300 MAX_AX_ACCEL" in line
+                              and "MD32060 POS_AX_VELO" in line for line in axis_lines)
+    # a rotary axis' speeds in degrees/min, its acceleration in rev/s^2 and the degrees/s^2 it is timed with
+    for line in axis_lines:
+        assert ("mm" not in line.split("rotary", 1)[1]) if ": rotary" in line else "mm/min" in line
+        assert ("deg/min" in line and "rev/s^2 (timed as" in line) if ": rotary" in line else "m/s^2" in line
     assert main(["machine", "show", "--machine", path, "--json"]) == 0
     axes = json.loads(capsys.readouterr().out)["axes"]
     x = next(axis for axis in axes if axis["name"] == "X1")
     assert x["MD32000"]["unit"] == "mm/min" and x["MD32000"]["value"] > 10000 and x["travel_mm"][1] > x["travel_mm"][0]
+    assert x["MD32300"]["unit"] == "m/s^2" and "timed_as_deg_s2" not in x["MD32300"]
+    for rotary in (axis for axis in axes if axis["rotary"] and not axis["spindle"]):
+        assert rotary["MD32000"]["unit"] == rotary["MD32060"]["unit"] == "deg/min"
+        assert rotary["MD32300"]["unit"] == "rev/s^2"
+        assert rotary["MD32300"]["timed_as_deg_s2"] == rotary["MD32300"]["value"] * 1000.0
     emulator = Emulator(path, clock=SimulatedClock())
     assert emulator.nck.store.active_value("MAX_AX_VELO", 1) == x["MD32000"]["value"]
     assert emulator.nck.store.spec("R").lines == 1000  # R0..R999, as the shop's programs use them
