@@ -180,3 +180,39 @@ def test_supa_and_g53_suppress_a_rotated_frame_for_their_block() -> None:
     moves = targets("G54 ROT Z90\nG0 SUPA X10 Y5\nG53 G0 X20\nG0 X1 Y0\nM30", env)
     assert moves[:2] == [{"X": 10.0, "Y": 5.0}, {"X": 20.0}]
     assert moves[2] == pytest.approx({"X": 100.0, "Y": 1.0})     # the frame again: work X along machine Y
+
+
+# --- whole FRAME values: CTRANS, CROT, CSCALE, CMIRROR and the chain operator ------------------------
+def test_ctrans_and_crot_set_the_programmable_frame_as_trans_and_arot_do() -> None:
+    # CTRANS(X,10):CROT(Z,90) is TRANS X10 then AROT Z90: the same targets
+    by_words = targets("G0 X0 Y0\nTRANS X10\nAROT Z90\nG0 X1 Y2\nM30")
+    by_value = targets("G0 X0 Y0\n$P_PFRAME=CTRANS(X,10):CROT(Z,90)\nG0 X1 Y2\nM30")
+    assert by_value == by_words == [{"X": 0.0, "Y": 0.0}, {"X": 8.0, "Y": 1.0}]
+    # the chain goes on from the frame in force: a translation along the rotated X lies along machine Y
+    assert targets("$P_PFRAME=CROT(Z,90)\n$P_PFRAME=$P_PFRAME:CTRANS(X,10)\nG0 X0 Y0\nM30") == [{"X": 0.0, "Y": 10.0}]
+    # CTRANS(X,10,Y,5) is one translation of two axes; CTRANS() the empty frame
+    assert targets("$P_PFRAME=CTRANS(X,10,Y,5)\nG0 X0 Y0\n$P_PFRAME=CTRANS()\nG0 X0 Y0\nM30") == [
+        {"X": 10.0, "Y": 5.0}, {"X": 0.0, "Y": 0.0}]
+    assert targets("$P_PFRAME=CSCALE(X,2):CMIRROR(Y)\nG0 X1 Y1\nM30") == [{"X": 2.0, "Y": -1.0}]
+
+
+def test_settable_frames_take_a_whole_translation_and_read_back_as_a_value() -> None:
+    env = DictEnvironment(offsets={"G54": {"X": 100.0}})
+    moves = targets("$P_UIFR[1]=CTRANS(Y,50)\nG54 G0 X1 Y1\n$P_PFRAME=$P_UIFR[1]:CROT(Z,90)\nG0 X1 Y0\n"
+                    "$P_IFRAME=CTRANS(X,7)\nG0 X0 Y0\nR1=$P_PFRAME[Z,RT]\nM30", env)
+    # the whole frame is replaced: X's 100 gone, Y 50; the programmable frame then holds that frame's Y50
+    # and a rotation, on the settable Y50 (X1 turned to Y1: 50 + 50 + 1); $P_IFRAME replaces the active
+    # settable frame at once (X7), under the programmable frame's Y50
+    assert moves == [{"X": 1.0, "Y": 51.0}, {"X": 0.0, "Y": 101.0}, {"X": 7.0, "Y": 50.0}]
+    assert env.offsets["G54"] == {"X": 7.0, "Y": 0.0, "Z": 0.0, "A": 0.0, "B": 0.0, "C": 0.0}
+    assert env.r_parameter(1) == pytest.approx(90.0)
+
+
+@pytest.mark.parametrize(("block", "number"), [
+    ("$P_PFRAME=CTRANS(X)", 12080), ("$P_PFRAME=CTRANS(10,X)", 12080), ("$P_PFRAME=CSCALE(X,0)", ALARM_FRAME),
+    ("$P_PFRAME=CROT(A,10)", ALARM_FRAME), ("$P_UIFR[1]=CROT(Z,5)", 12550), ("R1=CTRANS(X,1)", 12150),
+    ("$P_PFRAME=CTRANS(X,1):5", 12150)])
+def test_a_bad_frame_value_is_an_alarm_with_program_and_line(block: str, number: int) -> None:
+    result = run(f"G0 X0\n{block}\nM30")
+    assert result.alarm is not None
+    assert (result.alarm.number, result.alarm.program, result.alarm.line) == (number, MAIN, 2)

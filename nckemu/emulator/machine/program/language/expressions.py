@@ -21,6 +21,7 @@ from typing import Any, Protocol
 
 from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, ProgramAlarm
 from .alarms import ALARM_ARITHMETIC, ALARM_DIVISION_BY_ZERO, ALARM_TYPE
+from .framing import FRAME_FUNCTIONS, chained
 from .lexer import NAME, NUM, OP, STR
 
 Expr = Any  # a constant or a FunctionType taking the Names
@@ -171,6 +172,7 @@ def _compare(op: str):
 
 
 BINARY: dict[str, tuple[int, Any]] = {
+    ":": (1, chained),  # the frame chain: CTRANS(X, 10) : CROT(Z, 45)
     "==": (1, _compare("==")), "<>": (1, _compare("<>")), "<": (1, _compare("<")),
     ">": (1, _compare(">")), "<=": (1, _compare("<=")), ">=": (1, _compare(">=")),
     "<<": (2, _concat),
@@ -297,6 +299,8 @@ FUNCTIONS: dict[str, tuple[int, int, Any]] = {
     # axis names as values of type AXIS: AXNAME("X") is the axis X, AXSTRING(X) its name as text
     "AXNAME": (1, 1, lambda s: _string_arg(s).upper()),
     "AXSTRING": (1, 1, lambda s: to_text(s).upper()),
+    # FRAME values (framing.py): CTRANS(X, 10, Y, 5), CROT(Z, 45), CSCALE(X, 2), CMIRROR(X), CTRANS()
+    **{name: (0, 24, build) for name, build in FRAME_FUNCTIONS.items()},
 }
 
 # Keywords that end an expression (they follow one in IF ... GOTOF, FOR ... TO, CASE ... OF)

@@ -29,6 +29,46 @@ COMPONENTS = frozenset({"TR", "FI", "RT", "SC", "MI"})
 FRAME_VARIABLES = frozenset({"$P_PFRAME", "$P_UIFR", "$P_IFRAME", "$P_ACTFRAME", "$P_BFRAME"})
 
 
+def _frame_pairs(word: str, args: tuple[Any, ...], valued: bool) -> list[tuple[str, Any]]:
+    """``X, 10, Y, 5`` (``X, Y`` for CMIRROR) as (axis, value) pairs; an axis is a name (an AXIS value)."""
+    step = 2 if valued else 1
+    if len(args) % step:
+        raise ProgramAlarm(ALARM_SYNTAX, f"{word}(axis, value, ...): an axis without its value")
+    pairs = []
+    for at in range(0, len(args), step):
+        axis = args[at]
+        if axis.__class__ is not str:
+            raise ProgramAlarm(ALARM_SYNTAX, f"{word}: {axis!r} stands where an axis belongs")
+        value = args[at + 1] if valued else 1
+        if value.__class__ is bool or value.__class__ not in (int, float):
+            raise ProgramAlarm(ALARM_SYNTAX, f"{word}: {value!r} is no value for axis {axis}")
+        pairs.append((axis.upper(), float(value)))
+    return pairs
+
+
+def frame_function(word: str) -> Any:
+    """CTRANS, CROT, CSCALE, CMIRROR: a FRAME value with that one component (``CTRANS()``: the empty
+    frame), as TRANS, ROT, SCALE and MIRROR would set it from nothing (the plane's RPL is not one of
+    their forms: CROT names its axes)."""
+    instruction = word[1:]
+
+    def build(*args: Any) -> Frame:
+        pairs = _frame_pairs(word, args, valued=instruction != "MIRROR")
+        return programmed_frame(IDENTITY_FRAME, instruction, pairs, "G17")
+    return build
+
+
+def chained(outer: Any, inner: Any) -> Frame:
+    """``A : B``, the frame chain operator: ``B`` acting in the system ``A`` has made."""
+    if outer.__class__ is not Frame or inner.__class__ is not Frame:
+        from .alarms import ALARM_TYPE
+        raise ProgramAlarm(ALARM_TYPE, "the chain operator ':' joins two FRAME values (CTRANS(..) : CROT(..))")
+    return outer.after(inner)
+
+
+FRAME_FUNCTIONS = {name: frame_function(name) for name in ("CTRANS", "CROT", "CSCALE", "CMIRROR")}
+
+
 def settable_name(index: Any) -> str:
     """The G function of settable frame ``index`` ($P_UIFR[index]): 0 G500, 1..4 G54..G57, 5.. G505..."""
     position = int(index) if isinstance(index, int | float) and not isinstance(index, bool) else -1

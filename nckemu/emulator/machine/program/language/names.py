@@ -187,7 +187,7 @@ class ProgramNames:
             raise
         except Exception as exc:
             raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined ({exc})") from None
-        if isinstance(value, bool | int | float | str):
+        if isinstance(value, bool | int | float | str | Frame):
             return value
         raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"name {name} not defined")
 
@@ -250,6 +250,10 @@ class ProgramNames:
     def _frame_variable(self, name: str, indices: tuple) -> float:
         """$P_PFRAME[X,TR], $P_IFRAME[..], $P_ACTFRAME[..], $P_BFRAME[..] and $P_UIFR[n,X,TR]."""
         if name == "$P_UIFR":
+            if len(indices) == 1:  # the whole settable frame (a translation, as the NCK keeps it)
+                frame_name = framing.settable_name(indices[0])
+                return Frame({axis: offset for axis in self.axes
+                              if (offset := float(self.env.work_offset_mm(frame_name, axis)))})
             if len(indices) != 3:
                 raise ProgramAlarm(ALARM_SYNTAX, "$P_UIFR[frame, axis, component]")
             frame_name = framing.settable_name(indices[0])
@@ -259,7 +263,34 @@ class ProgramNames:
         modal = self.host.modal
         frame = {"$P_PFRAME": modal.pframe, "$P_IFRAME": Frame(dict(modal.settable)),
                  "$P_BFRAME": IDENTITY_FRAME}.get(name) or framing.chain(modal.settable, self.host.programmable_frame())
+        if not indices:  # the whole FRAME value ($P_PFRAME = $P_PFRAME : CROT(Z, 45))
+            return frame
         return framing.read_component(frame, indices, name)
+
+    def _write_whole_frame(self, name: str, indices: tuple, frame: Frame) -> None:
+        """``$P_PFRAME=CTRANS(..)``, ``$P_UIFR[n]=..``, ``$P_IFRAME=..``: a whole FRAME value. The NCK's
+        settable frames are translations: a value that rotates, scales or mirrors is 12550 there."""
+        modal = self.host.modal
+        if name == "$P_PFRAME" and not indices:
+            modal.pframe = frame
+        elif (name == "$P_UIFR" and len(indices) == 1) or (name == "$P_IFRAME" and not indices):
+            if not frame.is_translation:
+                raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}: the NCK's settable frames are translations; a "
+                                                           "rotation, scale or mirror there is not supported by "
+                                                           "the emulator")
+            frame_name = framing.settable_name(indices[0]) if indices else modal.frame_name
+            for axis in self.axes:
+                try:
+                    self.env.set_work_offset_mm(frame_name, axis, frame.translation.get(axis, 0.0))
+                except UndefinedName:
+                    raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name}: no settable frame {frame_name}") from None
+            if indices:
+                return
+            modal.settable = {axis: value for axis, value in frame.translation.items() if value}
+        else:
+            raise ProgramAlarm(ALARM_NAME_NOT_DEFINED, f"{name} cannot be written with these indices")
+        self.host.update_shift()
+        self.env.set_programmable_frame(self.host.programmable_frame())
 
     def _write_frame_variable(self, name: str, indices: tuple, value: float) -> None:
         """$P_PFRAME[X,RT]=.. changes the programmable frame; $P_UIFR[n,X,TR]=.. the stored settable
@@ -299,7 +330,10 @@ class ProgramNames:
                 self.env.set_r_parameter(self.r_index(evaluated[0]), float(number(value)))
                 return
             if name in framing.FRAME_VARIABLES:
-                self._write_frame_variable(name, evaluated, float(number(value)))
+                if value.__class__ is Frame:  # $P_PFRAME=CTRANS(X,10):CROT(Z,45): a whole FRAME value
+                    self._write_whole_frame(name, evaluated, value)
+                else:
+                    self._write_frame_variable(name, evaluated, float(number(value)))
                 return
             try:
                 self.env.set_system_variable(name, evaluated, value)
