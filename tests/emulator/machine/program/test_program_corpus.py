@@ -29,7 +29,7 @@ def test_every_machine_the_manifest_names_loads() -> None:
     from nckemu.emulator.machine.machine_file import load_machine
 
     manifest = load_manifest()
-    root = Path(__file__).parents[2]
+    root = Path(__file__).parents[4]
     machines = {entry["machine"] for entry in manifest["repository"]}
     machines |= {entry["machine"] for entry in manifest["program"] if "machine" in entry}
     for machine in sorted(machines):
@@ -37,7 +37,7 @@ def test_every_machine_the_manifest_names_loads() -> None:
 
 
 def test_the_manifests_own_budgets_say_why_and_its_gud_values_are_files_of_ours() -> None:
-    manifest_dir = Path(__file__).parents[2] / "bench" / "corpus"
+    manifest_dir = Path(__file__).parents[4] / "bench" / "corpus"
     for entry in load_manifest()["program"]:
         if "max_time_s" in entry or "wall_s" in entry:
             assert entry.get("why"), entry
