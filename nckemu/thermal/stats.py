@@ -82,6 +82,9 @@ def cross_validate_gram(design: np.ndarray, target: np.ndarray, folds: list[np.n
     per_fold = []
     if design.shape[1] == 0:
         return cross_validate(design, target, folds)
+    # C order, as the masks' copies were: a fold's rows are then a C-ordered view, and BLAS gets the
+    # layout (so the last digits) it got from the copies.
+    design, target = np.ascontiguousarray(design), np.ascontiguousarray(target)
     held_out = [held_out_rows(test) for test in folds]
     parts = [design[rows] for rows in held_out]
     # Against a copy: numpy sends an array times its own transpose to BLAS's syrk, whose last digits
