@@ -17,7 +17,7 @@ import numpy as np
 
 from nckemu.thermal import stats
 from nckemu.thermal.model import families
-from nckemu.thermal.model.lags import asymmetric_lag, first_order_lag
+from nckemu.thermal.model.lags import first_order_lags
 from nckemu.thermal.model.terms import Term
 
 from .problem import Problem, Run
@@ -209,28 +209,30 @@ class Library:
         return self._signals[key]
 
     def _filtered_column(self, key: tuple[object, ...], sensor: str,
-                         lagged: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+                         lagged: Callable[[list[tuple[np.ndarray, np.ndarray]]], list[np.ndarray]]) -> np.ndarray:
         """A filter of ``sensor`` (on its coarse grid) at the gauge samples, less t_ref; zero in a run
-        without the sensor (no contribution there)."""
+        without the sensor (no contribution there). ``lagged`` filters the runs' (t_s, signal) at once."""
         def make() -> np.ndarray:
             t_ref = self.t_ref(sensor)
+            having = [run for run in self.problem.runs if f"temp_{sensor}_C" in run.readings.recording.temperatures_C]
+            series = [self._decimated(run, sensor) for run in having]
+            filtered = dict(zip(map(id, having), zip(series, lagged(series), strict=True), strict=True))
 
             def per_run(run: Run) -> np.ndarray:
                 t_gauge = run.readings.recording.t_s[run.mask]
-                if f"temp_{sensor}_C" not in run.readings.recording.temperatures_C:
+                if id(run) not in filtered:
                     return np.zeros(len(t_gauge))
-                t_coarse, signal = self._decimated(run, sensor)
-                return np.interp(t_gauge, t_coarse, lagged(t_coarse, signal)) - t_ref
+                (t_coarse, _signal), values = filtered[id(run)]
+                return np.interp(t_gauge, t_coarse, values) - t_ref
             return self.problem.gauge_column(per_run)
         return self._cached(key, make)
 
     def lag_column(self, sensor: str, tau_s: float) -> np.ndarray:
-        return self._filtered_column(("lag", sensor, tau_s), sensor,
-                                     lambda t, signal: first_order_lag(t, signal, tau_s))
+        return self._filtered_column(("lag", sensor, tau_s), sensor, lambda series: first_order_lags(series, tau_s))
 
     def transient_column(self, sensor: str, tau_s: float) -> np.ndarray:
         """The sensor less its own lag (on the coarse grid, like ``lag_column``, whose cache it shares)."""
-        plain = self._filtered_column(("plain", sensor), sensor, lambda t, signal: signal)
+        plain = self._filtered_column(("plain", sensor), sensor, lambda series: [signal for _t, signal in series])
         return plain - self.lag_column(sensor, tau_s)
 
     def best_time_constant(self, column: Callable[[float], np.ndarray], key: tuple[str, str],
@@ -388,7 +390,8 @@ class Library:
 
     def asymmetric_column(self, sensor: str, tau_heat_s: float, tau_cool_s: float) -> np.ndarray:
         return self._filtered_column(("hysteresis", sensor, tau_heat_s, tau_cool_s), sensor,
-                                     lambda t, signal: asymmetric_lag(t, signal, tau_heat_s, tau_cool_s))
+                                     lambda series: [lags[:, 0] for lags in
+                                                     asymmetric_lags(series, [(tau_heat_s, tau_cool_s)])])
 
     def asymmetric_columns(self, sensor: str, pairs: list[tuple[float, float]]) -> list[np.ndarray]:
         """``asymmetric_column`` for many time-constant pairs, the missing ones in one pass over time."""

@@ -25,6 +25,49 @@ def first_order_lag(t_s: np.ndarray, signal: np.ndarray, tau_s: float) -> np.nda
     return out
 
 
+def first_order_lags(series: list[tuple[np.ndarray, np.ndarray]], tau_s: float) -> list[np.ndarray]:
+    """``first_order_lag`` of several (t_s, signal) series (the runs of a machine) at one time
+    constant, the same numbers: the uniformly sampled series of one step in one ``lfilter`` call (a
+    column each, the shorter padded at their end, which a causal filter never sees), the others in one
+    pass over time for all of them."""
+    out: list[np.ndarray] = [signal.copy() if len(signal) == 0 else signal for _t, signal in series]
+    uniform: dict[float, list[int]] = {}
+    stepped: list[tuple[int, np.ndarray]] = []
+    for index, (t_s, signal) in enumerate(series):
+        if len(signal) == 0:
+            continue
+        dt = np.diff(t_s)
+        if len(dt) and float(dt.max() - dt.min()) <= 1e-9 * abs(float(dt[0])):
+            uniform.setdefault(float(dt[0]), []).append(index)
+        else:
+            stepped.append((index, 1.0 - np.exp(-dt / tau_s)))
+    for step_s, indices in uniform.items():
+        alpha = 1.0 - math.exp(-step_s / tau_s)
+        columns = np.zeros((max(len(series[i][1]) for i in indices), len(indices)))
+        for column, index in enumerate(indices):
+            signal = series[index][1]
+            columns[:len(signal), column] = signal - signal[0]
+        state = lfilter([alpha], [1.0, alpha - 1.0], columns, axis=0)
+        for column, index in enumerate(indices):
+            signal = series[index][1]
+            out[index] = state[:len(signal), column] + signal[0]
+    if stepped:
+        longest = max(len(series[index][1]) for index, _w in stepped)
+        signals = np.zeros((longest, len(stepped)))
+        weights = np.zeros((longest - 1, len(stepped)))
+        for column, (index, step_weights) in enumerate(stepped):
+            signal = series[index][1]
+            signals[:len(signal), column] = signal
+            weights[:len(signal) - 1, column] = step_weights
+        lagged = np.empty_like(signals)
+        lagged[0] = signals[0]
+        for k in range(1, longest):
+            lagged[k] = lagged[k - 1] + weights[k - 1] * (signals[k] - lagged[k - 1])
+        for column, (index, _w) in enumerate(stepped):
+            out[index] = lagged[:len(series[index][1]), column]
+    return out
+
+
 def asymmetric_lag(t_s: np.ndarray, signal: np.ndarray, tau_heat_s: float, tau_cool_s: float) -> np.ndarray:
     """A first-order lag whose time constant depends on whether the structure heats or cools."""
     out = np.empty_like(signal)
