@@ -105,6 +105,7 @@ class Library:
         self.problem = problem
         self.settings = settings
         self._columns: dict[tuple[object, ...], np.ndarray] = {}
+        self._bytes = 0  # of the columns kept, counted as they come and go
         self._version = problem.version
         self._signals: dict[tuple[int, str], tuple[np.ndarray, np.ndarray]] = {}
         self.unavailable: dict[str, list[str]] = self._unavailable()
@@ -187,12 +188,13 @@ class Library:
         single recording of millions of samples would otherwise hold gigabytes of grid columns)."""
         if self._version != self.problem.version:
             self._columns.clear()
+            self._bytes = 0
             self._version = self.problem.version
         column = self._columns.get(key)
         if column is None:
             column = make()
             self._columns[key] = column
-            self._bytes = sum(c.nbytes for c in self._columns.values())
+            self._bytes += column.nbytes
             while self._bytes > CACHE_BYTES and len(self._columns) > 1:
                 oldest = next(iter(self._columns))
                 self._bytes -= self._columns.pop(oldest).nbytes
