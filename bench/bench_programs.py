@@ -7,12 +7,13 @@ One run prints (issue 41's targets in brackets):
    nothing timed) and executed through the channel offline (interpreter, planner, positions, block
    bookkeeping, the machine's 1 s cycle on a simulated clock: what ``nckemu program run`` does)
    [>= 50 000 blocks/s executed].
-2. The anchor, measured in the same run right after the straight-move program ran (so that both see the
-   same load of a shared machine): pygcode (PyPI, a pure-Python G-code parser) only *parsing* the same
-   straight-move program, as a ratio to the blocks executed through the channel [> 1; 2.69 before issue
-   49's redesign, which must not lower it], by the wall clock and by this process' CPU time (which leaves
-   out the time other processes take from it). Skipped with a message when pygcode is not installed
-   (``pip install -e .[bench]``).
+2. The anchor, measured in the same run: pygcode (PyPI, a pure-Python G-code parser) only *parsing* the
+   same straight-move program, as a ratio to the blocks executed through the channel [> 1; 2.69 before
+   issue 49's redesign, which must not lower it], by the wall clock and by this process' CPU time (which
+   leaves out the time other processes take from it). The straight-move run and pygcode's parse take
+   turns, three rounds each, and the fastest round of each side counts (timeit's rule): on a shared
+   machine a single run of either may lose half its time to other processes. Skipped with a message
+   when pygcode is not installed (``pip install -e .[bench]``).
 3. The peak memory (VmHWM) of a child process that reads a CAM-style program (block numbers, decimals,
    comments, a tool change, a cycle call, feeds) and runs it through the channel offline, against the
    same child's RSS before it reads the program [< 100 MB for the 400 000-line program].
@@ -56,6 +57,8 @@ from nckemu.emulator.machine.program.language import Interpreter  # noqa: E402
 from nckemu.emulator.machine.program.motions import Block  # noqa: E402
 
 PATH = "/_N_MPF_DIR/_N_BENCH_MPF"
+# Rounds of the straight-move run and pygcode's parse, alternating (the fastest of each side is kept)
+ANCHOR_ROUNDS = 3
 SIZES = {"small": {"straight": 50_000, "loops": 10_000, "arcs": 10_000, "drilling": 5_000, "cam_lines": 100_000,
                    "served_s": 4.0},
          "full": {"straight": 200_000, "loops": 40_000, "arcs": 50_000, "drilling": 20_000, "cam_lines": 400_000,
@@ -302,11 +305,19 @@ def main() -> int:
                        ("arc", arc_program(size["arcs"])), ("drilling", drilling_program(size["drilling"]))):
         alone_blocks, alone_s = interpreter_alone(text)
         blocks, wall_s, simulated_s, cpu_s = through_channel(text)
+        if name == "straight":
+            # The anchor right after the run it anchors, in ANCHOR_ROUNDS alternating rounds, the fastest of
+            # each side kept: both see the same load, and a round another process slowed counts for neither.
+            parse = pygcode_parse(straight)
+            for _ in range(ANCHOR_ROUNDS - 1 if parse is not None else 0):
+                _, again_s, _, again_cpu_s = through_channel(text)
+                wall_s, cpu_s = min(wall_s, again_s), min(cpu_s, again_cpu_s)
+                parse_again = pygcode_parse(straight)
+                assert parse is not None and parse_again is not None
+                parse = (min(parse[0], parse_again[0]), min(parse[1], parse_again[1]))
         results[name] = {"blocks": blocks, "interpreter_blocks_per_s": rate(alone_blocks, alone_s),
                          "executed_blocks_per_s": rate(blocks, wall_s), "executed_blocks_per_cpu_s": rate(blocks, cpu_s),
                          "simulated_s": round(simulated_s)}
-        if name == "straight":  # the anchor right after the run it anchors: both see the same load
-            parse = pygcode_parse(straight)
     if parse is None:
         results["pygcode"] = "not installed (pip install -e .[bench]); no anchor figure"
     else:
@@ -344,8 +355,8 @@ def main() -> int:
         print(f"{title}: {figures['blocks']} blocks, {figures['executed_blocks_per_s']} blocks/s executed through "
               f"the channel{target}; the interpreter alone {figures['interpreter_blocks_per_s']} blocks/s")
     if "pygcode_parse_lines_per_s" in results:
-        print(f"pygcode    : {results['pygcode_parse_lines_per_s']} lines/s parsed only (right after the straight "
-              f"run); executed/parsed = {results['executed_over_pygcode_parsed']} (target > 1; 2.69 before issue 49), "
+        print(f"pygcode    : {results['pygcode_parse_lines_per_s']} lines/s parsed only (the fastest of "
+              f"{ANCHOR_ROUNDS} rounds taking turns with the straight run); executed/parsed = {results['executed_over_pygcode_parsed']} (target > 1; 2.69 before issue 49), "
               f"in CPU time {results['executed_over_pygcode_parsed_cpu']} ({results['straight']['executed_blocks_per_cpu_s']}"
               f" blocks and {results['pygcode_parse_lines_per_cpu_s']} lines per CPU second)")
     else:

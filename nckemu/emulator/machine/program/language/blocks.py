@@ -119,6 +119,7 @@ _SIMPLE_WORD = re.compile(r"([A-Z]+)[ \t]*=?[ \t]*([+-]?(?:\d+\.?\d*|\.\d+))", r
 # A third of the cost of the pair.
 _CAM_WORDS = re.compile(r"([A-Za-z]++)=?+([+-]?+(?:[0-9]++\.?+[0-9]*+|\.[0-9]++))[ \t]*+|(.)", re.DOTALL)
 _SIMPLE_ADDRESSES = frozenset({"M", "S", "F", "T", "D", "H", "CR", "TURN"})
+_G_WORD, _F_WORD, _N_WORD = 1, 2, 3
 # The digits of a G a STRAIGHT block may hold, as written (G1, G01, G90), to the G number
 _STRAIGHT_G_DIGITS = {digits: code for code in STRAIGHT_G
                       for digits in (str(code), f"{code:02d}", f"{code:03d}")}
@@ -132,13 +133,14 @@ class BlockCompiler:
         self.resolver = resolver
         # two G functions of one group that does not define the syntax: 12060 (True) or the last wins
         self.repeated_g_alarm = repeated_g_alarm
-        # letters of a STRAIGHT block in either case -> (kind, upper-case name); kind 0 axis, 1 G, 2 F, 3 N
-        self._straight_words: dict[str, tuple[int, str]] = {}
+        # letters of a STRAIGHT block in either case -> an axis' upper-case name (a str), or G, F, N as
+        # _G_WORD, _F_WORD, _N_WORD (ints: told apart from a name by the class alone)
+        self._straight_words: dict[str, str | int] = {}
         for axis in self.axes:
-            self._straight_words[axis] = self._straight_words[axis.lower()] = (0, axis)
-        for kind, letter in ((1, "G"), (2, "F"), (3, "N")):
+            self._straight_words[axis] = self._straight_words[axis.lower()] = axis
+        for kind, letter in ((_G_WORD, "G"), (_F_WORD, "F"), (_N_WORD, "N")):
             if letter not in self.axes:
-                self._straight_words[letter] = self._straight_words[letter.lower()] = (kind, letter)
+                self._straight_words[letter] = self._straight_words[letter.lower()] = kind
 
     def compile_simple(self, text: str) -> Compiled | None:
         """The fast way for a block of constant address words, or None (then :meth:`compile`)."""
@@ -196,21 +198,20 @@ class BlockCompiler:
             entry = known.get(letters)
             if entry is None:
                 return None  # not a STRAIGHT letter, or ("", "", char): not a word at all
-            kind, name = entry
-            if kind == 0:
-                if name in targets:
+            if entry.__class__ is str:  # an axis
+                if entry in targets:
                     return None
-                targets[name] = float(digits)
-            elif kind == 1:
+                targets[entry] = float(digits)
+            elif entry == _G_WORD:
                 code = _STRAIGHT_G_DIGITS.get(digits)
                 if code is None:
                     if not digits.isdigit() or int(digits) not in STRAIGHT_G:
                         return None
                     code = int(digits)
                 g_codes.append(code)
-            elif kind == 2 and feed is None:
+            elif entry == _F_WORD and feed is None:
                 feed = float(digits)
-            elif kind == 3 and not number and not targets and not g_codes and feed is None and digits.isdigit():
+            elif entry == _N_WORD and not number and not targets and not g_codes and feed is None and digits.isdigit():
                 number = "N" + digits  # the block number: the first word
             else:
                 return None

@@ -306,7 +306,7 @@ class Interpreter:
                     return
 
     def _compile(self, raw: str) -> Compiled | None:
-        text = strip_comment(raw).strip()
+        text = (strip_comment(raw) if ";" in raw else raw).strip()  # most CAM blocks carry no comment
         if not text or text[0] == "%":
             return None
         if self._macros:
