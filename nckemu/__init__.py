@@ -1,10 +1,24 @@
 """nckemu: a SINUMERIK NCK/PLC stand-in on the wire (S7comm over ISO-on-TCP)."""
 
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as _version
+from __future__ import annotations
 
-try:
-    # pyproject.toml's version, as installed: `nckemu --version` and the package agree by construction
-    __version__ = _version("nckemu")
-except PackageNotFoundError:  # a source tree that was never installed
-    __version__ = "0+unknown"
+from functools import cache
+
+
+@cache
+def _installed_version() -> str:
+    # importlib.metadata costs a tenth of a second at start; only --version and the OPC UA face's build
+    # information read it, so it is looked up when first asked for
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        # pyproject.toml's version, as installed: `nckemu --version` and the package agree by construction
+        return version("nckemu")
+    except PackageNotFoundError:  # a source tree that was never installed
+        return "0+unknown"
+
+
+def __getattr__(name: str) -> str:
+    if name == "__version__":
+        return _installed_version()
+    raise AttributeError(f"module 'nckemu' has no attribute {name!r}")

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from nckemu import __version__
+import nckemu
 from nckemu.errors import NckConfigError, NckError
 
 COMMAND_MODULES = (
@@ -32,6 +32,25 @@ COMMAND_MODULES = (
     "nckemu.twin.commands",       # machine fit, machine compare
 )
 
+# Which modules register (or extend) each command. A command line names one command, so only its
+# modules are imported: `nckemu get` starts without the emulator, the interpreter or numpy (about half a
+# second less for every client call a script or a PLC test makes). tests/test_cli.py keeps this equal to
+# what the whole command line builds.
+COMMAND_HOMES: dict[str, tuple[str, ...]] = {
+    "serve": ("nckemu.emulator.commands", "nckemu.plcsim.commands"),  # plcsim adds the living machine
+    "machine": ("nckemu.emulator.commands", "nckemu.twin.commands"),
+    "fleet": ("nckemu.emulator.fleet_commands", "nckemu.plcsim.fleet_live"),
+    "vars": ("nckemu.catalogue.commands",),
+    **dict.fromkeys(("get", "put", "pi", "comp840c", "lec"), ("nckemu.clients.commands",)),
+    "program": ("nckemu.clients.program_commands", "nckemu.emulator.program_commands"),
+    "trace": ("nckemu.traces.commands",),
+    "simulate": ("nckemu.thermal.commands",),
+    "discover": ("nckemu.thermal.commands", "nckemu.plcsim.commands"),  # plcsim adds --write-stl
+    "recording": ("nckemu.thermal.recordings.commands",),
+    "plc": ("nckemu.plcsim.commands",),
+    "loop": ("nckemu.plcsim.commands",),
+}
+
 log = logging.getLogger(__name__)
 
 
@@ -40,6 +59,19 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         self.exit(1, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
+class _VersionAction(argparse.Action):
+    """argparse's version action, with the installed version looked up only when asked for."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS,
+                 default: str = argparse.SUPPRESS, help: str = "show program's version number and exit") -> None:
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: object, option_string: str | None = None) -> None:
+        print(f"nckemu {nckemu.__version__}")
+        parser.exit()
 
 
 def _add_logging_options(parser: argparse.ArgumentParser, *, top: bool) -> None:
@@ -61,7 +93,23 @@ def _walk(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
     return found
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _command_word(argv: Sequence[str]) -> str | None:
+    """The command an argument list names (its first word that is not a top-level option), if any."""
+    words = iter(argv)
+    for word in words:
+        if word == "--log-file":
+            next(words, None)
+        elif not word.startswith("-"):
+            return word
+    return None
+
+
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The whole command line's parser; given ``argv`` naming a known command, only that command's."""
+    command = _command_word(argv) if argv is not None else None
+    modules = COMMAND_MODULES
+    if command in COMMAND_HOMES:
+        modules = tuple(name for name in COMMAND_MODULES if name in COMMAND_HOMES[command])
     parser = _Parser(
         prog="nckemu",
         description="A SINUMERIK NCK/PLC stand-in on the wire, and the tools around it.",
@@ -70,10 +118,10 @@ def build_parser() -> argparse.ArgumentParser:
                "--json prints machine-readable output on stdout; --json-out FILE (- for stdout) writes it to a file.\n",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--version", action="version", version=f"nckemu {__version__}")
+    parser.add_argument("--version", action=_VersionAction)
     _add_logging_options(parser, top=True)
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
+    for name in modules:
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:
@@ -109,9 +157,10 @@ def _configure_logging(args: argparse.Namespace) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    arguments = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(arguments)
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(arguments)
     except SystemExit as exc:  # --help, --version (0) and usage errors (1): a code, not an exit, for callers
         return exc.code if isinstance(exc.code, int) else 1
     func = getattr(args, "func", None)

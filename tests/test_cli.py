@@ -3,6 +3,8 @@ is one clear line with exit code 1, before anything is written."""
 
 from __future__ import annotations
 
+import argparse
+import functools
 import os
 import re
 import shlex
@@ -17,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from nckemu.cli import _walk, build_parser, main
+from nckemu.cli import COMMAND_HOMES, _walk, build_parser, main
 from nckemu.clients import NckClient
 from nckemu.emulator.runner import EmulatorThread
 from nckemu.thermal.recordings.recording import write_recording
@@ -82,6 +84,29 @@ def silent_server() -> Iterator[int]:
         connection.close()
     listener.close()
 
+
+
+def test_each_command_is_built_from_the_modules_that_register_it() -> None:
+    """The parser built for one command (COMMAND_HOMES: only its modules imported) helps, defaults and
+    runs exactly as the whole command line's, for every command and group; a word that is no command
+    builds the whole line, so the error lists every command."""
+
+    def named(value: object) -> str:  # a function, or a partial of functions, by its names
+        if isinstance(value, functools.partial):
+            return f"{named(value.func)}({', '.join(named(arg) for arg in value.args)})"
+        return getattr(value, "__qualname__", repr(value))
+
+    def described(parser: argparse.ArgumentParser) -> tuple[str, dict[str, str]]:
+        return parser.format_help(), {key: named(value) for key, value in parser._defaults.items()}
+
+    whole = {parser.prog: described(parser) for parser in _walk(build_parser())}
+    assert {prog.split()[1] for prog in whole} == set(COMMAND_HOMES)
+    for command in COMMAND_HOMES:
+        alone = {parser.prog: described(parser) for parser in _walk(build_parser(["-v", command]))
+                 if parser.prog.split()[1] == command}
+        assert alone == {prog: text for prog, text in whole.items() if prog.split()[1] == command}, command
+    assert build_parser(["--log-file", "serve", "get"]).parse_args(["get", "R1"]).command == "get"
+    assert len(_walk(build_parser(["gett"]))) == len(whole)
 
 # ------------------------------------------------------------------------------ --help examples
 def _help_examples() -> list[tuple[str, list[str]]]:
