@@ -233,7 +233,9 @@ class Admission:
         ``parsimonious``'s to pick. Judged on the figure the bar is on: with several runs the median
         over runs of held-out RMS, on one record held-out RMS without the sensors' noise. None when the
         effect extends nothing among the round's candidates."""
-        simpler = [e for e in evaluations if e not in passing and extends(evaluation.candidate.term, e.candidate.term)]
+        # extends first: it is cheap, and `not in` compares evaluations field by field against every one
+        # that passes (a million comparisons in one discovery of FL_THERMAL's sixteen sensors).
+        simpler = [e for e in evaluations if extends(evaluation.candidate.term, e.candidate.term) and e not in passing]
         if not simpler:
             return None
 
