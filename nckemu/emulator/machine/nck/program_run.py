@@ -47,6 +47,7 @@ from nckemu.emulator.machine.program.motions import (
 )
 from nckemu.emulator.machine.program.planner import (
     S_PER_MIN,
+    ArcPath,
     Overrides,
     Planner,
     SpindleRamp,
@@ -257,6 +258,16 @@ class ProgramRun:
         if self.record is not None and call.note:
             self.record.note = f"{self.record.note}; {call.note}" if self.record.note else call.note
 
+    def _note_arc_middle(self, arc: ArcPath) -> None:
+        """A block table's row shows where a block ends; for a circle or helix its note adds the point
+        half-way along it, so that a table of rows says which way round the path went."""
+        assert self.record is not None
+        middle = arc.position(0.5)
+        order = {name: index for index, name in enumerate(self.axes)}
+        words = " ".join(f"{name}{middle[name]:.4f}" for name in sorted(middle, key=lambda n: order.get(n, len(order))))
+        note = f"through {words} at its middle"
+        self.record.note = f"{self.record.note}; {note}" if self.record.note else note
+
     def _drop_programmable_frame(self) -> None:
         """Reset and program end delete the programmable frame (MD20110 RESET_MODE as delivered,
         UNCONFIRMED); the settable frame stays selected."""
@@ -335,6 +346,8 @@ class ProgramRun:
                     event = replace(event, target_mm=targets, centre_mm=centre)
                 timed = self.planner.arc(start_mm, event, self._overrides(), spindle_rpm)
                 arc = timed.arc
+                if arc is not None and self.record is not None:
+                    self._note_arc_middle(arc)
                 if arc is not None:  # both plane axes turn, named in the block or not
                     moving += [(axes[name], positions[axes[name]], positions[axes[name]])
                                for name in (arc.first, arc.second) if name not in targets and name in axes]

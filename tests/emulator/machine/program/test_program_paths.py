@@ -118,3 +118,18 @@ def test_the_offline_recording_samples_lie_on_the_arc() -> None:
     angle = 2 * math.pi * 6.0 / total_s
     assert (middle[x], middle[y]) == pytest.approx((CENTRE[0] + RADIUS * math.cos(angle),
                                                     CENTRE[1] + RADIUS * math.sin(angle)), abs=0.05)
+
+
+def test_the_block_table_names_the_point_half_way_along_each_arc() -> None:
+    """A row shows where its block ends; an arc's row also names the point half-way along it, on the
+    arc (G2 and G3 from the same points go opposite ways round), and a helix's middle its height too."""
+    emulator = Emulator(clock=SimulatedClock())
+    program = "G17 G90 G0 X0 Y0\nG2 X20 Y0 I10 J0 F600\nG3 X40 Y0 Z-5 CR=10 F600\nG1 X50\nM30\n"
+    emulator.nck.programs.write(PATH, program.encode())
+    rows = []
+    emulator.nck.channels[1].block_listeners.append(rows.append)
+    assert run_offline(emulator, PATH).outcome == "ended"
+    notes = {row.text: row.note for row in rows}
+    assert notes["G2 X20 Y0 I10 J0 F600"] == "through X10.0000 Y10.0000 at its middle"
+    assert notes["G3 X40 Y0 Z-5 CR=10 F600"] == "through X30.0000 Y-10.0000 Z-2.5000 at its middle"
+    assert notes["G1 X50"] == ""
