@@ -24,9 +24,9 @@ One run prints (issue 41's targets in brackets):
    behind the free-running clock when a cycle starts), slips (the pacer gave up catching up: the run fell
    behind its clock), wall time per cycle, and the client's latency [no slip].
 
-``--size full`` (the default, under a minute on the 2-core machine this was written on) runs the issue's
-sizes (200 000 straight moves, the 400 000-line program, 10 s served); ``--size small`` smaller programs,
-a 100 000-line CAM program and 4 s served (about 15 s).
+``--size full`` (the default, two to four minutes on the loaded 2-core machine this was written on) runs
+the issue's sizes (200 000 straight moves, the 400 000-line program, 10 s served); ``--size small``
+smaller programs, a 100 000-line CAM program and 4 s served (under a minute).
 
 Usage: .venv/bin/python bench/bench_programs.py [--size small|full] [--json]
 """
@@ -284,7 +284,7 @@ def rate(blocks: int, seconds: float) -> int:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--size", choices=sorted(SIZES), default="full",
-                        help="full (default, the issue's sizes, under a minute here) or small (a quick look)")
+                        help="full (default, the issue's sizes, minutes here) or small (a quick look)")
     parser.add_argument("--speed", type=float, default=600.0, help="the served run's speed (default 600)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     parser.add_argument("--memory-child", type=Path, help=argparse.SUPPRESS)
