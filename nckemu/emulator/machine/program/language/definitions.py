@@ -24,8 +24,8 @@ from nckemu.errors import NckPiBadArguments
 from ..motions import ALARM_SYNTAX, ProgramAlarm
 from .blocks import DEF, BlockCompiler
 from .expressions import evaluate, undefined
-from .gud_values import apply_values, parse_values
-from .lexer import strip_comment, tokenize
+from .gud_values import apply_values, at_line, file_blocks, parse_values
+from .lexer import tokenize
 from .source import decode_program
 from .variables import Variable
 
@@ -89,19 +89,11 @@ def parse_definitions(path: str, text: str | bytes) -> DefinitionFile:
     compiler = BlockCompiler((), _constant_only)
     parsed = DefinitionFile(path)
     elements = 0
-    for number, raw in enumerate(text.lstrip("\ufeff").splitlines(), start=1):
-        block = strip_comment(raw).strip()
-        if not block or block[0] == "%":
-            continue
-        try:
+    for number, block in file_blocks(text):
+        with at_line(path, number, block):
             elements += _parse_block(block, compiler, parsed)
             if elements > MAX_DEFINED_ELEMENTS:
                 raise ProgramAlarm(ALARM_SYNTAX, f"more than {MAX_DEFINED_ELEMENTS} elements defined")
-        except ProgramAlarm as alarm:
-            raise ProgramAlarm(alarm.number, alarm.args[0], program=path, line=number, block=block) from None
-        except ArithmeticError as exc:
-            raise ProgramAlarm(ALARM_SYNTAX, f"arithmetic error ({exc})", program=path, line=number,
-                               block=block) from None
     return parsed
 
 
@@ -170,17 +162,23 @@ class GlobalDefinitions:
         # it was refused (the NCK keeps the alarm on its list).
         self.on_checked: Callable[[str, ProgramAlarm | None], None] | None = None
 
-    def activate(self, path: str, text: bytes) -> None:
-        """Parse ``text`` and put it in force for ``path`` (raises DefinitionRefused; then what
-        ``path`` defined before stays)."""
+    def _checked(self, path: str, read: Callable[[], Any]) -> Any:
+        """What ``read`` returns; its alarm refuses the file (DefinitionRefused). Either way
+        ``on_checked`` hears of it."""
         try:
-            parsed = parse_definitions(path, text)
+            result = read()
         except ProgramAlarm as alarm:
             if self.on_checked is not None:
                 self.on_checked(path, alarm)
             raise DefinitionRefused(alarm) from None
         if self.on_checked is not None:
             self.on_checked(path, None)
+        return result
+
+    def activate(self, path: str, text: bytes) -> None:
+        """Parse ``text`` and put it in force for ``path`` (raises DefinitionRefused; then what
+        ``path`` defined before stays)."""
+        parsed: DefinitionFile = self._checked(path, lambda: parse_definitions(path, text))
         old = self.files.get(path)
         if old is not None:
             # a file written again keeps the values of the variables it still defines alike
@@ -194,29 +192,13 @@ class GlobalDefinitions:
     def assign_values(self, path: str, text: bytes) -> None:
         """Assign the GUD values of the value file ``text`` (gud_values.py) to the activated variables
         (raises DefinitionRefused with the line; then no value of the file is assigned)."""
-        try:
-            assignments = parse_values(path, text, self._variables)
-        except ProgramAlarm as alarm:
-            if self.on_checked is not None:
-                self.on_checked(path, alarm)
-            raise DefinitionRefused(alarm) from None
-        if self.on_checked is not None:
-            self.on_checked(path, None)
-        apply_values(assignments)
+        apply_values(self._checked(path, lambda: parse_values(path, text, self._variables)))
 
     def assign_r_values(self, path: str, text: bytes, r_parameters: int,
                         write_r: Callable[[int, float], None]) -> None:
         """Assign the R parameters of the R value file ``text`` through ``write_r`` (raises
         DefinitionRefused with the line; then none is assigned)."""
-        try:
-            assignments = parse_values(path, text, {}, r_parameters)
-        except ProgramAlarm as alarm:
-            if self.on_checked is not None:
-                self.on_checked(path, alarm)
-            raise DefinitionRefused(alarm) from None
-        if self.on_checked is not None:
-            self.on_checked(path, None)
-        apply_values(assignments, write_r)
+        apply_values(self._checked(path, lambda: parse_values(path, text, {}, r_parameters)), write_r)
 
     def remove(self, path: str) -> None:
         if self.files.pop(path, None) is not None:

@@ -26,6 +26,8 @@ refuses the whole file with the line (:class:`ProgramAlarm`), and no value of it
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from ..motions import ALARM_NAME_NOT_DEFINED, ALARM_SYNTAX, ProgramAlarm
@@ -61,6 +63,27 @@ def _constant_only(parser: Any, name: str) -> Any:
 Assignment = tuple[Variable | int, tuple[Any, ...], Any]   # a variable and its indices, or an R's number
 
 
+def file_blocks(text: str) -> Iterator[tuple[int, str]]:
+    """(line number, block) of a definition or value file: comments cut, blank and ``%`` lines left out."""
+    for number, raw in enumerate(text.lstrip("\ufeff").splitlines(), start=1):
+        block = strip_comment(raw).strip()
+        if block and block[0] != "%":
+            yield number, block
+
+
+@contextmanager
+def at_line(path: str, number: int, block: str) -> Iterator[None]:
+    """An alarm raised while one block of a file is read names the file and line; an arithmetic error
+    is a syntax alarm there."""
+    try:
+        yield
+    except ProgramAlarm as alarm:
+        raise ProgramAlarm(alarm.number, alarm.args[0], program=path, line=number, block=block) from None
+    except ArithmeticError as exc:
+        raise ProgramAlarm(ALARM_SYNTAX, f"arithmetic error ({exc})", program=path, line=number,
+                           block=block) from None
+
+
 def parse_values(path: str, text: str | bytes, variables: dict[str, Variable],
                  r_parameters: int = 0) -> list[Assignment]:
     """The assignments of the value file ``text``, each checked against ``variables`` (or, with
@@ -73,17 +96,9 @@ def parse_values(path: str, text: str | bytes, variables: dict[str, Variable],
         text = decode_program(bytes(text))
     assignments: list[Assignment] = []
     channel = 1
-    for number, raw in enumerate(text.lstrip("\ufeff").splitlines(), start=1):
-        block = strip_comment(raw).strip()
-        if not block or block[0] == "%":
-            continue
-        try:
+    for number, block in file_blocks(text):
+        with at_line(path, number, block):
             channel = _parse_block(block, channel, variables, assignments, r_parameters)
-        except ProgramAlarm as alarm:
-            raise ProgramAlarm(alarm.number, alarm.args[0], program=path, line=number, block=block) from None
-        except ArithmeticError as exc:
-            raise ProgramAlarm(ALARM_SYNTAX, f"arithmetic error ({exc})", program=path, line=number,
-                               block=block) from None
     return assignments
 
 
