@@ -76,9 +76,10 @@ test-without-shared: $(VENV)/.installed-test
 	NCKEMU_SHARED=$(NO_SHARED) $(PY) -m pytest -n $(JOBS) --dist loadfile \
 	  $$(grep -rlE 'SHARED|shared_dir|fl_thermal_ch3_discovery|\.\./shared' tests --include='test_*.py')
 
-# The slow suite (tests marked slow: seeds, run families, the README tour), two workers at once.
+# The slow suite (tests marked slow: seeds, run families, the README tour), two workers at once; a worker
+# that runs out takes pending tests from the other (worksteal), and the seed matrices start first (conftest).
 slow: $(VENV)/.installed-test
-	$(PY) -m pytest -m slow -n 2 --durations=15
+	$(PY) -m pytest -m slow -n 2 --dist worksteal --durations=15
 
 # Trust under load and hostile input (docs/limits.md): SIZE=small|medium|full.
 SIZE ?= small

@@ -65,6 +65,13 @@ def fixtures_dir() -> Path:
     return FIXTURES
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The twenty-seed matrices (``*_matrix.py``, one to two minutes each) first, the rest in their
+    order: under xdist (``make slow``: two workers, work stealing) the longest tests start first, and
+    the workers end together on short tests instead of one of them running a matrix alone at the end."""
+    items.sort(key=lambda item: not item.path.name.endswith("_matrix.py"))
+
+
 def _run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The test run's temporary directory: under pytest-xdist the one its workers share."""
     root = tmp_path_factory.getbasetemp()
