@@ -113,10 +113,11 @@ class Admission:
 
     def guards(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
                t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
-               t_crit: float, *, paired: bool = True) -> list[Guard]:
+               t_crit: float, *, paired: bool = True, cancels: str = "") -> list[Guard]:
         """Every guard's figure and verdict, on a single effect or on a move of two as a whole; the
         held-out bar is the last. Admission and its words both read these (words follow the figures).
-        ``paired=False`` leaves out the runs' paired test (to count the candidates it is corrected over)."""
+        ``paired=False`` leaves out the runs' paired test (to count the candidates it is corrected over).
+        ``cancels``: why the terms cancel a named one (``fits.cancelling``): what a machine cannot have."""
         s = self.settings
         out: list[Guard] = []
         if self.per_run:
@@ -132,8 +133,9 @@ class Admission:
             # Only where the runs' paired test judges this candidate (enough runs have its columns).
             out.append(Guard("t-test", all(abs(t) >= t_crit for t in t_values), words.t_test_words(t_values, t_crit)))
         physical = all(bounded(term) for term in terms)
-        cannot = "; ".join(why for term in terms
-                           if (why := term.spec.cannot_have(term.parameters, term.coefficient, s.structure)))
+        cannot = "; ".join([why for term in terms
+                            if (why := term.spec.cannot_have(term.parameters, term.coefficient, s.structure))]
+                           + ([cancels] if cancels else []))
         out.append(Guard("physical", physical and not cannot, words.physical_words(physical, cannot)))
         if self.per_run:  # ... and it must not leave the worst run worse
             figures = self.runs.run_figures(cv, base_cv, runs_with)
@@ -163,10 +165,11 @@ class Admission:
 
     def judge(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
               t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
-              t_crit: float, *, paired: bool = True) -> tuple[bool, bool]:
+              t_crit: float, *, paired: bool = True, cancels: str = "") -> tuple[bool, bool]:
         """(passes every guard, passes every guard but the held-out bar and still lowers the held-out
         figure by ``likely_min_improvement``)."""
-        found = self.guards(cv, fold_wins, runs_with, t_values, terms, base_cv, t_crit, paired=paired)
+        found = self.guards(cv, fold_wins, runs_with, t_values, terms, base_cv, t_crit, paired=paired,
+                            cancels=cancels)
         rest = all(g.passes for g in found[:-1])
         held_out = found[-1]
         return held_out.passes and rest, rest and held_out.gain >= self.settings.likely_min_improvement
@@ -176,12 +179,13 @@ class Admission:
         """(passes every guard, passes every guard but the held-out bar)."""
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         return self.judge(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
-                          (evaluation.t_value,), (term,), base_cv, t_crit, paired=paired)
+                          (evaluation.t_value,), (term,), base_cv, t_crit, paired=paired,
+                          cancels=evaluation.cancelling)
 
     def guards_of(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> list[Guard]:
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         return self.guards(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
-                           (evaluation.t_value,), (term,), base_cv, t_crit)
+                           (evaluation.t_value,), (term,), base_cv, t_crit, cancels=evaluation.cancelling)
 
     def passes(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> bool:
         return self._guards(evaluation, base_cv, t_crit)[0]
@@ -272,6 +276,6 @@ class Admission:
 
     def move_passes(self, path: Path, move: Move, chosen: Evaluation, t_crit: float) -> bool:
         return self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
-                          t_crit)[0] \
+                          t_crit, cancels=move.cancelling)[0] \
             and all(self.heldout_gain(move.cv, other.cv, move.runs_with) >= self.bar
                     for other in (chosen, *move.alone))

@@ -50,7 +50,7 @@ class Moves:
 
         def guarded(move: Move, paired: bool) -> bool:
             return self.admission.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
-                              t_crit, paired=paired)[0] \
+                                        t_crit, paired=paired, cancels=move.cancelling)[0] \
                 and all(self.admission.heldout_gain(move.cv, alone.cv, move.runs_with) >= self.admission.bar
                         for alone in move.alone)
         if self.admission.per_run:

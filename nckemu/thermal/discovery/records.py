@@ -29,6 +29,9 @@ class Evaluation:
     ranked_rms_um: float
     # RMS of the part of the feature the design does not already hold (for the detectable size).
     own_rms: float = math.nan
+    # Why the candidate and a named term cancel each other in the joint fit (``fits.cancelling``):
+    # empty when they do not.
+    cancelling: str = ""
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,7 @@ class Move:
     runs_with: np.ndarray | None            # runs that have the columns of both (None: all)
     # Each effect's share of what the move improves: how much the held-out figure rises without it.
     shares: tuple[float, float] = (math.nan, math.nan)
+    cancelling: str = ""                    # as for an Evaluation, over both effects
 
     @property
     def terms(self) -> tuple[Term, Term]:

@@ -76,7 +76,8 @@ class Search:
         # Bonferroni over every hypothesis of the round, each time constant tried included.
         tests = sum(c.grid_points for c in candidates)
         t_crit = t_critical(s.alpha, tests, len(self.y) - design.shape[1] - 1 - setup.extra_parameters)
-        evaluations = [e for e in (self.fits.evaluate(design, path.noise, c, path.base_cv) for c in candidates)
+        evaluations = [e for e in (self.fits.evaluate(design, path.noise, c, path.base_cv, tuple(path.added))
+                                   for c in candidates)
                        if self.twin_of_one_sign(path, e)]
         self.admission.count_paired_tests(evaluations, path.base_cv, t_crit)
         return evaluations, t_crit, tests

@@ -46,6 +46,9 @@ class Settings:
     # ... and after the search, a term of the last round may be fitted apart on two groups of runs
     # (discovery/regimes.py). False: never.
     run_groups: bool = True
+    # ... nor two terms that cancel each other (fits.cancelling): together less than this share of the
+    # larger alone, which moves the structure more than the whole error does. 0 turns it off.
+    cancelling_share: float = 0.5
     # What a machine can have (issue 51): a term beyond it fits, but is never named (a model file's
     # [structure] table sets it for its machine).
     structure: Structure = Structure()
