@@ -9,6 +9,8 @@ import pytest
 
 from nckemu.thermal.discovery import shapes
 from nckemu.thermal.discovery.discover import discover_runs
+from nckemu.thermal.discovery.fits import cancelling
+from nckemu.thermal.discovery.settings import Settings
 from nckemu.thermal.model.lags import first_order_lag
 from nckemu.thermal.model.terms import Term
 from nckemu.thermal.synthetic.scenarios import AXIS, SHAPE_SENSOR, SHAPE_TAU_S, make_shape_family
@@ -47,3 +49,22 @@ def test_a_transient_with_a_static_part_is_named_as_that_shape() -> None:
     assert len(transients) == 1 and abs(transients[0].parameters["tau_s"] - SHAPE_TAU_S) <= 0.25 * SHAPE_TAU_S
     assert not any(m.effect == "thermal_lag" for m in rear)
     assert any(w.effect == "transient_gradient" and "explain what it did" in w.why for w in result.withdrawn)
+
+
+def test_two_large_terms_that_cancel_are_what_a_machine_cannot_have() -> None:
+    """Lags of two neighbouring sensors at +20 and -15 um/K (fl_thermal ch5, the bar weighed in the
+    rounds): each moves the structure by more than the whole error, together by a fraction of it.
+    Two correlated sensors at 3 and -1.5 um/K (pair_days' truth), each within the error, pass."""
+    rng = np.random.default_rng(1)
+    t = np.arange(0.0, 10 * 3600.0, 60.0)
+    rising = np.sin(2 * np.pi * t / 36000.0)
+    near, neighbour = rising, rising + 0.15 * rng.normal(size=t.size)
+    full = np.column_stack([near, neighbour])
+    named = (Term("thermal_lag", {"sensor": "t3", "tau_s": 2500.0, "coeff_um_per_K": 20.0}),)
+    new = (Term("thermal_lag", {"sensor": "t1", "tau_s": 4150.0, "coeff_um_per_K": -15.0}),)
+    y = 5.0 * rising
+    words = cancelling(full, np.array([20.0, -15.0]), y, named, new, Settings())
+    assert "cancel each other" in words and "thermal_lag(t3)" in words and "+20" in words and "-15" in words
+    assert cancelling(full, np.array([3.0, -1.5]), y, named, new, Settings()) == ""  # within the error
+    assert cancelling(full, np.array([20.0, -15.0]), y, named, new, Settings(cancelling_share=0.0)) == ""
+    assert cancelling(full, np.array([20.0, -15.0]), y, (), new, Settings()) == ""  # nothing named yet
