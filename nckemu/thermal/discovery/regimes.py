@@ -157,10 +157,13 @@ def consecutive(names: list[str], groups: np.ndarray) -> bool:
     return len(positions) > 0 and int(positions[-1] - positions[0]) == len(positions) - 1
 
 
-def best_stretch(selector: Selector, feature: np.ndarray, residual: np.ndarray, names: list[str]) -> np.ndarray | None:
-    """The stretch of consecutive runs in name order (a date range) whose own coefficient beside the rest's
-    lowers the in-sample residual most (each group's coefficient from its runs' moments of the residual
-    on the feature, both centred per run); at least ``MIN_GROUP_RUNS`` runs on each side. None: too few runs."""
+def best_stretches(selector: Selector, feature: np.ndarray, residual: np.ndarray, names: list[str],
+                   count: int = 3) -> list[np.ndarray]:
+    """The ``count`` stretches of consecutive runs in name order (date ranges) whose own coefficient
+    beside the rest's lowers the in-sample residual most, best first (each group's coefficient from
+    its runs' moments of the residual on the feature, both centred per run); at least
+    ``MIN_GROUP_RUNS`` runs on each side. A run at a stretch's end whose feature barely moves may tip
+    the in-sample best by a hair: the next ones are offered too."""
     groups = selector.library.problem.groups
     runs = len(names)
     moment = np.bincount(groups, weights=feature * residual, minlength=runs)
@@ -168,26 +171,24 @@ def best_stretch(selector: Selector, feature: np.ndarray, residual: np.ndarray, 
     order = np.argsort(names, kind="stable")
     moment, gram = moment[order], gram[order]
     total_moment, total_gram = float(moment.sum()), float(gram.sum())
-    best: tuple[float, int, int] | None = None
+    found: list[tuple[float, int, int]] = []
     for start in range(runs):
         inside_moment = inside_gram = 0.0
         for stop in range(start, runs):
             inside_moment += float(moment[stop])
             inside_gram += float(gram[stop])
             size = stop - start + 1
-            if size < MIN_GROUP_RUNS or runs - size < MIN_GROUP_RUNS:
-                continue
             outside_gram = total_gram - inside_gram
-            if inside_gram <= 0 or outside_gram <= 0:
+            if size < MIN_GROUP_RUNS or runs - size < MIN_GROUP_RUNS or inside_gram <= 0 or outside_gram <= 0:
                 continue
             explained = inside_moment ** 2 / inside_gram + (total_moment - inside_moment) ** 2 / outside_gram
-            if best is None or explained > best[0]:
-                best = (explained, start, stop)
-    if best is None:
-        return None
-    labels = np.zeros(runs, dtype=int)
-    labels[order[best[1]:best[2] + 1]] = 1
-    return labels
+            found.append((explained, start, stop))
+    out = []
+    for _explained, start, stop in sorted(found, reverse=True)[:count]:
+        labels = np.zeros(runs, dtype=int)
+        labels[order[start:stop + 1]] = 1
+        out.append(labels if 2 * labels.sum() <= runs else 1 - labels)  # the smaller group apart
+    return out
 
 
 def grouped_columns(selector: Selector, feature: np.ndarray, groups: np.ndarray) -> np.ndarray:
@@ -319,18 +320,20 @@ def fit_apart(selector: Selector, path: Path, evaluation: Evaluation, t_crit: fl
     names = [run.name for run in problem.runs]
     feature = evaluation.candidate.feature
     if pattern:
-        groups = given_groups(selector, pattern)
+        given = given_groups(selector, pattern)
+        groupings = [] if given is None else [given]
     else:
         design = path.design
         residual = selector.y - design @ stats.least_squares(design, selector.y) if design.shape[1] else selector.y
-        groups = best_stretch(selector, feature, residual, names)
-    if groups is None:
-        return False
-    full = np.column_stack([path.design, grouped_columns(selector, feature, groups)])
-    cv = selector.baseline.cross_validate(full, selector.y, selector.baseline.folds)
-    fitted = stats.least_squares(full, selector.y)
-    split = Split(evaluation, groups, cv, (float(fitted[-2]), float(fitted[-1])))
-    if not judged(selector, path, split, reversed_only=False):
+        groupings = best_stretches(selector, feature, residual, names)
+    for groups in groupings:
+        full = np.column_stack([path.design, grouped_columns(selector, feature, groups)])
+        cv = selector.baseline.cross_validate(full, selector.y, selector.baseline.folds)
+        fitted = stats.least_squares(full, selector.y)
+        split = Split(evaluation, groups, cv, (float(fitted[-2]), float(fitted[-1])))
+        if judged(selector, path, split, reversed_only=False):
+            break
+    else:
         return False
     label = explain.label_with_time_constants(evaluation.candidate.term)
     name_split(selector, path, split, found_words(pattern, f"the stretch of dates on which {label} acts otherwise"), t_crit,

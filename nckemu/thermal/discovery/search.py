@@ -127,8 +127,9 @@ class Search:
     def fitted_apart(self, path: Path, evaluations: list[Evaluation], passing: list[Evaluation],
                      t_crit: float) -> bool:
         """Candidates that pass every guard but leave runs worse than the harm tolerance (refused by it
-        or not: ``Settings.run_harm_refuses``), better than every candidate that harms none: the best
-        few tried fitted apart over two groups of runs (``fit_apart``). True when one was named so."""
+        or not: ``Settings.run_harm_refuses``), better than every candidate that harms none: the one a
+        round would pick among them tried fitted apart over two groups of runs (``fit_apart``); the
+        others are its alternatives, not other relations. True when it was named so."""
         admission = self.admission
         reference = admission.runs.reference_folds(path.base_cv)
 
@@ -154,7 +155,7 @@ class Search:
         order = sorted(equivalent, key=lambda e: (e.candidate.term.spec.complexity, e.ranked_rms_um)) \
             + sorted((e for e in harming if e not in equivalent), key=lambda e: e.ranked_rms_um)
         assert self.fit_apart is not None
-        return any(self.fit_apart(path, e, t_crit) for e in order[:3])
+        return self.fit_apart(path, order[0], t_crit)
 
     def note_cannot_have(self, path: Path, refused: list[Evaluation], t_crit: float) -> list[Evaluation]:
         """Candidates that pass every guard but what a machine can have: never named, listed with
