@@ -218,7 +218,10 @@ class Search:
                 continue  # a sensor at one time constant only: its transient is named already
             candidate = self.library.candidate(shapes.as_transient(lag))
             record = path.discovered[lag_index + offset]
-            if candidate is None or not isinstance(record.evidence, Evidence):
+            if candidate is None or not isinstance(record.evidence, Evidence) \
+                    or record.evidence.regime is not None \
+                    or path.discovered[temperature_index + offset].evidence.regime is not None:
+                # a lag (or a temperature) fitted apart over groups of runs is two columns, not one shape
                 continue
             column = first + lag_index
             design[:, column], noise[:, column] = candidate.feature, candidate.noise
