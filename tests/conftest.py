@@ -115,6 +115,7 @@ def once_per_run(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str, Cal
 
     return get
 
+
 @pytest.fixture
 def emulator() -> Iterator[EmulatorThread]:
     """The built-in default machine; a test module may override it (e.g. with other limits)."""

@@ -27,9 +27,8 @@ from nckemu.emulator.machine.io_points import (
     PlcAnswer,
 )
 
-_LAYOUT = DATA_LAYOUT
-READABLE = frozenset({"$A_IN", "$A_OUT", "$A_INA", "$A_OUTA", *_LAYOUT})
-WRITABLE = frozenset({"$A_OUT", "$A_OUTA", *_LAYOUT})
+READABLE = frozenset({"$A_IN", "$A_OUT", "$A_INA", "$A_OUTA", *DATA_LAYOUT})
+WRITABLE = frozenset({"$A_OUT", "$A_OUTA", *DATA_LAYOUT})
 
 
 class NckIo:
@@ -63,7 +62,7 @@ class NckIo:
 
     def read(self, name: str, index: int) -> bool | int | float:
         """The value of ``name[index]``; raises IndexError outside the points or the area."""
-        layout = _LAYOUT.get(name)
+        layout = DATA_LAYOUT.get(name)
         if layout is None:
             points = self._points(name)
             if not 1 <= index <= len(points):
@@ -75,7 +74,7 @@ class NckIo:
 
     def write(self, name: str, index: int, value: float, now_s: float | None = None) -> None:
         """Set ``name[index]``; a program's ``$A_OUT[n]`` at ``now_s`` triggers the PLC's answers to it."""
-        layout = _LAYOUT.get(name)
+        layout = DATA_LAYOUT.get(name)
         if layout is None:
             points = self._points(name)
             if not 1 <= index <= len(points):
