@@ -25,28 +25,10 @@ from nckemu.emulator.machine.core import Emulator
 from nckemu.emulator.machine.machine_file import parse_machine
 from nckemu.emulator.machine.nck.channel import CHAN_ACTIVE, CHAN_INTERRUPTED, CHAN_RESET
 from tests.emulator.faces.opcua.test_program_states import Transitions, _transitions
-from tests.emulator.machine.nck.channel_rules import ChannelCommandRules
+from tests.emulator.machine.nck.channel_rules import MACHINE, ChannelCommandRules
+from tests.emulator.machine.nck.channel_rules import PROGRAMS as COMMON_PROGRAMS
 
-MACHINE = """
-name = "umati state machine mill"
-[[axis]]
-number = 1
-name = "X1"
-travel_mm = [-100.0, 100.0]
-[[axis]]
-number = 2
-name = "SP1"
-rotary = true
-spindle = true
-[program]
-max_blocks_per_cycle = 50
-"""
-PROGRAMS = {
-    "/_N_MPF_DIR/_N_GOOD_MPF": b"G0 X10\nS1000 M3\nM0\nG1 X20 F600\nG4 F1\nM5\nM30\n",
-    "/_N_MPF_DIR/_N_SHORT_MPF": b"G4 F0.5\nM30\n",
-    "/_N_MPF_DIR/_N_BAD_MPF": b"G0 X10\nGOTOF NOWHERE\nM30\n",
-    "/_N_MPF_DIR/_N_LOOP_MPF": b"L1:\nR1=R1+1\nGOTOB L1\n",
-}
+PROGRAMS = {**COMMON_PROGRAMS, "/_N_MPF_DIR/_N_SHORT_MPF": b"G4 F0.5\nM30\n"}
 pytestmark = pytest.mark.skipif(nodesets.find() is None, reason=nodesets.how_to_get())
 LEGAL: dict[str, Transitions] = {}
 

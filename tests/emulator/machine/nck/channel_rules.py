@@ -14,6 +14,28 @@ from nckemu.emulator.machine.nck.channel import Channel
 from nckemu.errors import NckError
 from nckemu.protocol.addresses import S7Area
 
+# The machine and the programs both state machines run: one linear axis and a spindle; a program that
+# ends (with an M0 stop on the way), one that stops at an alarm and one that loops for ever.
+MACHINE = """
+name = "state machine mill"
+[[axis]]
+number = 1
+name = "X1"
+travel_mm = [-100.0, 100.0]
+[[axis]]
+number = 2
+name = "SP1"
+rotary = true
+spindle = true
+[program]
+max_blocks_per_cycle = 50
+"""
+PROGRAMS: dict[str, bytes | None] = {
+    "/_N_MPF_DIR/_N_GOOD_MPF": b"G0 X10\nS1000 M3\nM0\nG1 X20 F600\nG4 F1\nM5\nM30\n",
+    "/_N_MPF_DIR/_N_BAD_MPF": b"G0 X10\nGOTOF NOWHERE\nM30\n",
+    "/_N_MPF_DIR/_N_LOOP_MPF": b"L1:\nR1=R1+1\nGOTOB L1\n",
+}
+
 
 class ChannelCommandRules(RuleBasedStateMachine):
     """Rules on ``self.channel`` of ``self.emulator`` (set by the subclass); a refused command is fine."""

@@ -22,28 +22,10 @@ from nckemu.emulator.machine.nck.channel import (
 )
 from nckemu.emulator.machine.plc.channel_signals import MODE_ACTIVE_BITS, state_byte
 from nckemu.protocol.addresses import S7Area
-from tests.emulator.machine.nck.channel_rules import ChannelCommandRules
+from tests.emulator.machine.nck.channel_rules import MACHINE, ChannelCommandRules
+from tests.emulator.machine.nck.channel_rules import PROGRAMS as COMMON_PROGRAMS
 
-MACHINE = """
-name = "state machine mill"
-[[axis]]
-number = 1
-name = "X1"
-travel_mm = [-100.0, 100.0]
-[[axis]]
-number = 2
-name = "SP1"
-rotary = true
-spindle = true
-[program]
-max_blocks_per_cycle = 50
-"""
-PROGRAMS = {
-    "/_N_MPF_DIR/_N_GOOD_MPF": b"G0 X10\nS1000 M3\nM0\nG1 X20 F600\nG4 F1\nM5\nM30\n",
-    "/_N_MPF_DIR/_N_BAD_MPF": b"G0 X10\nGOTOF NOWHERE\nM30\n",
-    "/_N_MPF_DIR/_N_LOOP_MPF": b"L1:\nR1=R1+1\nGOTOB L1\n",
-    "/_N_MPF_DIR/_N_MISSING_MPF": None,
-}
+PROGRAMS = {**COMMON_PROGRAMS, "/_N_MPF_DIR/_N_MISSING_MPF": None}
 
 
 class ChannelMachine(ChannelCommandRules):
