@@ -102,10 +102,13 @@ class ProgramRun:
     # ------------------------------------------------------------------ time
     def pause(self, now_s: float) -> None:
         if self._paused_at is None:
-            self.geometry.move(self._motion, now_s)
-            for motion in self._positioning.values():
-                self.geometry.move(motion, now_s)
+            self._move_axes(now_s)
             self._paused_at = now_s
+
+    def _move_axes(self, now_s: float) -> None:
+        """The path's and the positioning axes' motions where they are at ``now_s`` (pause, reset)."""
+        for motion in (self._motion, *self._positioning.values()):
+            self.geometry.move(motion, now_s)
 
     def resume(self, now_s: float) -> None:
         if self._paused_at is None:
@@ -123,9 +126,7 @@ class ProgramRun:
     def close(self, now_s: float) -> None:
         """Reset or end: motion stops where it is, the spindle runs down, the interpreter is closed."""
         if self._paused_at is None:
-            self.geometry.move(self._motion, now_s)
-            for motion in self._positioning.values():
-                self.geometry.move(motion, now_s)
+            self._move_axes(now_s)
         self._motion = None
         self._positioning.clear()
         self._finish_record(now_s)
