@@ -257,7 +257,7 @@ class ProgramRun:
         if not call.simulated:
             self.not_simulated[call.name] = self.not_simulated.get(call.name, 0) + 1
         if self.record is not None and call.note:
-            self.record.note = f"{self.record.note}; {call.note}" if self.record.note else call.note
+            self.record.add_note(call.note)
 
     def _note_arc_middle(self, arc: ArcPath) -> None:
         """A block table's row shows where a block ends; for a circle or helix its note adds the point
@@ -267,7 +267,7 @@ class ProgramRun:
         order = {name: index for index, name in enumerate(self.axes)}
         words = " ".join(f"{name}{middle[name]:.4f}" for name in sorted(middle, key=lambda n: order.get(n, len(order))))
         note = f"through {words} at its middle"
-        self.record.note = f"{self.record.note}; {note}" if self.record.note else note
+        self.record.add_note(note)
 
     def _drop_programmable_frame(self) -> None:
         """Reset and program end delete the programmable frame (MD20110 RESET_MODE as delivered,

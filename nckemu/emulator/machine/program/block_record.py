@@ -24,3 +24,7 @@ class BlockRecord:
     m_codes: list[int] = field(default_factory=list)
     alarm: str = ""
     note: str = ""                # a standard cycle's word: "CYCLE62 not simulated", CYCLE832's tolerance
+
+    def add_note(self, note: str) -> None:
+        """``note`` after the notes the block already has ("; " between them)."""
+        self.note = f"{self.note}; {note}" if self.note else note
