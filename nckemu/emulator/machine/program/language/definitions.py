@@ -23,8 +23,8 @@ from nckemu.errors import NckPiBadArguments
 
 from ..motions import ALARM_SYNTAX, ProgramAlarm
 from .blocks import DEF, BlockCompiler
-from .expressions import evaluate, undefined
-from .gud_values import apply_values, at_line, file_blocks, parse_values
+from .expressions import evaluate
+from .gud_values import apply_values, at_line, constant_only, file_blocks, parse_values
 from .lexer import tokenize
 from .source import decode_program
 from .variables import Variable
@@ -69,12 +69,6 @@ class DefinitionFile:
     macros: dict[str, str] = field(default_factory=dict)
 
 
-def _constant_only(parser: Any, name: str) -> Any:
-    # An initial value in a definition file is evaluated once, when the file is activated, with
-    # nothing else defined yet: a name there is the control's 12550.
-    raise undefined(name)
-
-
 def parse_definitions(path: str, text: str | bytes) -> DefinitionFile:
     """The declarations and macros of the definition file ``text`` at ``path`` (raises ProgramAlarm
     with the path and line of the first block that is neither)."""
@@ -86,7 +80,7 @@ def parse_definitions(path: str, text: str | bytes) -> DefinitionFile:
     elif len(text) > MAX_DEFINITION_BYTES:
         raise ProgramAlarm(ALARM_SYNTAX, f"definition file of {len(text)} characters (at most "
                                          f"{MAX_DEFINITION_BYTES})", program=path, line=1)
-    compiler = BlockCompiler((), _constant_only)
+    compiler = BlockCompiler((), constant_only)
     parsed = DefinitionFile(path)
     elements = 0
     for number, block in file_blocks(text):

@@ -55,8 +55,9 @@ def is_r_values_file(path: str) -> bool:
     return bool(_R_VALUES_LEAF.fullmatch(path.rsplit("/", 1)[-1]))
 
 
-def _constant_only(parser: Any, name: str) -> Any:
-    # A value is a constant: the file is read once, with no program running (a name is 12550).
+def constant_only(parser: Any, name: str) -> Any:
+    """The name resolver of a definition or value file: it is read once, with no program running and
+    nothing else defined yet, so a value is a constant and a name in it is the control's 12550."""
     raise undefined(name)
 
 
@@ -119,7 +120,7 @@ def _parse_block(block: str, channel: int, variables: dict[str, Variable], out: 
         if channel != 1:
             raise ProgramAlarm(ALARM_SYNTAX, f"CHANDATA({channel}): the emulated NCK has channel 1's values only")
         return channel
-    parser = Parser(tokens, _constant_only)
+    parser = Parser(tokens, constant_only)
     while not parser.at_end():
         token = parser.peek()
         if token is None or token[0] != NAME:
