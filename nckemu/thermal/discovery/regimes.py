@@ -219,14 +219,22 @@ def best_split(selector: Selector, path: Path, given: np.ndarray | None) -> Spli
     if best is None:
         return None
     _left, evaluation, groups = best
-    full = np.column_stack([design, grouped_columns(selector, evaluation.candidate.feature, groups)])
-    cv = selector.baseline.cross_validate(full, y, selector.baseline.folds)
-    fitted = stats.least_squares(full, y)
+    split = fitted_split(selector, path, evaluation, groups)
     named = named_term_split(selector, path, groups)
     if named is not None:
         bar = shapes.parameter_bar(selector.bar, shapes.parameters_of(evaluation.candidate.term))
-        if selector.heldout_gain(cv, named) < bar:
+        if selector.heldout_gain(split.cv, named) < bar:
             return None
+    return split
+
+
+def fitted_split(selector: Selector, path: Path, evaluation: Evaluation, groups: np.ndarray) -> Split:
+    """The candidate fitted apart over the groups beside the path's design: cross-validated (each run
+    held out, its group's coefficient from the others of its group) and the two groups' coefficients."""
+    y = selector.y
+    full = np.column_stack([path.design, grouped_columns(selector, evaluation.candidate.feature, groups)])
+    cv = selector.baseline.cross_validate(full, y, selector.baseline.folds)
+    fitted = stats.least_squares(full, y)
     return Split(evaluation, groups, cv, (float(fitted[-2]), float(fitted[-1])))
 
 
@@ -327,10 +335,7 @@ def fit_apart(selector: Selector, path: Path, evaluation: Evaluation, t_crit: fl
         residual = selector.y - design @ stats.least_squares(design, selector.y) if design.shape[1] else selector.y
         groupings = best_stretches(selector, feature, residual, names)
     for groups in groupings:
-        full = np.column_stack([path.design, grouped_columns(selector, feature, groups)])
-        cv = selector.baseline.cross_validate(full, selector.y, selector.baseline.folds)
-        fitted = stats.least_squares(full, selector.y)
-        split = Split(evaluation, groups, cv, (float(fitted[-2]), float(fitted[-1])))
+        split = fitted_split(selector, path, evaluation, groups)
         if judged(selector, path, split, reversed_only=False):
             break
     else:
