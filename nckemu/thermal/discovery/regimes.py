@@ -196,13 +196,18 @@ def grouped_columns(selector: Selector, feature: np.ndarray, groups: np.ndarray)
     return np.column_stack([feature * (sample_groups == 0), feature * (sample_groups == 1)])
 
 
+def path_residual(selector: Selector, path: Path) -> np.ndarray:
+    """What the path's design leaves of the gauge samples, fitted in sample (all of them without a design)."""
+    design = path.design
+    return selector.y - design @ stats.least_squares(design, selector.y) if design.shape[1] else selector.y
+
+
 def best_split(selector: Selector, path: Path, given: np.ndarray | None) -> Split | None:
     """The last round's candidate whose split over the groups lowers the in-sample residual most,
     cross-validated (each run held out, its group's coefficient from the others of its group)."""
     y, design = selector.y, path.design
     names = [run.name for run in selector.library.problem.runs]
-    coefficients = stats.least_squares(design, y) if design.shape[1] else np.zeros(0)
-    residual = y - design @ coefficients if design.shape[1] else y
+    residual = path_residual(selector, path)
     best: tuple[float, Evaluation, np.ndarray] | None = None
     for evaluation in path.rejected:
         if evaluation.candidate.runs_with is not None:
@@ -331,9 +336,7 @@ def fit_apart(selector: Selector, path: Path, evaluation: Evaluation, t_crit: fl
         given = given_groups(selector, pattern)
         groupings = [] if given is None else [given]
     else:
-        design = path.design
-        residual = selector.y - design @ stats.least_squares(design, selector.y) if design.shape[1] else selector.y
-        groupings = best_stretches(selector, feature, residual, names)
+        groupings = best_stretches(selector, feature, path_residual(selector, path), names)
     for groups in groupings:
         split = fitted_split(selector, path, evaluation, groups)
         if judged(selector, path, split, reversed_only=False):
