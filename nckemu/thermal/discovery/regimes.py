@@ -321,9 +321,9 @@ def fit_apart(selector: Selector, path: Path, evaluation: Evaluation, t_crit: fl
     """A candidate that passes every guard but leaves runs worse than the harm tolerance (issue 51: no
     run made worse in silence) is named only fitted apart over two groups of runs, one coefficient a
     group (each run held out, its group's coefficient from the other runs of its group). The groups are
-    the user's (``pattern``) or found: each run's slope of the residual on the candidate, cut into two
-    groups where they are tightest (``natural_break``), taken only when the smaller group is one stretch
-    of runs in name order (a date range). The split must clear the runs' paired test, the bar for its
+    the user's (``pattern``) or found: the stretches of runs in name order (date ranges) whose own
+    coefficient lowers the in-sample residual most (``best_stretches``), tried in turn, the smaller
+    group the one apart. The split must clear the runs' paired test, the bar for its
     parameters and harm no run; the groups' coefficients may share a sign (a sensor that tells the
     structure's heat on heavy days and a coolant pump's cycling on light ones). True when named."""
     problem = selector.library.problem
