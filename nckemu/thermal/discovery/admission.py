@@ -74,13 +74,7 @@ class Admission:
         """The relative drop of the held-out figure admission rests on: pooled RMS for one recording;
         with several runs, the median over runs of each run's held-out RMS (the few largest runs
         dominate a pooled figure)."""
-        if self.per_run:
-            reference, after = self.runs.run_medians(cv, base_cv, runs_with)
-            return 1.0 - after / reference if reference > 0 else 0.0
-        # Beat both the current model (refitted) and the model exactly as given: refitting a right
-        # model on autocorrelated data can make it worse, and a candidate must not win by undoing that.
-        reference_um = min(base_cv.rms_um, self.baseline.given_heldout_um)
-        return 1.0 - cv.rms_um / reference_um if reference_um > 0 else 0.0
+        return self.heldout_figures(cv, base_cv, runs_with)[2]
 
     def runs_guard(self, cv: stats.CrossValidation, base_cv: stats.CrossValidation,
                    runs_with: np.ndarray | None) -> Guard:
@@ -106,10 +100,13 @@ class Admission:
                         runs_with: np.ndarray | None = None) -> tuple[float, float, float, str]:
         """(before, after, relative drop, what the figure is): the held-out figure admission rests on
         (``heldout_gain``), for words that must follow it."""
-        gain = self.heldout_gain(cv, base_cv, runs_with)
         if self.per_run:
-            return (*self.runs.run_medians(cv, base_cv, runs_with), gain, words.MEDIAN_OVER_RUNS)
-        return min(base_cv.rms_um, self.baseline.given_heldout_um), cv.rms_um, gain, words.HELD_OUT
+            (before, after), figure = self.runs.run_medians(cv, base_cv, runs_with), words.MEDIAN_OVER_RUNS
+        else:
+            # Beat both the current model (refitted) and the model exactly as given: refitting a right
+            # model on autocorrelated data can make it worse, and a candidate must not win by undoing that.
+            before, after, figure = min(base_cv.rms_um, self.baseline.given_heldout_um), cv.rms_um, words.HELD_OUT
+        return before, after, 1.0 - after / before if before > 0 else 0.0, figure
 
     def guards(self, cv: stats.CrossValidation, fold_wins: int, runs_with: np.ndarray | None,
                t_values: tuple[float, ...], terms: tuple[Term, ...], base_cv: stats.CrossValidation,
