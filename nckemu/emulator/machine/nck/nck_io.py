@@ -25,10 +25,19 @@ from nckemu.emulator.machine.io_points import (
     DIGITAL_POINTS,
     NckIoSettings,
     PlcAnswer,
+    point_range,
 )
 
 READABLE = frozenset({"$A_IN", "$A_OUT", "$A_INA", "$A_OUTA", *DATA_LAYOUT})
 WRITABLE = frozenset({"$A_OUT", "$A_OUTA", *DATA_LAYOUT})
+
+
+def _check_index(name: str, index: int) -> None:
+    """IndexError unless ``name[index]`` is a point or a byte offset the NCK has (io_points.point_range)."""
+    low, high = point_range(name)
+    if not low <= index <= high:
+        what = "byte offsets" if name in DATA_LAYOUT else "points"
+        raise IndexError(f"{name}[{index}]: {what} {low}..{high}")
 
 
 class NckIo:
@@ -65,11 +74,9 @@ class NckIo:
         layout = DATA_LAYOUT.get(name)
         if layout is None:
             points = self._points(name)
-            if not 1 <= index <= len(points):
-                raise IndexError(f"{name}[{index}]: points 1..{len(points)}")
+            _check_index(name, index)
             return points[index - 1]
-        if not 0 <= index <= DATA_BYTES - struct.calcsize(layout):
-            raise IndexError(f"{name}[{index}]: byte offsets 0..{DATA_BYTES - struct.calcsize(layout)}")
+        _check_index(name, index)
         return struct.unpack_from(layout, self.data, index)[0]
 
     def write(self, name: str, index: int, value: float, now_s: float | None = None) -> None:
@@ -77,15 +84,13 @@ class NckIo:
         layout = DATA_LAYOUT.get(name)
         if layout is None:
             points = self._points(name)
-            if not 1 <= index <= len(points):
-                raise IndexError(f"{name}[{index}]: points 1..{len(points)}")
+            _check_index(name, index)
             points[index - 1] = bool(value) if name in ("$A_OUT", "$A_IN") else float(value)
             if name == "$A_OUT" and now_s is not None:
                 for answer in self._on_out.get((index, float(bool(value))), ()):
                     self._schedule(answer, now_s)
             return
-        if not 0 <= index <= DATA_BYTES - struct.calcsize(layout):
-            raise IndexError(f"{name}[{index}]: byte offsets 0..{DATA_BYTES - struct.calcsize(layout)}")
+        _check_index(name, index)
         if layout == ">f":
             struct.pack_into(layout, self.data, index, float(value))
         else:
