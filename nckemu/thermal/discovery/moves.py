@@ -38,14 +38,14 @@ class Moves:
         whole (both coefficients past the t-test, Bonferroni-corrected over every pair of hypotheses),
         and each effect must earn its place in it: the move must clear the held-out bar over either
         effect alone."""
-        s, setup = self.settings, self.baseline
+        s = self.settings
         pool = sorted(evaluations, key=lambda e: e.ranked_rms_um)[: s.pair_pool]
         if len(pool) < 2:
             return False
         pairs = self.screen_pairs(path.design, pool)
         grid = np.array([e.candidate.grid_points for e in pool], dtype=float)
         tests = single_tests + int((grid.sum() ** 2 - float(np.sum(grid ** 2))) / 2)
-        t_crit = t_critical(s.alpha, tests, len(self.y) - path.design.shape[1] - 2 - setup.extra_parameters)
+        t_crit = self._move_t_critical(path.design, tests)
         moves = [self.fits.evaluate_pair(path, pool[first], pool[second]) for first, second in pairs]
 
         def guarded(move: Move, paired: bool) -> bool:
