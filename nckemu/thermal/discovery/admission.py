@@ -271,8 +271,11 @@ class Admission:
             return self.bar
         return shapes.parameter_bar(self.bar, shapes.parameters_of(term))
 
-    def move_passes(self, path: Path, move: Move, chosen: Evaluation, t_crit: float) -> bool:
+    def move_passes(self, path: Path, move: Move, t_crit: float, *, over: Evaluation | None = None,
+                    paired: bool = True) -> bool:
+        """A move passes every guard as a whole and clears the held-out bar over either of its effects
+        alone, and over ``over`` (the effect the round chose, which the move would replace)."""
         return self.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
-                          t_crit, cancels=move.cancelling)[0] \
+                          t_crit, paired=paired, cancels=move.cancelling)[0] \
             and all(self.heldout_gain(move.cv, other.cv, move.runs_with) >= self.bar
-                    for other in (chosen, *move.alone))
+                    for other in ((over, *move.alone) if over is not None else move.alone))

@@ -47,15 +47,10 @@ class Moves:
         tests = single_tests + int((grid.sum() ** 2 - float(np.sum(grid ** 2))) / 2)
         t_crit = self._move_t_critical(path.design, tests)
         moves = [self.fits.evaluate_pair(path, pool[first], pool[second]) for first, second in pairs]
-
-        def guarded(move: Move, paired: bool) -> bool:
-            return self.admission.judge(move.cv, move.fold_wins, move.runs_with, move.t_values, move.terms, path.base_cv,
-                                        t_crit, paired=paired, cancels=move.cancelling)[0] \
-                and all(self.admission.heldout_gain(move.cv, alone.cv, move.runs_with) >= self.admission.bar
-                        for alone in move.alone)
         if self.admission.per_run:
-            self.admission.paired_tests = max(1, sum(guarded(move, paired=False) for move in moves))
-        passing = [move for move in moves if guarded(move, paired=True)]
+            self.admission.paired_tests = max(1, sum(self.admission.move_passes(path, move, t_crit, paired=False)
+                                                     for move in moves))
+        passing = [move for move in moves if self.admission.move_passes(path, move, t_crit)]
         if not passing:
             return False
         best = min(passing, key=lambda m: m.ranked_rms_um)
@@ -160,7 +155,7 @@ class Moves:
             if found is not None:
                 tried_moves.append(("split", *found))
         passing = [(what, move, t_crit) for what, move, t_crit in tried_moves
-                   if self.admission.move_passes(path, move, chosen, t_crit)]
+                   if self.admission.move_passes(path, move, t_crit, over=chosen)]
         if not passing:
             return False
         best = min(passing, key=lambda item: item[1].ranked_rms_um)
