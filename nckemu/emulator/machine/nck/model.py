@@ -32,6 +32,7 @@ from nckemu.emulator.machine.nck.compensation import (  # noqa: F401 (old import
 )
 from nckemu.emulator.machine.nck.drives import Drives
 from nckemu.emulator.machine.nck.frames import Frames
+from nckemu.emulator.machine.nck.nck_environment import r_parameter_lines
 from nckemu.emulator.machine.nck.nck_io import NckIo
 from nckemu.emulator.machine.nck.program_run import ProgramRun
 from nckemu.emulator.machine.nck.programs import Programs
@@ -112,13 +113,11 @@ class NckModel:
     def _r_value_files(self, machine: Machine) -> None:
         """An R value file (NAME.RPA) written to the NCK sets channel 1's R parameters."""
         try:
-            r_spec = self.store.spec("R")
+            r_spec, r_offset, count = r_parameter_lines(self.store, machine)
         except KeyError:
             return
-        r_offset = machine.settings.r_parameter_line_offset
         self.programs.r_parameters = (
-            r_spec.lines - r_offset + 1,
-            lambda index, value: self.store.write_lines(r_spec, 1, index + r_offset, [value]))
+            count, lambda index, value: self.store.write_lines(r_spec, 1, index + r_offset, [value]))
 
     def _definition_checked(self, path: str, alarm: ProgramAlarm | None) -> None:
         """A definition file refused stays on the alarm list (with its file and line) until a good

@@ -22,8 +22,10 @@ from nckemu.errors import NckError, NckNoSuchFile, NckPiBadArguments
 
 if TYPE_CHECKING:
     from nckemu.catalogue.table import VariableSpec
+    from nckemu.emulator.machine.machine_file import Machine
     from nckemu.emulator.machine.nck.channel import Channel
     from nckemu.emulator.machine.nck.parts import NckParts
+    from nckemu.emulator.machine.nck.store import VariableStore
 
 # Where a called subprogram is looked for after the caller's own directory (programs.md 7).
 SEARCH_DIRECTORIES = ("/_N_SPF_DIR", "/_N_CUS_DIR", "/_N_CMA_DIR", "/_N_CST_DIR", "/_N_MPF_DIR")
@@ -37,6 +39,14 @@ CLOCK_VARIABLES = frozenset({"$A_YEAR", "$A_MONTH", "$A_DAY", "$A_HOUR", "$A_MIN
 # The part counters a program reads and writes: system variable -> the channel state's field.
 PART_COUNTERS = {"$AC_ACTUAL_PARTS": "actual_parts", "$AC_TOTAL_PARTS": "total_parts",
                  "$AC_REQUIRED_PARTS": "required_parts", "$AC_SPECIAL_PARTS": "specified_parts"}
+
+
+def r_parameter_lines(store: VariableStore, machine: Machine) -> tuple[VariableSpec, int, int]:
+    """R's catalogue entry, the line R0 is on (the machine's r_parameter_line_offset) and how many R
+    parameters a program has (raises KeyError when the catalogue has no R)."""
+    spec = store.spec("R")
+    offset = machine.settings.r_parameter_line_offset
+    return spec, offset, spec.lines - offset + 1
 
 
 def _clock_value(key: str, now_s: float) -> int:
@@ -65,9 +75,8 @@ class NckEnvironment(ProgramEnvironment):
     def _r_spec_lines(self) -> int:
         # R is read and written in nearly every block of a computed contour: its entry and line offset
         # are looked up once a run (the table and the machine file do not change while it runs)
-        self._r_spec = self._parts.store.spec("R")
-        self._r_offset = self._parts.machine.settings.r_parameter_line_offset
-        return self._r_spec.lines - self._r_offset + 1
+        self._r_spec, self._r_offset, count = r_parameter_lines(self._parts.store, self._parts.machine)
+        return count
 
     def _r_line(self, index: int) -> int:
         line = index + self._r_offset
