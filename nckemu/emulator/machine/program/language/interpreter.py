@@ -394,9 +394,8 @@ class Interpreter:
         return events
 
     def _execute(self, compiled: Compiled, frame: ProgramLevel, pos: int) -> list[Event] | None:
+        """Any block but a STRAIGHT one (_run hands that to :meth:`_straight` itself, a call fewer a block)."""
         kind = compiled.kind
-        if kind == b.STRAIGHT:
-            return self._straight(compiled, frame)
         if kind == b.WORDS:
             return self._words(compiled.items, frame, pos)
         if kind != b.NOTHING and kind != b.EXTERN and kind != b.PROC:
