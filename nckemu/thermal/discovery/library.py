@@ -210,15 +210,19 @@ class Library:
             self._signals[key] = (t[::step], signal[::step])
         return self._signals[key]
 
+    def _sensor_series(self, sensor: str) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """The runs that have ``sensor`` (by id, in the runs' order): each one's coarse (t_s, signal)."""
+        return {id(run): self._decimated(run, sensor) for run in self.problem.runs
+                if f"temp_{sensor}_C" in run.readings.recording.temperatures_C}
+
     def _filtered_column(self, key: tuple[object, ...], sensor: str,
                          lagged: Callable[[list[tuple[np.ndarray, np.ndarray]]], list[np.ndarray]]) -> np.ndarray:
         """A filter of ``sensor`` (on its coarse grid) at the gauge samples, less t_ref; zero in a run
         without the sensor (no contribution there). ``lagged`` filters the runs' (t_s, signal) at once."""
         def make() -> np.ndarray:
             t_ref = self.t_ref(sensor)
-            having = [run for run in self.problem.runs if f"temp_{sensor}_C" in run.readings.recording.temperatures_C]
-            series = [self._decimated(run, sensor) for run in having]
-            filtered = dict(zip(map(id, having), zip(series, lagged(series), strict=True), strict=True))
+            series = self._sensor_series(sensor)
+            filtered = dict(zip(series, zip(series.values(), lagged(list(series.values())), strict=True), strict=True))
 
             def per_run(run: Run) -> np.ndarray:
                 t_gauge = run.readings.recording.t_s[run.mask]
@@ -401,16 +405,15 @@ class Library:
                    or self._version != self.problem.version]
         if len(missing) > 1:
             t_ref = self.t_ref(sensor)
-            having = [run for run in self.problem.runs if f"temp_{sensor}_C" in run.readings.recording.temperatures_C]
-            lags = dict(zip(map(id, having), asymmetric_lags([self._decimated(run, sensor) for run in having],
-                                                             missing), strict=True))
+            series = self._sensor_series(sensor)
+            lags = dict(zip(series, asymmetric_lags(list(series.values()), missing), strict=True))
             per_run = []
             for run in self.problem.runs:
                 t_gauge = run.readings.recording.t_s[run.mask]
                 if id(run) not in lags:
                     per_run.append([np.zeros(len(t_gauge))] * len(missing))
                     continue
-                t_coarse, _signal = self._decimated(run, sensor)
+                t_coarse, _signal = series[id(run)]
                 lagged = lags[id(run)]
                 per_run.append([np.interp(t_gauge, t_coarse, lagged[:, k]) - t_ref for k in range(len(missing))])
             for k, pair in enumerate(missing):
