@@ -47,6 +47,21 @@ def cancelling(full: np.ndarray, coefficients: np.ndarray, y: np.ndarray, named:
     return worst[1]
 
 
+def fold_wins(cv: stats.CrossValidation, base_cv: stats.CrossValidation, runs_with: np.ndarray | None) -> int:
+    """The folds (of the runs that have the columns: ``runs_with``) whose held-out RMS drops."""
+    counted = runs_with if runs_with is not None else [True] * len(cv.fold_rms_um)
+    return sum(after < before for after, before, count in zip(cv.fold_rms_um, base_cv.fold_rms_um, counted,
+                                                              strict=True) if count)
+
+
+def without_noise_um(cv: stats.CrossValidation, noise: np.ndarray, coefficients: np.ndarray) -> float:
+    """Held-out RMS less what the features' sensor noise carries. Errors in variables: noise n in the
+    features adds mean((n @ b)^2) to the squared error of the fitted model's prediction, independent
+    of the gauge's noise and of the physics."""
+    carried = float(np.mean(np.square(noise @ coefficients)))
+    return math.sqrt(max(cv.rms_um ** 2 - carried, 0.0))
+
+
 class Fits:
     def __init__(self, y: np.ndarray, baseline: Baseline, admission: Admission) -> None:
         self.y = y
@@ -60,13 +75,8 @@ class Fits:
         full = np.column_stack([design, candidate.feature])
         cv = self.baseline.cross_validate(full, self.y, self.baseline.folds)
         result = stats.fit(full, self.y)
-        counted = candidate.runs_with if candidate.runs_with is not None else [True] * len(cv.fold_rms_um)
-        wins = sum(after < before for after, before, count in zip(cv.fold_rms_um, base_cv.fold_rms_um, counted,
-                                                                  strict=True) if count)
-        # Errors in variables: noise n in the features adds mean((n @ b)^2) to the squared error of
-        # the fitted model's prediction, independent of the gauge's noise and of the physics.
-        carried = float(np.mean(np.square(np.column_stack([noise, candidate.noise]) @ result.coefficients)))
-        ranked = math.sqrt(max(cv.rms_um ** 2 - carried, 0.0))
+        wins = fold_wins(cv, base_cv, candidate.runs_with)
+        ranked = without_noise_um(cv, np.column_stack([noise, candidate.noise]), result.coefficients)
         return Evaluation(candidate, cv, result.t_value(full.shape[1] - 1), float(result.coefficients[-1]), wins,
                           ranked, cancelling=cancelling(full, result.coefficients, self.y, named,
                                                         (candidate.term,), self.admission.settings))
@@ -81,14 +91,10 @@ class Fits:
             everywhere = np.ones(len(cv.fold_rms_um), dtype=bool)
             runs_with = (everywhere if a.candidate.runs_with is None else a.candidate.runs_with) \
                 & (everywhere if b.candidate.runs_with is None else b.candidate.runs_with)
-        counted = runs_with if runs_with is not None else [True] * len(cv.fold_rms_um)
-        wins = sum(after < before for after, before, count in zip(cv.fold_rms_um, path.base_cv.fold_rms_um, counted,
-                                                                  strict=True) if count)
         noise = np.column_stack([path.noise, a.candidate.noise, b.candidate.noise])
-        carried = float(np.mean(np.square(noise @ result.coefficients)))
         move = Move((a, b), cv, (result.t_value(columns - 2), result.t_value(columns - 1)),
-                    (float(result.coefficients[-2]), float(result.coefficients[-1])), wins,
-                    math.sqrt(max(cv.rms_um ** 2 - carried, 0.0)), runs_with)
+                    (float(result.coefficients[-2]), float(result.coefficients[-1])),
+                    fold_wins(cv, path.base_cv, runs_with), without_noise_um(cv, noise, result.coefficients), runs_with)
         # The two of the move count as named for each other: a pair that cancels is refused too.
         move.cancelling = cancelling(full, result.coefficients, self.y, (*path.added, a.candidate.term),
                                      (b.candidate.term,), self.admission.settings)
