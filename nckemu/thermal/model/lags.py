@@ -83,3 +83,30 @@ def asymmetric_lag(t_s: np.ndarray, signal: np.ndarray, tau_heat_s: float, tau_c
         previous += (heat[k - 1] if target > previous else cool[k - 1]) * (target - previous)
         out[k] = previous
     return out
+
+
+def asymmetric_lags(series: list[tuple[np.ndarray, np.ndarray]], pairs: list[tuple[float, float]]) -> list[np.ndarray]:
+    """``asymmetric_lag`` of every (t_s, signal) series (a run each) for every (tau_heat_s,
+    tau_cool_s) pair, one (samples, pairs) array per series: the same operations in the same order per
+    series and pair (so the same numbers), one pass over time for all of them (the loop over time is in
+    Python; a shorter series is padded at its end with its last value, and the padding dropped)."""
+    longest = max((len(signal) for _t, signal in series), default=0)
+    if longest == 0:
+        return [np.empty((0, len(pairs))) for _ in series]
+    signals = np.zeros((longest, len(series)))
+    steps_s = np.ones((longest - 1, len(series)))
+    for index, (t_s, signal) in enumerate(series):
+        if len(signal):
+            signals[:len(signal), index] = signal
+            signals[len(signal):, index] = signal[-1]
+            steps_s[:len(signal) - 1, index] = np.diff(t_s)
+    heat = 1.0 - np.exp(-steps_s[:, :, None] / np.array([tau_heat for tau_heat, _ in pairs]))
+    cool = 1.0 - np.exp(-steps_s[:, :, None] / np.array([tau_cool for _, tau_cool in pairs]))
+    out = np.empty((longest, len(series), len(pairs)))
+    previous = np.repeat(signals[0][:, None], len(pairs), axis=1)
+    out[0] = previous
+    for k in range(1, longest):
+        target = signals[k][:, None]
+        previous = previous + np.where(target > previous, heat[k - 1], cool[k - 1]) * (target - previous)
+        out[k] = previous
+    return [out[:len(signal), index] for index, (_t, signal) in enumerate(series)]
