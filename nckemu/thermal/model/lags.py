@@ -8,13 +8,22 @@ import numpy as np
 from scipy.signal import lfilter
 
 
+def uniform_step_s(dt: np.ndarray) -> float | None:
+    """The sampling step when the steps ``dt`` are all one (to a part in 1e9), else None: a uniformly
+    sampled series is one linear filter (``lfilter``), not a pass over time."""
+    if len(dt) and float(dt.max() - dt.min()) <= 1e-9 * abs(float(dt[0])):
+        return float(dt[0])
+    return None
+
+
 def first_order_lag(t_s: np.ndarray, signal: np.ndarray, tau_s: float) -> np.ndarray:
     """x' = (u - x)/tau with zero-order hold between samples; starts settled at u[0]."""
     if len(signal) == 0:
         return signal.copy()
     dt = np.diff(t_s)
-    if len(dt) and float(dt.max() - dt.min()) <= 1e-9 * abs(float(dt[0])):  # uniform sampling
-        alpha = 1.0 - math.exp(-dt[0] / tau_s)
+    step_s = uniform_step_s(dt)
+    if step_s is not None:
+        alpha = 1.0 - math.exp(-step_s / tau_s)
         state = lfilter([alpha], [1.0, alpha - 1.0], signal - signal[0])
         return state + signal[0]
     out = np.empty_like(signal)
@@ -37,8 +46,9 @@ def first_order_lags(series: list[tuple[np.ndarray, np.ndarray]], tau_s: float) 
         if len(signal) == 0:
             continue
         dt = np.diff(t_s)
-        if len(dt) and float(dt.max() - dt.min()) <= 1e-9 * abs(float(dt[0])):
-            uniform.setdefault(float(dt[0]), []).append(index)
+        step_s = uniform_step_s(dt)
+        if step_s is not None:
+            uniform.setdefault(step_s, []).append(index)
         else:
             stepped.append((index, 1.0 - np.exp(-dt / tau_s)))
     for step_s, indices in uniform.items():
