@@ -165,8 +165,11 @@ class Admission:
               t_crit: float, *, paired: bool = True, cancels: str = "") -> tuple[bool, bool]:
         """(passes every guard, passes every guard but the held-out bar and still lowers the held-out
         figure by ``likely_min_improvement``)."""
-        found = self.guards(cv, fold_wins, runs_with, t_values, terms, base_cv, t_crit, paired=paired,
-                            cancels=cancels)
+        return self.verdict(self.guards(cv, fold_wins, runs_with, t_values, terms, base_cv, t_crit, paired=paired,
+                                        cancels=cancels))
+
+    def verdict(self, found: list[Guard]) -> tuple[bool, bool]:
+        """``judge``'s answer from the guards' figures."""
         rest = all(g.passes for g in found[:-1])
         held_out = found[-1]
         return held_out.passes and rest, rest and held_out.gain >= self.settings.likely_min_improvement
@@ -174,15 +177,14 @@ class Admission:
     def _guards(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float,
                 paired: bool = True) -> tuple[bool, bool]:
         """(passes every guard, passes every guard but the held-out bar)."""
-        term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
-        return self.judge(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
-                          (evaluation.t_value,), (term,), base_cv, t_crit, paired=paired,
-                          cancels=evaluation.cancelling)
+        return self.verdict(self.guards_of(evaluation, base_cv, t_crit, paired=paired))
 
-    def guards_of(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> list[Guard]:
+    def guards_of(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float,
+                  paired: bool = True) -> list[Guard]:
         term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
         return self.guards(evaluation.cv, evaluation.fold_wins, evaluation.candidate.runs_with,
-                           (evaluation.t_value,), (term,), base_cv, t_crit, cancels=evaluation.cancelling)
+                           (evaluation.t_value,), (term,), base_cv, t_crit, paired=paired,
+                           cancels=evaluation.cancelling)
 
     def passes(self, evaluation: Evaluation, base_cv: stats.CrossValidation, t_crit: float) -> bool:
         return self._guards(evaluation, base_cv, t_crit)[0]
