@@ -41,6 +41,7 @@ from .library import Library
 from .problem import Problem
 from .readings import prepare, resampled
 from .records import Baseline, Path
+from .run_figures import made_worse, shared_traits
 from .selector import Selector
 from .settings import Settings
 from .splitters import Blocks, LeaveOneRunOut, Splitter, held_out_masks
@@ -442,8 +443,16 @@ class Discoverer:
             window = self._run_window(index, residual)
             row["fails_from_h"], row["fails_to_h"] = window["from_h"], window["to_h"]
             row["follows"] = window["follows"]
+            row["follows_signal"], row["follows_r"] = window["follows_signal"], window["follows_r"]
             result.mismatch.append({"run": run.name, "t_start_s": window["t_start_s"], "t_end_s": window["t_end_s"],
                                     "why": window["why"]})
+        # No run made worse in silence (issue 51): the runs the final model leaves worse than before
+        # discovery beyond the harm tolerance, unless a group fitted apart holds them, and what they share.
+        apart = {name: m.evidence.regime.runs_words for m in result.missing_physics
+                 if getattr(m.evidence, "regime", None) is not None and m.evidence.regime.apart
+                 for name in m.evidence.regime.runs}
+        figures["made_worse"] = made_worse(rows, self.settings, apart)
+        figures["made_worse_share"] = shared_traits(rows, figures["median_after_um"])
         if found and result.residual_is_structure and not result.mismatch:
             # No run stands out, yet what is left is structure: where the worst run's residual is.
             worst = int(np.argmax([r["heldout_rms_after_um"] for r in rows]))
@@ -480,9 +489,12 @@ class Discoverer:
         inside = (t_run >= start_s) & (t_run <= end_s)
         t0 = float(run.readings.recording.t_s[0])
         why = explain.why(run.readings.recording, problem.axis, t_run, inside, r_run)
-        follows = explain.follows(run.readings.recording, t_run[explain.widened(inside)], r_run[explain.widened(inside)])
+        best = explain.follower(run.readings.recording, t_run[explain.widened(inside)], r_run[explain.widened(inside)])
+        follows = explain.follows_words(best)
         return {"t_start_s": start_s, "t_end_s": end_s, "from_h": round((start_s - t0) / 3600, 2),
                 "to_h": round((end_s - t0) / 3600, 2), "follows": follows,
+                "follows_signal": best[0] if best is not None else None,
+                "follows_r": round(best[1], 3) if best is not None else None,
                 "why": f"{why}; {follows}" if follows else why}
 
     def _finish(self, setup: Baseline, path: Path, preferred: str) -> Discovery:

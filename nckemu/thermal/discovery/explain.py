@@ -293,8 +293,18 @@ def widened(inside: np.ndarray, minimum: int = 12) -> np.ndarray:
 def follows(recording: Recording, t_s: np.ndarray, residual: np.ndarray) -> str:
     """What the residual follows over these gauge samples: the sensor, a sensor's rate of change or
     the spindle speed whose course it matches best (Pearson r); empty when too few samples."""
+    return follows_words(follower(recording, t_s, residual))
+
+
+def follows_words(best: tuple[str, float] | None) -> str:
+    """``follower``'s signal and r in ``follows``' words."""
+    return "" if best is None else f"the residual there follows {best[0]} (r = {best[1]:+.2f})"
+
+
+def follower(recording: Recording, t_s: np.ndarray, residual: np.ndarray) -> tuple[str, float] | None:
+    """``follows``' signal and its Pearson r, or None when too few samples or nothing moves."""
     if len(t_s) < 8 or not np.ptp(residual) > 0:
-        return ""
+        return None
     signals: dict[str, np.ndarray] = {}
     t_all = recording.t_s
     for name, values in recording.temperatures_C.items():
@@ -312,6 +322,4 @@ def follows(recording: Recording, t_s: np.ndarray, residual: np.ndarray) -> str:
         r = float(np.corrcoef(signal, residual)[0, 1])
         if math.isfinite(r) and (best is None or abs(r) > abs(best[0])):
             best = (r, name)
-    if best is None:
-        return ""
-    return f"the residual there follows {best[1]} (r = {best[0]:+.2f})"
+    return None if best is None else (best[1], best[0])

@@ -98,7 +98,7 @@ def _runs_section(discovery: Discovery) -> str:
         f"<tr{red if r.get('fails') else ''}><td>{html.escape(r['name'])}</td>"
         f"<td>{r['rows']}</td><td>{r['duration_h']:.1f}</td><td>{r['heldout_rms_before_um']:.3f}</td>"
         f"<td>{r['heldout_rms_after_um']:.3f}</td><td>"
-        + (html.escape(f"still fails, {r['fails_from_h']:.2f} h to {r['fails_to_h']:.2f} h after its start"
+        + (html.escape(f"{'worse than before, ' if r.get('made_worse') else ''}still fails, {r['fails_from_h']:.2f} h to {r['fails_to_h']:.2f} h after its start"
                        + (f"; {r['follows']}" if r.get("follows") else "")) if r.get("fails") else "")
         + "</td></tr>" for r in discovery.runs)
     coverage = "".join(f"<li>{html.escape(c['column'])} missing in {html.escape(', '.join(c['missing_in']))}: "

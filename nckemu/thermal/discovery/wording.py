@@ -114,10 +114,26 @@ def _size(parameters: dict[str, Any]) -> str:
     return f" {value:+.3g} {unit.replace('_per_', '/').replace('um/K2', 'um/K^2')}" if isinstance(value, float) else ""
 
 
+def worse_line(discovery: Discovery, shown: int = 4) -> str:
+    """The runs the model leaves worse than before discovery beyond the harm tolerance, each with its
+    figures (the first ``shown``), and what they share, or that no shared trait was found; empty
+    when no run is made worse (issue 51: no run made worse in silence)."""
+    worse = discovery.run_figures.get("made_worse", []) if discovery.run_figures else []
+    if not worse:
+        return ""
+    runs = ", ".join(f"{w['run']} {w['before_um']:.3f} -> {w['after_um']:.3f} um" for w in worse[:shown])
+    if len(worse) > shown:
+        runs += f" and {len(worse) - shown} more (runs table)"
+    shared = discovery.run_figures.get("made_worse_share") or \
+        ["no trait found that explains it" if len(worse) == 1 else "no shared trait found"]
+    return f"made worse: {runs}: {'; '.join(shared)}"
+
+
 def headline_lines(discovery: Discovery) -> list[str]:
     """At most four lines an engineer can act on (issue 51): each term named, its size and what it
-    means physically (a group of runs fitted apart on one line with its own size), then the figure
-    per run group. The evidence follows them."""
+    means physically (a group of runs fitted apart on one line with its own size), the runs made
+    worse than before with what they share when there are any, then the figure per run group. The
+    evidence follows them."""
     terms: list[str] = []
     done: set[int] = set()
     physics = discovery.missing_physics
@@ -142,8 +158,12 @@ def headline_lines(discovery: Discovery) -> list[str]:
     if not terms:
         terms = ["nothing to add: " + ("what is left is structure no term of the vocabulary explains"
                                        if discovery.residual_is_structure else "the model explains what the data show")]
-    if len(terms) > 3:
-        terms = terms[:2] + [f"and {len(terms) - 2} more terms (below)"]
+    worse = worse_line(discovery)
+    room = 2 if worse else 3  # four lines in all: the terms shrink to make room for the runs made worse
+    if len(terms) > room:
+        terms = terms[:room - 1] + [f"and {len(terms) - room + 1} more terms (below)"]
+    if worse:
+        terms.append(worse)
     figures = discovery.run_figures
     if figures:
         line = (f"held-out, each run left out: median {figures['median_before_um']:.3f} -> "
@@ -209,13 +229,16 @@ def finding_lines(discovery: Discovery) -> list[str]:
 
 
 def runs_table(discovery: Discovery) -> list[str]:
-    """Per run: rows, hours, held-out before and after (each run left out), and where it still fails."""
+    """Per run: rows, hours, held-out before and after (each run left out), and where it still fails;
+    a run the model leaves worse than before beyond the harm tolerance is flagged so."""
     if not discovery.runs:
         return []
     width = max(len(r["name"]) for r in discovery.runs)
     lines = [f"{'run':<{width}}  {'rows':>6}  {'hours':>6}  {'before_um':>9}  {'after_um':>8}"]
     for r in discovery.runs:
-        flag = "  still fails" if r.get("fails") else ""
+        flag = ("  worse than before" if r.get("made_worse") else
+                f"  worse than before, in {r['worse_in_group']} (fitted apart)" if r.get("worse_in_group") else
+                "  still fails" if r.get("fails") else "")
         lines.append(f"{r['name']:<{width}}  {r['rows']:>6}  {r['duration_h']:>6.1f}  "
                      f"{r['heldout_rms_before_um']:>9.3f}  {r['heldout_rms_after_um']:>8.3f}{flag}")
     if discovery.run_figures:
