@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,6 +85,15 @@ def test_the_runs_table_says_worse_than_before_only_of_that_run(one_quiet: Disco
     assert len(flagged) == 1 and flagged[0].startswith("2026-03-05")
     assert "still fails" not in flagged[0]  # the row says worse than before; where it fails follows below
     assert any(line.startswith("2026-03-05 still fails from") for line in table)
+
+
+def test_the_html_report_says_it_too(one_quiet: Discovery, tmp_path: Path) -> None:
+    from nckemu.thermal.discovery.report import write_report
+
+    page = tmp_path / "r.html"
+    write_report(page, one_quiet, "runs")
+    text = page.read_text()
+    assert "made worse: 2026-03-05" in text and "worse than before, still fails" in text
 
 
 def test_two_consecutive_quiet_days_share_three_traits(two_quiet: Discovery) -> None:
