@@ -42,6 +42,7 @@ from .problem import Problem
 from .readings import prepare, resampled
 from .records import Baseline, Path
 from .run_figures import made_worse, shared_traits
+from .selection_words import stopped_by_data_words, stopped_by_limit_words
 from .selector import Selector
 from .settings import Settings
 from .splitters import Blocks, LeaveOneRunOut, Splitter, held_out_masks
@@ -81,8 +82,15 @@ class Discovery:
     left: list[dict[str, Any]] = field(default_factory=list)
     # Terms that fit and pass every other guard, but that a machine cannot have (issue 51): never named.
     cannot_have: list[Closest] = field(default_factory=list)
-    # The search stopped at Settings.max_effects, not because nothing more passed: said, with the figure.
+    # The search stopped at Settings.max_effects, not because nothing more passed: said, with what the
+    # next round would name and its figure.
     stopped_at_limit: str = ""
+    # What stopped the search: "data" (nothing more earned its place) or "limit" (the next round, judged
+    # with the limit lifted, would name ``beyond_limit``); ``stopped``: why in words, when the search
+    # reached the limit (by the data or by the limit).
+    stopped_by: str = "data"
+    stopped: str = ""
+    beyond_limit: dict[str, Any] = field(default_factory=dict)
     # Several runs: the figures of each (leave-one-run-out), which columns some runs lack.
     runs: list[dict[str, Any]] = field(default_factory=list)
     coverage: list[dict[str, Any]] = field(default_factory=list)
@@ -121,6 +129,7 @@ class Discovery:
             "cannot_have": [item.to_json() for item in self.cannot_have],
             "left": self.left,
             "stopped_at_limit": self.stopped_at_limit,
+            "stopped_by": self.stopped_by, "stopped": self.stopped, "beyond_limit": self.beyond_limit,
             "residual_structure": self.residual_structure,
             "cannot_use": self.cannot_use,
         }
@@ -386,10 +395,7 @@ class Discoverer:
             result.likely.append(explain.likely_record(
                 evaluation, before_um, after_um, gain, figure, path.rejected_t_critical, len(setup.folds),
                 selector.bar, "runs" if self.problem.per_run_offset else "folds", passed=passed))
-        if path.at_limit:
-            count = self.settings.max_effects
-            result.stopped_at_limit = (f"{count} term{'s' if count != 1 else ''} named, the most Settings.max_effects allows: the "
-                                       f"search stopped there; the next round's candidates were surveyed, not judged")
+        self._stop_words(result, path)
         for evaluation, guards in selector.closest(path):
             term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
             result.closest.append(Closest(
@@ -411,6 +417,19 @@ class Discoverer:
         runs = len(self.problem.runs)
         unit = (runs, "runs") if runs > 1 else (len(setup.folds), "blocks of time")
         result.why_nothing = explain.nothing_passed(unit[0], unit[1], result.smallest_detectable_um, words)
+
+    def _stop_words(self, result: Discovery, path: Path) -> None:
+        """What stopped the search, judged at the limit (``Search.judge_next_round``): the data, said
+        when the limit was reached; or the limit, with what the next round would name."""
+        result.stopped_by = path.stopped_by
+        if path.at_limit and path.beyond_limit is not None:
+            labels, before_um, after_um, figure = path.beyond_limit
+            result.stopped = result.stopped_at_limit = stopped_by_limit_words(
+                path.limit_terms, self.settings.max_effects, labels, before_um, after_um, figure)
+            result.beyond_limit = {"terms": labels, "before_um": round(before_um, 4), "after_um": round(after_um, 4),
+                                   "figure": figure}
+        elif path.limit_terms >= self.settings.max_effects:
+            result.stopped = stopped_by_data_words(path.limit_terms)
 
     def _per_run(self, result: Discovery, setup: Baseline, path: Path) -> None:
         """Leave-one-run-out figures per run (before = the like-for-like baseline, after = the improved

@@ -119,8 +119,15 @@ class Path:
     rejected_paired_tests: int = 1     # ... and how many candidates the runs' paired test was corrected over
     # Terms named in a round and withdrawn at the end: the terms named after them explain what they did.
     withdrawn: list[Withdrawn] = field(default_factory=list)
-    # The search stopped at Settings.max_effects: the last round's candidates were surveyed, not judged.
+    # The search stopped at Settings.max_effects, and the next round, judged on a copy with the limit
+    # lifted, would have named more (``Search.judge_next_round``): its candidates were surveyed, not judged.
     at_limit: bool = False
+    # What stopped the search: "data" (nothing more earned its place; below the limit, or judged at it)
+    # or "limit". ``limit_terms``: the terms named when the limit was reached (0: never reached);
+    # ``beyond_limit``: what the next round would name past it (labels, held-out before and after, figure).
+    stopped_by: str = "data"
+    limit_terms: int = 0
+    beyond_limit: tuple[list[str], float, float, str] | None = None
     # Candidates that passed every guard but what a machine can have: (label, term, guards).
     cannot_have: list[tuple[str, Term, list[Guard]]] = field(default_factory=list)
     # The last round's candidates with every guard's figure, judged once (``Selector.judged``).

@@ -4,6 +4,8 @@ the shapes named, the terms the later ones made redundant withdrawn, and twins' 
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -54,7 +56,8 @@ class Search:
         for _round in range(self.settings.max_effects):
             if len(path.added) >= self.settings.max_effects or not self.round(path):
                 break
-        path.at_limit = len(path.added) >= self.settings.max_effects
+        if self.limit_may_have_stopped(path):
+            self.judge_next_round(path)
         self.name_shapes(path)
         if self.admission.paired_runs:
             self.withdraw_redundant(path)
@@ -173,6 +176,44 @@ class Search:
                 term = evaluation.candidate.term.with_coefficient(evaluation.coefficient)
                 path.cannot_have.append((label, term, guards))
         return fitting
+
+    def limit_may_have_stopped(self, path: Path) -> bool:
+        """The search reached ``Settings.max_effects``, or came within a move of two of it (a round that
+        admitted nothing may have been denied its pair round by the limit)."""
+        s = self.settings
+        return len(path.added) >= s.max_effects or (s.pair_moves and len(path.added) + 2 > s.max_effects)
+
+    def judge_next_round(self, path: Path) -> None:
+        """Whether the limit or the data stopped the search: the next round judged in full (single
+        effects, moves of two, time constants, a fit apart over groups of runs) on a copy of the path,
+        with room for a move of two beyond the terms named; the copy is thrown away, and the admission's
+        count of paired tests is restored. Nothing admitted: the data stopped the search, and that
+        round's candidates are the last round's (what ``closest`` and the detectable sizes rest on).
+        Something admitted: the limit stopped it, and ``path.beyond_limit`` says what the round would
+        name, with its held-out figure."""
+        trial = copy.deepcopy(dataclasses.replace(path, rejected=[], judged=None))
+        lifted = Search(self.y, self.t_s, self.library,
+                        dataclasses.replace(self.settings, max_effects=len(path.added) + 2), self.baseline,
+                        self.admission)
+        lifted.fit_apart = self.fit_apart
+        paired_tests = self.admission.paired_tests
+        try:
+            admitted = lifted.round(trial)
+        finally:
+            self.admission.paired_tests = paired_tests
+        path.limit_terms = len(path.added)
+        if not admitted:
+            path.stopped_by, path.at_limit = "data", False
+            if trial.rejected:
+                path.rejected, path.rejected_t_critical = trial.rejected, trial.rejected_t_critical
+                path.rejected_paired_tests = trial.rejected_paired_tests
+            path.cannot_have = trial.cannot_have
+            return
+        path.stopped_by, path.at_limit = "limit", True
+        labels = list(dict.fromkeys(explain.label_with_time_constants(term)
+                                    for term in trial.added[len(path.added):]))
+        before_um, after_um, _gain, figure = self.admission.heldout_figures(trial.base_cv, path.base_cv)
+        path.beyond_limit = (labels, before_um, after_um, figure)
 
     def survey(self, path: Path) -> None:
         """The search stopped at the limit: the next round's candidates, evaluated and not admitted, so

@@ -91,6 +91,27 @@ def limit_words(max_effects: int) -> str:
     return f"the search stopped at {max_effects} terms (Settings.max_effects)"
 
 
+def terms_named(count: int) -> str:
+    return f"{count} term{'s' if count != 1 else ''} named"
+
+
+def stopped_by_data_words(count: int) -> str:
+    """The search reached Settings.max_effects and the next round, judged with the limit lifted,
+    admitted nothing."""
+    return (f"{terms_named(count)}, the most Settings.max_effects allows, and the next round was judged with "
+            f"the limit lifted: nothing more earns its place; the data, not the limit, stopped the search")
+
+
+def stopped_by_limit_words(count: int, max_effects: int, labels: list[str], before_um: float, after_um: float,
+                           figure: str) -> str:
+    """The next round, judged with the limit lifted, would name more: what, and its held-out figure."""
+    allows = "the most Settings.max_effects allows" if count >= max_effects else \
+        f"one short of Settings.max_effects = {max_effects}, too few for a move of two"
+    return (f"{terms_named(count)}, {allows}: the next round would name {' and '.join(labels)} ({figure} "
+            f"{before_um:.3g} -> {after_um:.3g} um): the limit, not the data, stopped the search; raise "
+            f"Settings.max_effects to let it")
+
+
 # ---------------------------------------------------------------------- moves of two effects
 PAIR_WHY = ("no single effect passed the guards; these two pass them together, and each is needed (the pair "
             "clears the held-out bar over either alone)")

@@ -213,6 +213,16 @@ def test_a_search_stopped_by_the_limit_says_so() -> None:
     assert len(result.missing_physics) == 1
     assert "the most Settings.max_effects allows" in result.stopped_at_limit
     assert any(line.startswith("stopped: 1 term named") for line in finding_lines(result))
+    # the next round, judged with the limit lifted, would name a second term: the limit stopped the
+    # search, and the words name that term with its figure: the closest candidate, held back by the
+    # limit alone
+    assert result.stopped_by == "limit" and result.to_json()["stopped_by"] == "limit"
+    second = result.beyond_limit["terms"]
+    assert second == [result.closest[0].label] and result.closest[0].held_back_by == ["limit"]
+    assert result.beyond_limit["after_um"] < result.beyond_limit["before_um"] == pytest.approx(
+        result.heldout_rms_after_um, abs=1e-3)
+    assert f"the next round would name {second[0]} (the median over runs of held-out RMS" in result.stopped_at_limit
+    assert "the limit, not the data, stopped the search" in result.stopped_at_limit
     # the next round was surveyed: what came closest, held back by the limit, and the detectable sizes
     assert result.closest and all("limit" in item.held_back_by for item in result.closest)
     assert result.smallest_detectable_um and not result.likely
