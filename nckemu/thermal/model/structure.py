@@ -23,19 +23,28 @@ MATERIALS_UM_PER_M_K = {"steel": 11.5, "cast_iron": 10.5, "mineral_cast": 12.0, 
 ROOM_WORDS = ("ambient", "room", "hall", "air")
 
 
+# A structure nobody declared is taken as this long: a loop from the heat to the tool longer than the
+# longest axis and column of the large machining centres the tool is written for, so that only sizes no
+# machine tool of that class can have are refused (docs/thermal.md: on the measured recordings it refuses
+# no term the admission names). Our choice, not a handbook value: a model file's [structure] says better.
+UNDECLARED_LENGTH_M = 3.0
+
+
 @dataclass(frozen=True)
 class Structure:
     expansion_um_per_m_K: float = MATERIALS_UM_PER_M_K["steel"]
-    # None: the machine's structure was not declared, and sizes are not bounded (only the room's rule
-    # holds); a model file's [structure] table declares it.
+    # None: the machine's structure was not declared (no [structure] table): sizes are bounded by
+    # undeclared_length_m of the material, generous on purpose; a model file's [structure] declares it.
     length_m: float | None = None
     ambient_sensors: tuple[str, ...] = ()
     material: str = "steel"
+    undeclared_length_m: float = UNDECLARED_LENGTH_M
 
     @property
     def um_per_K(self) -> float:
         """What a kelvin does to the whole structure: its expansion over its length."""
-        return self.expansion_um_per_m_K * self.length_m if self.length_m is not None else math.inf
+        length = self.length_m if self.length_m is not None else self.undeclared_length_m
+        return self.expansion_um_per_m_K * length
 
     def is_room(self, sensor: str) -> bool:
         if self.ambient_sensors:
@@ -43,8 +52,11 @@ class Structure:
         return any(word in sensor.lower() for word in ROOM_WORDS)
 
     def words(self) -> str:
-        length = f"{self.length_m:g} m" if self.length_m is not None else "a structure of undeclared length"
-        return f"{length} of {self.material.replace('_', ' ')} at {self.expansion_um_per_m_K:g} um/(m K)"
+        if self.length_m is not None:
+            length = f"{self.length_m:g} m of {self.material.replace('_', ' ')}"
+        else:
+            length = f"{self.undeclared_length_m:g} m of {self.material.replace('_', ' ')} (no [structure] declared)"
+        return f"{length} at {self.expansion_um_per_m_K:g} um/(m K)"
 
 
 def parse_structure(table: Any, source: str) -> Structure:

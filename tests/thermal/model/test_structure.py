@@ -4,6 +4,8 @@ that acts through the structure and never as hysteresis of the air, set in a mod
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from nckemu.errors import NckConfigError
@@ -25,7 +27,12 @@ def test_a_room_sensor_never_carries_hysteresis() -> None:
 
 
 def test_sizes_follow_the_structure() -> None:
-    assert not family("temperature").cannot_have({"sensor": "spindle_rear"}, 40.0, Structure())  # undeclared
+    # Undeclared: 3 m of steel, 34.5 um/K (1.5 x that for a gradient), generous on purpose.
+    assert not family("temperature").cannot_have({"sensor": "spindle_rear"}, 34.0, Structure())
+    undeclared = family("temperature").cannot_have({"sensor": "spindle_rear"}, 40.0, Structure())
+    assert "more than 34.5 um/K" in undeclared and "3 m of steel (no [structure] declared)" in undeclared
+    assert not family("thermal_gradient").cannot_have({"sensors": ["a", "b"]}, 40.0, Structure())
+    assert "more than 51.8 um/K" in family("thermal_gradient").cannot_have({"sensors": ["a", "b"]}, 60.0, Structure())
     steel = Structure(length_m=1.0)
     assert not family("temperature").cannot_have({"sensor": "bed"}, 10.3, steel)
     assert "more than 11.5 um/K" in family("temperature").cannot_have({"sensor": "spindle_rear"}, 11.98, steel)
@@ -51,3 +58,18 @@ def test_a_term_a_machine_cannot_have_is_listed_not_named() -> None:
     line = next(line for line in finding_lines(result) if line.startswith("fits, but a machine cannot have it"))
     assert "thermal_lag(" in line and "0.1 m of steel can expand" in line and "median over runs of held-out" in line
     assert result.to_json()["cannot_have"][0]["held_back_by"] == ["physical"]
+
+
+def test_an_undeclared_structure_still_bounds_sizes() -> None:
+    """No [structure]: sizes are bounded by 3 m of steel (34.5 um/K for a lag). The room's lag at 20 x
+    room_acts' 2.5 um/K fits, and it is listed with its figure, never named."""
+    shape = make_shape_family("room_acts", 1, runs=12)
+    model = baseline_model()
+    runs = []
+    for run in shape.runs:
+        given_um = model.predict_um(run)
+        runs.append(replace(run, errors_um={AXIS: given_um + 20.0 * (run.errors_um[AXIS] - given_um)}))
+    result = discover_runs(runs, AXIS, model)
+    assert not any(m.parameters.get("sensor") == "ambient" for m in result.missing_physics)
+    line = next(line for line in finding_lines(result) if line.startswith("fits, but a machine cannot have it"))
+    assert "thermal_lag(" in line and "3 m of steel (no [structure] declared)" in line
