@@ -26,13 +26,12 @@ class Settings:
     runs_min_improvement: float = 0.05
     runs_replace_t_test: bool = True
     # ... and a term's bar is weighed by its parameters (issue 51): each of them (the coefficient, each
-    # time constant) must buy runs_min_improvement of what is left, 1 - (1 - bar)^parameters. The
-    # paired test is corrected over the candidates, not over the time constants tried as the t-test
-    # was, so without it a lag would earn its time constant for free.
-    # Off: on fl_thermal ch5 cut into 14 runs, weighing the bar in the rounds turned the greedy search
-    # onto a cancelling pair of lags (median over runs 1.19 -> 1.93 um, worst run 2.31 -> 4.97 um);
-    # the withdrawal at the end weighs each named term's parameters instead (withdraw_per_parameter).
-    runs_bar_per_parameter: bool = False
+    # time constant) must buy runs_min_improvement of what is left, 1 - (1 - bar)^parameters, in the
+    # rounds and again at the end (withdraw_per_parameter). The paired test is corrected over the
+    # candidates, not over the time constants tried as the t-test was, so without it a lag would earn
+    # its time constant for free; the correction counts the candidates at the unweighed bar (see
+    # Admission.count_paired_tests for what happened when it did not).
+    runs_bar_per_parameter: bool = True
     withdraw_per_parameter: bool = True
     # No run made worse in silence: a term that leaves a run worse than this share more than before, and
     # by more than run_harm_floor_um, is first tried fitted apart over two groups of runs
