@@ -149,7 +149,8 @@ class Admission:
             # fit_apart: issue 42's light days, on which its sensor tells a coolant pump's cycling more
             # than the structure); refused when it cannot be only with Settings.run_harm_refuses.
             out.append(Guard(words.HARM, not harmed or not s.run_harm_refuses,
-                             words.harm_guard_words(harmed, s.run_harm_share, s.run_harm_floor_um)))
+                             words.harm_guard_words(harmed, s.run_harm_share, s.run_harm_floor_um,
+                                                    s.run_harm_refuses)))
         before_um, after_um, gain, figure = self.heldout_figures(cv, base_cv, runs_with)
         # A candidate only a few runs can judge (its columns missing in the others) clears the bar of a few.
         bar = self.bar if judged_by_pairs or not self.per_run else s.min_improvement

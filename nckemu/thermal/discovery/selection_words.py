@@ -64,10 +64,13 @@ def harm_words(harmed: list[str], share: float, floor_um: float) -> str:
             f"{', '.join(harmed[:4])}{', ...' if len(harmed) > 4 else ''}")
 
 
-def harm_guard_words(harmed: list[str], share: float, floor_um: float) -> str:
-    """The harm guard's figure: the runs a term leaves worse than the tolerance, or that none is."""
-    return harm_words(harmed, share, floor_um)[2:] if harmed else \
-        f"no run worse by more than {share:.0%} and {floor_um:g} um"
+def harm_guard_words(harmed: list[str], share: float, floor_um: float, refuses: bool = True) -> str:
+    """The harm guard's figure: the runs a term leaves worse than the tolerance, or that none is;
+    ``refuses=False``: such runs are named, and the term is not refused for them."""
+    if not harmed:
+        return f"no run worse by more than {share:.0%} and {floor_um:g} um"
+    named = "" if refuses else " (named, not refused: Settings.run_harm_refuses is off)"
+    return harm_words(harmed, share, floor_um)[2:] + named
 
 
 def worst_run_words(run: str, before_um: float, after_um: float, limit_um: float, harmed: str) -> str:

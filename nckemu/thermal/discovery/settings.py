@@ -36,7 +36,9 @@ class Settings:
     # No run made worse in silence: a term that leaves a run worse than this share more than before, and
     # by more than run_harm_floor_um, is first tried fitted apart over two groups of runs
     # (discovery/regimes.py: fit_apart), and named so when that harms none. When it cannot be,
-    # run_harm_refuses refuses it; off (the default), it is admitted with the runs it harms named.
+    # run_harm_refuses refuses it; off (the default), it is admitted with the runs it harms named in its
+    # guard, and the runs the final model leaves worse than before are named in the report's headline,
+    # its runs table and run_figures.made_worse (with what they share).
     # On: on fl_thermal ch1 and ch5 cut into 14 runs every term harms a quiet run (0.63 -> 1.2 um),
     # none can be fitted apart, and nothing was named (median over runs 0.77 -> 2.54 um, 1.19 -> 3.17 um).
     run_harm_share: float = 0.10

@@ -22,6 +22,11 @@ def test_the_runs_a_term_harms_are_named_four_at_most() -> None:
     assert one == "; 1 run worse by more than 10% and 0.2 um: day1"
     many = words.harm_words([f"day{n}" for n in range(1, 7)], 0.1, 0.2)
     assert many == "; 6 runs worse by more than 10% and 0.2 um: day1, day2, day3, day4, ..."
+    # The guard's figure says whether such a term is refused or only named (it passes then)
+    assert words.harm_guard_words(["day1"], 0.1, 0.2) == "1 run worse by more than 10% and 0.2 um: day1"
+    assert words.harm_guard_words(["day1"], 0.1, 0.2, refuses=False).endswith(
+        "day1 (named, not refused: Settings.run_harm_refuses is off)")
+    assert words.harm_guard_words([], 0.1, 0.2, refuses=False) == "no run worse by more than 10% and 0.2 um"
 
 
 def test_the_paired_test_counts_its_candidates() -> None:
