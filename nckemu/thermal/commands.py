@@ -59,6 +59,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                            "('column:spindle_rpm', 'column:coolant': each run's mean, cut into two groups where "
                            "they are tightest) whose groups a term may be fitted apart on; without it, discover "
                            "finds a stretch of dates that follows another relation")
+    find.add_argument("--structure", metavar="MATERIAL[:LENGTH_M]",
+                      help="what the machine's structure lets a term be (docs/thermal.md): its material (steel, "
+                           "cast_iron, mineral_cast, granite, aluminium) or its expansion in um/(m K), and the "
+                           "longest structure from the heat to the tool in metres, e.g. 'cast_iron:1.2' or "
+                           "'11.5:2' (default: the model's [structure], else 3 m of steel)")
     find.add_argument("--map", metavar="MAP.toml", help="read foreign files (workbooks, other column names) "
                                                         "through this map (docs/recordings.md)")
     find.add_argument("--json", action="store_true", help="print the findings as JSON on stdout")
@@ -113,6 +118,9 @@ def run_discover(args: argparse.Namespace) -> int:
         raise NckConfigError("--fleet reads the project's format only: write each machine's runs with "
                              "`nckemu recording import SOURCE --map MAP.toml --out ROOT/<machine>` first")
     if args.fleet or args.scheduler or args.workers or args.reduce:
+        if getattr(args, "structure", None) is not None:
+            raise NckConfigError("--fleet reads each machine's structure from the [structure] table of its "
+                                 "model TOML, not from --structure")
         from nckemu.thermal.fleet.commands import run_fleet_discover
 
         return run_fleet_discover(args)
@@ -126,6 +134,9 @@ def run_discover(args: argparse.Namespace) -> int:
                          ("--write-model", args.write_model)):
         check_output(path, option)
     model = load_model(args.model) if args.model else None
+    args.settings = None
+    if getattr(args, "structure", None) is not None:
+        model, args.settings = _with_structure_option(model, args.structure)
     specs = [args.recording, *getattr(args, "more", [])]
     if getattr(args, "map", None):  # foreign files: a workbook may hold several runs
         mapped = load_runs(specs, args.axis or (model.axis if model is not None else None), map_path=args.map)
@@ -135,6 +146,38 @@ def run_discover(args: argparse.Namespace) -> int:
     if len(specs) > 1 or not _is_one_file(args.recording) or getattr(args, "split_runs", False):
         return _run_discover_runs(args, specs, model, discover_runs, load_runs)
     return _run_discover_one(args, load_recording(args.recording), model)
+
+
+def parse_structure_option(text: str) -> Any:
+    """``--structure MATERIAL[:LENGTH_M]`` (a material's name or its expansion in um/(m K)) as a
+    model file's ``[structure]`` table would give it."""
+    from nckemu.thermal.model.structure import parse_structure
+
+    material, _, length = text.partition(":")
+    table: dict[str, Any] = {}
+    try:
+        table["expansion_um_per_m_K"] = float(material)
+        table["material"] = "a_material"  # words: "2 m of a material at 9 um/(m K)"
+    except ValueError:
+        table["material"] = material.strip()
+    if length:
+        try:
+            table["length_m"] = float(length)
+        except ValueError:
+            raise NckConfigError(f"the length in --structure {text!r} is not a number of metres",
+                                 path="--structure", field="structure.length_m") from None
+    return parse_structure(table, "--structure")
+
+
+def _with_structure_option(model: Any, text: str) -> tuple[Any, Any]:
+    """(the model, discovery's settings) with the structure ``--structure`` gives, in place of the
+    model's own ``[structure]`` (the improved model written then carries it)."""
+    from dataclasses import replace
+
+    from nckemu.thermal.discovery.settings import Settings
+
+    structure = parse_structure_option(text)
+    return (replace(model, structure=structure) if model is not None else None), Settings(structure=structure)
 
 
 def _run_discover_one(args: argparse.Namespace, recording: Any, model: Any) -> int:
@@ -159,7 +202,7 @@ def _run_discover_one(args: argparse.Namespace, recording: Any, model: Any) -> i
         baseline = "a constant offset (no --model, no sim column)"
         print(f"nckemu discover: baseline: {baseline}", file=sys.stderr)
     with working("discover", enabled=not args.json):
-        result = discover(recording, axis=axis, model=model)
+        result = discover(recording, axis=axis, model=model, settings=getattr(args, "settings", None))
     args.discovery = result  # for options other components add to discover (plcsim: --write-stl)
     document = result.to_json()
     findings = None
@@ -221,7 +264,8 @@ def _run_discover_runs(args: argparse.Namespace, specs: list[str], model: Any, d
             print(f"nckemu discover: {len(runs)} runs after splitting: {', '.join(r.name for r in runs)}",
                   file=sys.stderr)
     with working("discover", enabled=not args.json):
-        result = discover_runs(runs, axis=args.axis, model=model, group_by=getattr(args, "group_by", None))
+        result = discover_runs(runs, axis=args.axis, model=model, settings=getattr(args, "settings", None),
+                               group_by=getattr(args, "group_by", None))
     args.discovery = result
     document = result.to_json()
     write_json(document, args.json_out)

@@ -522,7 +522,9 @@ class Discoverer:
         heldout_after_um = path.base_cv.rms_um if discovered else setup.baseline_rms  # nothing found: it stands
         # Coefficients of the final joint fit go into the improved model and the report.
         improved_terms = self._improved_terms(final, path.gain_mode, path.added, discovered)
-        improved = ThermalModel(problem.axis, improved_terms, "<improved>")
+        # The structure it was judged by, when one was declared (a model's [structure], --structure)
+        declared = self.settings.structure if self.settings.structure.length_m is not None else None
+        improved = ThermalModel(problem.axis, improved_terms, "<improved>", declared)
         improved_full = final.residual if final is not None else self.y - given
         before_residual = self.y - given
         residual_recal = setup.recalibrated.residual \
