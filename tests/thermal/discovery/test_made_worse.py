@@ -17,9 +17,9 @@ from nckemu.thermal.discovery.discover import Discovery, discover_runs
 from nckemu.thermal.discovery.run_figures import harmed, made_worse, shared_traits
 from nckemu.thermal.discovery.settings import Settings
 from nckemu.thermal.discovery.wording import headline_lines, runs_table
-from nckemu.thermal.recordings.recording import Recording, load_recording
+from nckemu.thermal.recordings.recording import Recording
 
-from ...conftest import SHARED
+from .measured_runs import measured_runs
 
 UM_PER_K = 3.0
 
@@ -169,16 +169,7 @@ def test_traits_hold_of_every_run_made_worse_or_are_not_said() -> None:
 
 @pytest.mark.slow
 def test_fl_thermal_ch1_names_part02_made_worse() -> None:
-    path = SHARED / "data" / "fl_thermal" / "recording.csv"
-    if not path.exists():
-        pytest.skip("../shared is not beside the repository")
-    recording = load_recording(path)
-    t = recording.t_s - recording.t_s[0]
-    runs = []
-    for index, start in enumerate(np.arange(0.0, t[-1], 3.5 * 3600.0)):
-        inside = (t >= start) & (t < start + 3.5 * 3600.0)
-        if inside.sum() > 20:
-            runs.append(recording.slice(inside, name=f"part{index + 1:02d}"))
+    runs = measured_runs("fl_thermal/recording.csv", 3.5)
     result = discover_runs(runs, "ch1", None)
     beyond = harmed([r["heldout_rms_before_um"] for r in result.runs],
                     [r["heldout_rms_after_um"] for r in result.runs], Settings())

@@ -5,28 +5,15 @@ runs, median or worst, than the admission before it, on every channel tried. Ski
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from nckemu.thermal.discovery.discover import discover_runs
 from nckemu.thermal.discovery.settings import Settings
-from nckemu.thermal.recordings.recording import Recording, load_recording
 
-from ...conftest import SHARED
+from .measured_runs import measured_runs
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
 BEFORE = Settings(runs_replace_t_test=False, runs_min_improvement=0.10, max_effects=4)
-
-
-def _cut(path: str, hours: float) -> list[Recording]:
-    recording = load_recording(SHARED / "data" / path)
-    t = recording.t_s - recording.t_s[0]
-    parts = []
-    for index, start in enumerate(np.arange(0.0, t[-1], hours * 3600.0)):
-        inside = (t >= start) & (t < start + hours * 3600.0)
-        if inside.sum() > 20:
-            parts.append(recording.slice(inside, name=f"part{index + 1:02d}"))
-    return parts
 
 
 @pytest.mark.parametrize(("path", "axis", "hours"), [
@@ -34,9 +21,7 @@ def _cut(path: str, hours: float) -> list[Recording]:
     ("fl_thermal/recording.csv", "ch5", 3.5), ("sjtu_spindle/recording.csv", "dL", 6.0),
     ("sjtu_spindle/recording.csv", "dL", 4.0), ("sjtu_spindle/recording.csv", "dL", 3.0)])
 def test_never_worse_than_the_admission_before(path: str, axis: str, hours: float) -> None:
-    if not (SHARED / "data" / path).exists():
-        pytest.skip("../shared is not beside the repository")
-    runs = _cut(path, hours)
+    runs = measured_runs(path, hours)
     assert len(runs) >= 10
     now = discover_runs(runs, axis, None)
     before = discover_runs(runs, axis, None, BEFORE)

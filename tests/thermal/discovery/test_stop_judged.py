@@ -5,16 +5,14 @@ say so); when something would, the limit stopped it, and the words name what and
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from nckemu.thermal.discovery.discover import Discovery, discover_runs
 from nckemu.thermal.discovery.settings import Settings
 from nckemu.thermal.discovery.wording import finding_lines
-from nckemu.thermal.recordings.recording import Recording, load_recording
 from nckemu.thermal.synthetic.scenarios import AXIS, make_transient_family
 
-from ...conftest import SHARED
+from .measured_runs import measured_runs
 
 DATA_STOPPED = "nothing more earns its place; the data, not the limit, stopped the search"
 
@@ -64,23 +62,9 @@ def test_a_limit_that_cuts_the_search_short_names_what_the_next_round_would() ->
     assert result.closest and all("limit" in item.held_back_by for item in result.closest)
 
 
-def _cut(path: str, hours: float) -> list[Recording]:
-    recording = load_recording(SHARED / "data" / path)
-    t = recording.t_s - recording.t_s[0]
-    parts = []
-    for index, start in enumerate(np.arange(0.0, t[-1], hours * 3600.0)):
-        inside = (t >= start) & (t < start + hours * 3600.0)
-        if inside.sum() > 20:
-            parts.append(recording.slice(inside, name=f"part{index + 1:02d}"))
-    return parts
-
-
 @pytest.mark.slow  # two discoveries of 14 measured runs: ~15 s on two cores
 def test_fl_thermal_ch5_is_stopped_by_its_data_not_by_the_limit() -> None:
-    path = "fl_thermal/recording.csv"
-    if not (SHARED / "data" / path).exists():
-        pytest.skip("../shared is not beside the repository")
-    runs = _cut(path, 3.5)
+    runs = measured_runs("fl_thermal/recording.csv", 3.5)
     result = discover_runs(runs, "ch5", None)
     assert len(result.missing_physics) == Settings().max_effects
     assert result.stopped_by == "data" and not result.stopped_at_limit and DATA_STOPPED in result.stopped
