@@ -61,6 +61,9 @@ class Search:
         self.name_shapes(path)
         if self.admission.paired_runs:
             self.withdraw_redundant(path)
+        # A term withdrawn for its final size changes the others' worth: judged again until it holds.
+        while self.withdraw_beyond_structure(path) and self.admission.paired_runs:
+            self.withdraw_redundant(path)
         if path.at_limit:
             self.survey(path)
         path.final = stats.fit(path.design, self.y) if path.design.shape[1] else None
@@ -315,6 +318,44 @@ class Search:
             path.base_cv = without
             if isinstance(gone, Evidence) and gone.move is not None:
                 self.leave_move(path, gone.move.terms, explain.label_with_time_constants(term))
+
+    def withdraw_beyond_structure(self, path: Path) -> bool:
+        """A term is admitted at the size a machine can have (the physical guard), but the terms named
+        after it move its coefficient in the joint fit (a sensor named alone absorbs part of a
+        correlated sensor of the other sign, and grows once that one is in). Named terms whose final
+        coefficient a machine cannot have are withdrawn, the largest first, until none is left; the
+        words give the final size, why, and the held-out figure without it. A term fitted apart over
+        groups of runs is two columns, judged when it was split. True when one was withdrawn."""
+        offset = 1 if path.gain_mode else 0
+        withdrawn = False
+        while path.added:
+            coefficients = stats.least_squares(path.design, self.y)
+            first = path.design.shape[1] - len(path.added)
+            beyond = []
+            for index, term in enumerate(path.added):
+                record = path.discovered[index + offset].evidence
+                if isinstance(record, Evidence) and record.regime is not None:
+                    continue
+                coefficient = float(coefficients[first + index])
+                why = term.spec.cannot_have(term.parameters, coefficient, self.settings.structure)
+                if why:
+                    beyond.append((abs(coefficient), index, coefficient, why))
+            if not beyond:
+                return withdrawn
+            withdrawn = True
+            _size, index, coefficient, why = max(beyond)
+            without, keep = self.without_added(path, index)
+            term = path.added.pop(index).with_coefficient(coefficient)
+            gone = path.discovered.pop(index + offset).evidence
+            path.design, path.noise = path.design[:, keep], path.noise[:, keep]
+            without_um, with_um, _gain, figure = self.admission.heldout_figures(path.base_cv, without)
+            label = explain.label_with_time_constants(term)
+            path.withdrawn.append(Withdrawn(term.effect, label, dict(term.parameters),
+                                            words.beyond_structure_words(why, figure, without_um, with_um)))
+            path.base_cv = without
+            if isinstance(gone, Evidence) and gone.move is not None:
+                self.leave_move(path, gone.move.terms, label)
+        return withdrawn
 
     def leave_move(self, path: Path, members: list[str], withdrawn: str) -> None:
         """A term of a move was withdrawn: its partner stays as a term of its own, and says so."""

@@ -176,6 +176,13 @@ def withdrawn_words(without_um: float, with_um: float, loss: float, bar: float, 
             f"the worst run {worst_without_um:.3f} um against {worst_with_um:.3f} um")
 
 
+def beyond_structure_words(why: str, figure: str, without_um: float, with_um: float) -> str:
+    """Why a named term was withdrawn at the end: its size in the final joint fit is more than a
+    machine can have."""
+    return (f"{CANNOT_HAVE} at its size in the final fit with the terms named after it: {why}; {figure} "
+            f"without it {without_um:.3f} um against {with_um:.3f} um with it")
+
+
 def partner_withdrawn_words(withdrawn: str) -> str:
     return f"named in a move with {withdrawn}, which the later terms made redundant (withdrawn)"
 

@@ -10,11 +10,12 @@ import pytest
 
 from nckemu.errors import NckConfigError
 from nckemu.thermal.discovery.discover import discover_runs
+from nckemu.thermal.discovery.settings import Settings
 from nckemu.thermal.discovery.wording import finding_lines
 from nckemu.thermal.model.families import family
 from nckemu.thermal.model.structure import Structure
 from nckemu.thermal.model.terms import parse_model, render_model
-from nckemu.thermal.synthetic.scenarios import AXIS, baseline_model, make_shape_family
+from nckemu.thermal.synthetic.scenarios import AXIS, baseline_model, make_shape_family, make_transient_family
 
 
 def test_a_room_sensor_never_carries_hysteresis() -> None:
@@ -73,3 +74,21 @@ def test_an_undeclared_structure_still_bounds_sizes() -> None:
     assert not any(m.parameters.get("sensor") == "ambient" for m in result.missing_physics)
     line = next(line for line in finding_lines(result) if line.startswith("fits, but a machine cannot have it"))
     assert "thermal_lag(" in line and "3 m of steel (no [structure] declared)" in line
+
+
+def test_a_term_that_grows_beyond_the_structure_in_the_final_fit_is_withdrawn() -> None:
+    """pair_days: the rear at 3 um/K and the front at -1.5 um/K, correlated. The rear named first,
+    alone, is smaller than it ends in the joint fit with the front (2.87 um/K); on a structure of
+    0.2 m of steel (2.3 um/K) that final size is one a machine cannot have: withdrawn, with its final
+    size, and the front, which bought its place only beside it, withdrawn after it."""
+    family = make_transient_family("pair_days", 1)
+    declared = discover_runs(family.runs, AXIS, family.model, Settings(structure=Structure(length_m=1.0)))
+    assert [m.parameters.get("sensor") for m in declared.missing_physics] == ["rear", "front"]
+    short = discover_runs(family.runs, AXIS, family.model, Settings(structure=Structure(length_m=0.2)))
+    assert not any(m.parameters.get("sensor") == "rear" for m in short.missing_physics)
+    rear = next(w for w in short.withdrawn if w.label == "temperature(rear)")
+    assert rear.parameters["coeff_um_per_K"] == pytest.approx(2.87, abs=0.05)
+    assert rear.why.startswith("fits, but a machine cannot have it at its size in the final fit")
+    assert "more than 2.3 um/K" in rear.why and "median over runs of held-out RMS without it" in rear.why
+    assert any(line.startswith("withdrawn: temperature(rear): fits, but a machine cannot have it")
+               for line in finding_lines(short))
