@@ -82,9 +82,6 @@ class Discovery:
     left: list[dict[str, Any]] = field(default_factory=list)
     # Terms that fit and pass every other guard, but that a machine cannot have (issue 51): never named.
     cannot_have: list[Closest] = field(default_factory=list)
-    # The search stopped at Settings.max_effects, not because nothing more passed: said, with what the
-    # next round would name and its figure.
-    stopped_at_limit: str = ""
     # What stopped the search: "data" (nothing more earned its place) or "limit" (the next round, judged
     # with the limit lifted, would name ``beyond_limit``); ``stopped``: why in words, when the search
     # reached the limit (by the data or by the limit).
@@ -109,6 +106,12 @@ class Discovery:
     @property
     def residual_is_structure(self) -> bool:
         return bool(self.residual_structure.get("beyond_white_noise"))
+
+    @property
+    def stopped_at_limit(self) -> str:
+        """The search stopped at Settings.max_effects, not because nothing more passed: ``stopped``'s
+        words, with what the next round would name and its figure ("" when the data stopped it)."""
+        return self.stopped if self.stopped_by == "limit" else ""
 
     def to_json(self) -> dict[str, Any]:
         document = {
@@ -422,9 +425,9 @@ class Discoverer:
         """What stopped the search, judged at the limit (``Search.judge_next_round``): the data, said
         when the limit was reached; or the limit, with what the next round would name."""
         result.stopped_by = path.stopped_by
-        if path.at_limit and path.beyond_limit is not None:
+        if path.beyond_limit is not None:
             labels, before_um, after_um, figure = path.beyond_limit
-            result.stopped = result.stopped_at_limit = stopped_by_limit_words(
+            result.stopped = stopped_by_limit_words(
                 path.limit_terms, self.settings.max_effects, labels, before_um, after_um, figure)
             result.beyond_limit = {"terms": labels, "before_um": round(before_um, 4), "after_um": round(after_um, 4),
                                    "figure": figure}
@@ -523,7 +526,7 @@ class Discoverer:
         # Coefficients of the final joint fit go into the improved model and the report.
         improved_terms = self._improved_terms(final, path.gain_mode, path.added, discovered)
         # The structure it was judged by, when one was declared (a model's [structure], --structure)
-        declared = self.settings.structure if self.settings.structure.length_m is not None else None
+        declared = self.settings.structure if self.settings.structure.declared else None
         improved = ThermalModel(problem.axis, improved_terms, "<improved>", declared)
         improved_full = final.residual if final is not None else self.y - given
         before_residual = self.y - given

@@ -119,9 +119,6 @@ class Path:
     rejected_paired_tests: int = 1     # ... and how many candidates the runs' paired test was corrected over
     # Terms named in a round and withdrawn at the end: the terms named after them explain what they did.
     withdrawn: list[Withdrawn] = field(default_factory=list)
-    # The search stopped at Settings.max_effects, and the next round, judged on a copy with the limit
-    # lifted, would have named more (``Search.judge_next_round``): its candidates were surveyed, not judged.
-    at_limit: bool = False
     # What stopped the search: "data" (nothing more earned its place; below the limit, or judged at it)
     # or "limit". ``limit_terms``: the terms named when the limit was reached (0: never reached);
     # ``beyond_limit``: what the next round would name past it (labels, held-out before and after, figure).
@@ -132,3 +129,9 @@ class Path:
     cannot_have: list[tuple[str, Term, list[Guard]]] = field(default_factory=list)
     # The last round's candidates with every guard's figure, judged once (``Selector.judged``).
     judged: list[tuple[Evaluation, list[Guard]]] | None = None
+
+    @property
+    def at_limit(self) -> bool:
+        """The search stopped at Settings.max_effects, and the next round, judged on a copy with the
+        limit lifted, would have named more: its candidates are surveyed, not judged."""
+        return self.stopped_by == "limit"

@@ -206,13 +206,13 @@ class Search:
             self.admission.paired_tests = paired_tests
         path.limit_terms = len(path.added)
         if not admitted:
-            path.stopped_by, path.at_limit = "data", False
+            path.stopped_by = "data"
             if trial.rejected:
                 path.rejected, path.rejected_t_critical = trial.rejected, trial.rejected_t_critical
                 path.rejected_paired_tests = trial.rejected_paired_tests
             path.cannot_have = trial.cannot_have
             return
-        path.stopped_by, path.at_limit = "limit", True
+        path.stopped_by = "limit"
         labels = list(dict.fromkeys(explain.label_with_time_constants(term)
                                     for term in trial.added[len(path.added):]))
         before_um, after_um, _gain, figure = self.admission.heldout_figures(trial.base_cv, path.base_cv)
@@ -308,16 +308,10 @@ class Search:
             if weakest is None:
                 return
             loss, index, without, keep, bar = weakest
-            term = path.added.pop(index)
-            gone = path.discovered.pop(index + offset).evidence
-            path.design, path.noise = path.design[:, keep], path.noise[:, keep]
-            path.withdrawn.append(Withdrawn(
-                term.effect, explain.label_with_time_constants(term), dict(term.parameters), words.withdrawn_words(
-                    float(np.median(without.fold_rms_um)), float(np.median(path.base_cv.fold_rms_um)), loss, bar,
-                    self.admission.bar, term, max(without.fold_rms_um), max(path.base_cv.fold_rms_um))))
-            path.base_cv = without
-            if isinstance(gone, Evidence) and gone.move is not None:
-                self.leave_move(path, gone.move.terms, explain.label_with_time_constants(term))
+            why = words.withdrawn_words(
+                float(np.median(without.fold_rms_um)), float(np.median(path.base_cv.fold_rms_um)), loss, bar,
+                self.admission.bar, path.added[index], max(without.fold_rms_um), max(path.base_cv.fold_rms_um))
+            self.take_out(path, index, without, keep, why)
 
     def withdraw_beyond_structure(self, path: Path) -> bool:
         """A term is admitted at the size a machine can have (the physical guard), but the terms named
@@ -345,17 +339,27 @@ class Search:
             withdrawn = True
             _size, index, coefficient, why = max(beyond)
             without, keep = self.without_added(path, index)
-            term = path.added.pop(index).with_coefficient(coefficient)
-            gone = path.discovered.pop(index + offset).evidence
-            path.design, path.noise = path.design[:, keep], path.noise[:, keep]
             without_um, with_um, _gain, figure = self.admission.heldout_figures(path.base_cv, without)
-            label = explain.label_with_time_constants(term)
-            path.withdrawn.append(Withdrawn(term.effect, label, dict(term.parameters),
-                                            words.beyond_structure_words(why, figure, without_um, with_um)))
-            path.base_cv = without
-            if isinstance(gone, Evidence) and gone.move is not None:
-                self.leave_move(path, gone.move.terms, label)
+            self.take_out(path, index, without, keep, words.beyond_structure_words(why, figure, without_um, with_um),
+                          coefficient)
         return withdrawn
+
+    def take_out(self, path: Path, index: int, without: stats.CrossValidation, keep: list[int], why: str,
+                 coefficient: float | None = None) -> None:
+        """Withdraws ``path.added[index]`` (its column, its record; ``without``: the path's design
+        without it, cross-validated, and the columns kept) with ``why``, at ``coefficient`` when given;
+        the partner of a move it was named in stays as a term of its own."""
+        offset = 1 if path.gain_mode else 0
+        term = path.added.pop(index)
+        if coefficient is not None:
+            term = term.with_coefficient(coefficient)
+        gone = path.discovered.pop(index + offset).evidence
+        path.design, path.noise = path.design[:, keep], path.noise[:, keep]
+        label = explain.label_with_time_constants(term)
+        path.withdrawn.append(Withdrawn(term.effect, label, dict(term.parameters), why))
+        path.base_cv = without
+        if isinstance(gone, Evidence) and gone.move is not None:
+            self.leave_move(path, gone.move.terms, label)
 
     def leave_move(self, path: Path, members: list[str], withdrawn: str) -> None:
         """A term of a move was withdrawn: its partner stays as a term of its own, and says so."""

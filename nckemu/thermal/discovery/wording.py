@@ -201,8 +201,8 @@ def finding_lines(discovery: Discovery) -> list[str]:
         size = f" {coefficient:+.3g}" if isinstance(coefficient, float) else ""
         lines.append(f"{physical.figure.split(':')[0]}: {item.label}{size} ({physical.figure.split(': ', 1)[1]}); "
                      f"{held_out.figure}")
-    if discovery.stopped or discovery.stopped_at_limit:
-        lines.append(f"stopped: {discovery.stopped or discovery.stopped_at_limit}")
+    if discovery.stopped:
+        lines.append(f"stopped: {discovery.stopped}")
     for withdrawn in discovery.withdrawn:
         lines.append(f"withdrawn: {withdrawn.label}: {withdrawn.why}")
     for item in discovery.closest:
