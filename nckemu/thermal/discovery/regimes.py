@@ -30,6 +30,7 @@ from .admission import runs_improve
 from .findings import Evidence, RegimeGroup, finding
 from .library import present_key
 from .records import Evaluation, Path
+from .run_figures import consecutive
 from .selector import Selector
 
 MIN_GROUP_RUNS = 3
@@ -145,16 +146,6 @@ def by_sign(run_slopes: np.ndarray) -> np.ndarray | None:
         return None
     minority = negative if negative.sum() < (~negative).sum() else ~negative
     return minority.astype(int)
-
-
-def consecutive(names: list[str], groups: np.ndarray) -> bool:
-    """Is the smaller group one stretch of runs in name order (a date range, as runs are named by
-    date)? A grouping found from the data alone is named only then: signs that scatter over the runs
-    are what noise gives, and a held-out run's group must be one a user can know beforehand (its
-    date); a cycle type is the user's to give (``--group-by``)."""
-    order = np.argsort(names, kind="stable")
-    positions = np.flatnonzero(groups[order] == 1)
-    return len(positions) > 0 and int(positions[-1] - positions[0]) == len(positions) - 1
 
 
 def best_stretches(selector: Selector, feature: np.ndarray, residual: np.ndarray, names: list[str],

@@ -90,10 +90,14 @@ def made_worse(rows: list[dict[str, Any]], settings: Settings,
     return out
 
 
-def _consecutive(names: list[str], chosen: list[str]) -> bool:
-    order = sorted(names)
-    positions = sorted(order.index(name) for name in chosen)
-    return positions[-1] - positions[0] == len(positions) - 1
+def consecutive(names: list[str], groups: np.ndarray) -> bool:
+    """Is the smaller group (``groups == 1``) one stretch of runs in name order (a date range, as runs
+    are named by date)? A grouping found from the data alone is named only then (regimes.py): signs
+    that scatter over the runs are what noise gives, and a held-out run's group must be one a user can
+    know beforehand (its date); a cycle type is the user's to give (``--group-by``)."""
+    order = np.argsort(names, kind="stable")
+    positions = np.flatnonzero(groups[order] == 1)
+    return len(positions) > 0 and int(positions[-1] - positions[0]) == len(positions) - 1
 
 
 def shared_traits(rows: list[dict[str, Any]], median_after_um: float) -> list[str]:
@@ -112,7 +116,7 @@ def shared_traits(rows: list[dict[str, Any]], median_after_um: float) -> list[st
                        "quiet runs (their error before was")
                       + f" below the model's median residual over runs, {median_after_um:.3f} um)")
     names = [r["name"] for r in rows]
-    if not one and _consecutive(names, [r["name"] for r in worse]):
+    if not one and consecutive(names, np.array([int(bool(r.get("made_worse"))) for r in rows])):
         ordered = sorted(r["name"] for r in worse)
         traits.append(f"the {len(worse)} consecutive runs {ordered[0]} .. {ordered[-1]}")
     signals = {r.get("follows_signal") for r in worse}

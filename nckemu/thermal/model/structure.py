@@ -41,10 +41,19 @@ class Structure:
     undeclared_length_m: float = UNDECLARED_LENGTH_M
 
     @property
+    def declared(self) -> bool:
+        """A model's [structure] table (or --structure) gave it, not the default."""
+        return self.length_m is not None
+
+    @property
+    def judged_length_m(self) -> float:
+        """The length sizes are judged by: the declared one, else undeclared_length_m."""
+        return self.length_m if self.length_m is not None else self.undeclared_length_m
+
+    @property
     def um_per_K(self) -> float:
         """What a kelvin does to the whole structure: its expansion over its length."""
-        length = self.length_m if self.length_m is not None else self.undeclared_length_m
-        return self.expansion_um_per_m_K * length
+        return self.expansion_um_per_m_K * self.judged_length_m
 
     def is_room(self, sensor: str) -> bool:
         if self.ambient_sensors:
@@ -52,11 +61,9 @@ class Structure:
         return any(word in sensor.lower() for word in ROOM_WORDS)
 
     def words(self) -> str:
-        if self.length_m is not None:
-            length = f"{self.length_m:g} m of {self.material.replace('_', ' ')}"
-        else:
-            length = f"{self.undeclared_length_m:g} m of {self.material.replace('_', ' ')} (no [structure] declared)"
-        return f"{length} at {self.expansion_um_per_m_K:g} um/(m K)"
+        undeclared = "" if self.declared else " (no [structure] declared)"
+        return (f"{self.judged_length_m:g} m of {self.material.replace('_', ' ')}{undeclared} at "
+                f"{self.expansion_um_per_m_K:g} um/(m K)")
 
 
 def parse_structure(table: Any, source: str) -> Structure:
