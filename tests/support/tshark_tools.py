@@ -7,6 +7,7 @@ import os
 import re
 import shutil
 import subprocess
+from collections.abc import Sequence
 from datetime import datetime
 from pathlib import Path
 
@@ -21,9 +22,33 @@ requires_tshark = pytest.mark.skipif(TSHARK is None, reason="tshark is not insta
                                      "Debian's tshark when run as root)")
 
 
-def tshark_fields(path: Path, fields: list[str], *, port: int = 102, display_filter: str = "s7comm"
-                  ) -> list[dict[str, str]]:
-    """One dict per packet that passes the filter; multi-item values stay comma-joined as tshark prints."""
+# What tshark printed, by capture (its path and mtime) and display: tshark's own start-up (~0.25 s, its
+# dissectors registered) costs more than most of the captures it reads, so the tests that read several
+# sets of fields of one capture ask for them all at once (``read_with``) and the later sets come from here.
+_TABLES: dict[tuple[str, int, int, int, str], tuple[dict[str, int], list[list[str]]]] = {}
+
+
+def tshark_fields(path: Path, fields: list[str], *, port: int = 102, display_filter: str = "s7comm",
+                  read_with: Sequence[str] = ()) -> list[dict[str, str]]:
+    """One dict per packet that passes the filter; multi-item values stay comma-joined as tshark prints.
+    ``read_with`` names fields a later call will ask of the same capture: read in the same tshark run
+    (one column each; a column never changes which packets or what the others print) and kept."""
+    stat = path.stat()
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size, port, display_filter)
+    held = _TABLES.get(key)
+    if held is None or not set(fields) <= held[0].keys():
+        wanted = list(dict.fromkeys([*fields, *read_with]))
+        held = ({field: column for column, field in enumerate(wanted)},
+                _run_tshark(path, wanted, port=port, display_filter=display_filter))
+        _TABLES[key] = held
+    columns, lines = held
+    rows = [{field: line[columns[field]] for field in fields if columns[field] < len(line)} for line in lines]
+    # tshark prints one line per packet, tab-separated: only a line of one field can be empty, and an
+    # empty line is no row
+    return [row for row in rows if len(fields) != 1 or row.get(fields[0])]
+
+
+def _run_tshark(path: Path, fields: list[str], *, port: int, display_filter: str) -> list[list[str]]:
     assert TSHARK is not None
     command = [TSHARK, "-r", str(path), "-Y", display_filter, "-T", "fields", "-E", "separator=\t",
                "-E", "occurrence=a", "-E", "aggregator=,"]
@@ -34,7 +59,7 @@ def tshark_fields(path: Path, fields: list[str], *, port: int = 102, display_fil
     # Times (S7 timestamps) printed in UTC whatever the machine's zone: they are compared as written.
     result = subprocess.run(command, capture_output=True, text=True, timeout=120, check=True,
                             env={**os.environ, "TZ": "UTC"})
-    return [dict(zip(fields, line.split("\t"), strict=False)) for line in result.stdout.splitlines() if line]
+    return [line.split("\t") for line in result.stdout.splitlines()]
 
 
 # ------------------------------------------------------------------ field by field (issue 37)
@@ -54,6 +79,9 @@ ADDRESS_FIELDS = {
 }
 DATA_FIELDS = {"return_code": "s7comm.data.returncode", "data_transport_size": "s7comm.data.transportsize",
                "length": "s7comm.data.length", "data": "s7comm.resp.data"}
+# What assert_fields_as_tshark reads of every frame (a test reading more of the capture asks with these).
+ITEM_FIELDS = ["frame.number", "s7comm.param.func", "s7comm.param.userdata.funcgroup", "s7comm.data.ts",
+               *ADDRESS_FIELDS.values(), *DATA_FIELDS.values()]
 TIMER_COUNTER_AREAS = (0x1C, 0x1D)
 _TIMESTAMP = re.compile(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3}")
 
@@ -162,8 +190,7 @@ def _tshark_time(text: str) -> str:
 def _tshark_field_by_field(path: Path) -> tuple[dict[int, dict[str, list[object]]], dict[int, list[str]]]:
     """tshark's view of what ``_ours_field_by_field`` gives, per frame."""
     names = {**ADDRESS_FIELDS, **DATA_FIELDS}
-    rows = tshark_fields(path, ["frame.number", "s7comm.param.func", "s7comm.param.userdata.funcgroup",
-                                "s7comm.data.ts", *names.values()])
+    rows = tshark_fields(path, ITEM_FIELDS)
     fields: dict[int, dict[str, list[object]]] = {}
     times: dict[int, list[str]] = {}
     for row in rows:

@@ -15,7 +15,7 @@ import pytest
 from nckemu.traces.decode import PUSH, decode
 from nckemu.traces.reader import read_capture
 from tests.conftest import SHARED
-from tests.support.tshark_tools import assert_fields_as_tshark, requires_tshark, tshark_fields
+from tests.support.tshark_tools import ITEM_FIELDS, assert_fields_as_tshark, requires_tshark, tshark_fields
 
 PCAPS = SHARED / "field" / "pcaps"
 CAPTURES = sorted(p for p in PCAPS.glob("*/*") if p.suffix in (".pcap", ".pcapng")) if PCAPS.is_dir() else []
@@ -39,15 +39,22 @@ def test_decodes_without_undecoded_answers(path: Path) -> None:
     assert not [p for p in capture.problems if "answer without a job" in p]
 
 
+PAIRING_FIELDS = ["frame.number", "tcp.stream", "tcp.srcport", "tcp.dstport", "s7comm.header.rosctr",
+                  "s7comm.header.pduref", "s7comm.param.userdata.type"]
+CONTENT_FIELDS = {"alarm": "s7comm.alarm.event_id", "diagnostic": "s7comm.cpu.diag_msg.eventid",
+                  "blocks": "s7comm.blockinfo.block_count", "szl": "s7comm.data.userdata.szl_id",
+                  "job": "_ws.col.Info"}
+# The three tests read these of each capture; one tshark run reads them all (tshark's start-up is most of it).
+EVERY_FIELD = [*PAIRING_FIELDS, *CONTENT_FIELDS.values(), *ITEM_FIELDS]
+
+
 def _tshark_view(path: Path) -> tuple[set[int], set[int]]:
     """The answers tshark can pair with a job (same TCP stream, the other side, same PDU reference; a job
     takes one answer) and the frames with a push (userdata type 0), by frame number."""
-    fields = ["frame.number", "tcp.stream", "tcp.srcport", "tcp.dstport", "s7comm.header.rosctr",
-              "s7comm.header.pduref", "s7comm.param.userdata.type"]
     jobs: set[tuple[str, str, str]] = set()
     paired: set[int] = set()
     pushes: set[int] = set()
-    for row in tshark_fields(path, fields):
+    for row in tshark_fields(path, PAIRING_FIELDS, read_with=EVERY_FIELD):
         rosctrs = row["s7comm.header.rosctr"].split(",")
         refs = row["s7comm.header.pduref"].split(",")
         types = collections.deque(row["s7comm.param.userdata.type"].split(","))
@@ -108,11 +115,9 @@ def _ours_by_frame(path: Path) -> dict[str, dict[int, list[str]]]:
 def test_contents_as_tshark_reads_them(path: Path) -> None:
     """Alarm event IDs, diagnostic event IDs, block counts and cyclic job IDs, frame by frame, and the
     SZL IDs of requests and answers, as tshark gives them."""
-    fields = {"alarm": "s7comm.alarm.event_id", "diagnostic": "s7comm.cpu.diag_msg.eventid",
-              "blocks": "s7comm.blockinfo.block_count", "szl": "s7comm.data.userdata.szl_id",
-              "job": "_ws.col.Info"}
+    fields = CONTENT_FIELDS
     ours = _ours_by_frame(path)
-    rows = tshark_fields(path, ["frame.number", *fields.values()])
+    rows = tshark_fields(path, ["frame.number", *fields.values()], read_with=EVERY_FIELD)
     for kind, name in fields.items():
         if kind == "job":  # tshark gives a cyclic job's ID in the Info column only (JobID=N)
             theirs = {int(row["frame.number"]): [int(v) for v in re.findall(r"JobID=(\d+)", row[name])]
