@@ -42,6 +42,10 @@ asyncua object. asyncua 2.x (2.1) offers no public way to any of these:
   OPC UA errors; asyncua 2.x still has faults 1-5, 7, 8 and 10 of docs/asyncua-hostile-input.md); the
   three base classes here give them public names.
 
+- ``InternalServer.time_task``: the loop that writes the server's CurrentTime sleeps a second between
+  writes, and ``InternalServer.stop`` waits for it to wake: every face took a second to stop (a test
+  run or a fleet stops hundreds). The face cancels it first, so that ``stop`` finds none to wait for.
+
 No longer reached for since asyncua 2.x: ``UaProcessor._publish_requests`` (2.x bounds the queued
 Publish requests itself) and the session watchdog on close (2.x no longer awaits it from itself).
 
@@ -53,6 +57,7 @@ but without the two mends above (``MENDED_IN_2``, logged at debug level).
 
 from __future__ import annotations
 
+import asyncio
 import inspect
 import logging
 from collections.abc import Callable, MutableMapping
@@ -108,7 +113,8 @@ def problems() -> list[str]:
         if not callable(getattr(AddressSpace, method, None)):
             found.append(f"AddressSpace has no {method}")
     missing("InternalServer.__init__", _assigns(InternalServer.__init__, "aspace", "attribute_service",
-                                                 "subscription_service"))
+                                                 "subscription_service", "time_task"))
+    missing("InternalServer.stop", _assigns(InternalServer.stop, "time_task"))
     if _parameters(AttributeService.__init__) != ("self", "aspace") \
             or _parameters(AttributeService.write)[:3] != ("self", "params", "user"):
         found.append("AttributeService takes other arguments")
@@ -165,6 +171,20 @@ MENDED_IN_2 = mends_missing()
 if MENDED_IN_2:  # at debug: commands that answer in one line keep it (tests of the mends skip, saying why)
     log.debug("OPC UA: asyncua %s serves the face without %s (asyncua 2.x has them; pyproject.toml asks "
                 "for %s)", VERSION, " and ".join(MENDED_IN_2), TESTED.split(" (")[0])
+
+
+# ---------------------------------------------------------------------- the server's own tasks
+async def stop_time_updates(iserver: InternalServer) -> None:
+    """Cancel the server's CurrentTime loop now rather than let ``InternalServer.stop`` wait up to a
+    second for its sleep to end (the server is stopping: nobody reads its time after)."""
+    task = iserver.time_task
+    if task is None:
+        return
+    iserver.time_task = None
+    task.cancel()
+    await asyncio.wait([task])  # not ``await task``: a cancellation of the caller itself is not swallowed
+    if not task.cancelled():
+        task.exception()  # one that ended with an error before: seen, so asyncio does not log it as lost
 
 
 # ---------------------------------------------------------------------- the address space

@@ -167,6 +167,7 @@ class OpcUaFace:
         await self.monitoring.stop()
         await self.alarm_events.stop()
         await self.models.stop()
+        await asyncua_internals.stop_time_updates(self.server.iserver)
         await self.server.stop()
 
     # ------------------------------------------------------------------ what `nckemu serve` reads of a face
