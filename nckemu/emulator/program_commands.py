@@ -11,17 +11,18 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from nckemu.catalogue.program_names import program_path
 from nckemu.cliutil import check_output, command_group
-from nckemu.emulator.machine.clock import SimulatedClock
-from nckemu.emulator.machine.core import Emulator
-from nckemu.emulator.machine.nck.run_geometry import path_axis_names
-from nckemu.emulator.machine.offline import recording_columns, run_offline
-from nckemu.emulator.machine.program.block_record import BlockRecord
-from nckemu.emulator.machine.program.language.definitions import DefinitionRefused
 from nckemu.errors import NckConfigError, NckError
+
+if TYPE_CHECKING:
+    from nckemu.emulator.machine.core import Emulator
+    from nckemu.emulator.machine.program.block_record import BlockRecord
+
+# The emulator (the interpreter, numpy) is imported by the functions that run it: the program group's
+# other commands (put, select, start ... over the wire) register here too and start without it.
 
 RUN_EXAMPLE = """\
 examples:
@@ -91,6 +92,8 @@ def store_programs(emulator: Emulator, files: list[str]) -> str:
 
 
 def _store(emulator: Emulator, main: Path, extra: list[str]) -> str:
+    from nckemu.emulator.machine.program.language.definitions import DefinitionRefused
+
     programs = emulator.nck.programs
     siblings = sorted(main.parent.glob("*")) if main.parent.is_dir() else []
     # definitions first, GUD values last: the values go into the variables the definitions make
@@ -122,6 +125,11 @@ def _block_row(record: BlockRecord, axes: list[str]) -> list[Any]:
 
 
 def run_program_command(args: argparse.Namespace) -> int:
+    from nckemu.emulator.machine.clock import SimulatedClock
+    from nckemu.emulator.machine.core import Emulator
+    from nckemu.emulator.machine.nck.run_geometry import path_axis_names
+    from nckemu.emulator.machine.offline import recording_columns, run_offline
+
     check_output(args.blocks, "--blocks")
     check_output(args.out, "--out")
     if not args.sample > 0 or not args.max_time > 0:
