@@ -20,6 +20,7 @@ from nckemu.clients import NckClient
 from nckemu.clients.async_client import AsyncNckClient
 from nckemu.emulator.fleet import Fleet, FleetMachine, FleetSpec
 from tests.plcsim.test_live import _live
+from tests.support.flooding import flood
 from tests.support.opcua_tools import connect, two_faces
 
 REPO = Path(__file__).resolve().parents[2]
@@ -139,17 +140,6 @@ def test_a_full_disk_under_state_raises_the_alarm_and_both_faces_serve_on(tiny_d
     assert '"R' in state.read_text() or state.stat().st_size > 0
 
 
-def _flood(port: int, seconds: float, out: Any) -> None:
-    done = 0
-    deadline = time.monotonic() + seconds
-    with NckClient("127.0.0.1", port, timeout_s=10) as client:
-        while time.monotonic() < deadline:
-            client.get("R1", "R2", "SD43900[AX4]")
-            client.db_write(100, 0, b"\x01\x02")
-            done += 2
-    out.put(done)
-
-
 async def _polite(port: int, seconds: float) -> tuple[int, float]:
     latencies = []
     async with AsyncNckClient("127.0.0.1", port) as client:
@@ -171,13 +161,15 @@ async def test_a_flooded_fleet_machine_leaves_the_others_their_share() -> None:
         ports = [machine.port for machine in fleet.machines]
         alone = await asyncio.gather(_polite(ports[1], 2.0), _polite(ports[2], 2.0))
         ctx = mp.get_context("spawn")
-        out = ctx.Queue()
-        flooders = [ctx.Process(target=_flood, args=(ports[0], 6.0, out)) for _ in range(4)]
+        out, flooding, stop = ctx.Queue(), ctx.Queue(), ctx.Event()
+        flooders = [ctx.Process(target=flood, args=(ports[0], 60.0, out, flooding, stop)) for _ in range(4)]
         for flooder in flooders:
             flooder.start()
-        await asyncio.sleep(1.5)  # the flood under way (spawned processes take a moment)
-        flooded = await asyncio.gather(_polite(ports[1], 3.0), _polite(ports[2], 3.0))
         loop = asyncio.get_running_loop()
+        for _ in flooders:  # the flood under way (spawned processes take a moment), every flooder in it
+            await loop.run_in_executor(None, flooding.get, True, 60)
+        flooded = await asyncio.gather(_polite(ports[1], 3.0), _polite(ports[2], 3.0))
+        stop.set()
         floods = [await loop.run_in_executor(None, out.get, True, 60) for _ in flooders]
         for flooder in flooders:
             await loop.run_in_executor(None, flooder.join, 30)
