@@ -46,6 +46,10 @@ asyncua object. asyncua 2.x (2.1) offers no public way to any of these:
   writes, and ``InternalServer.stop`` waits for it to wake: every face took a second to stop (a test
   run or a fleet stops hundreds). The face cancels it first, so that ``stop`` finds none to wait for.
 
+- ``InternalServer.certificate`` and ``private_key``: what ``Server.load_certificate`` and
+  ``load_private_key`` parse from files, read once and given to the process's next faces (parsing the
+  RSA key costs ~60 ms, and asyncua parsed it twice a face start).
+
 No longer reached for since asyncua 2.x: ``UaProcessor._publish_requests`` (2.x bounds the queued
 Publish requests itself) and the session watchdog on close (2.x no longer awaits it from itself).
 
@@ -115,6 +119,8 @@ def problems() -> list[str]:
     missing("InternalServer.__init__", _assigns(InternalServer.__init__, "aspace", "attribute_service",
                                                  "subscription_service", "time_task"))
     missing("InternalServer.stop", _assigns(InternalServer.stop, "time_task"))
+    missing("Server.load_certificate", _assigns(_server_module.Server.load_certificate, "iserver", "certificate"))
+    missing("Server.load_private_key", _assigns(_server_module.Server.load_private_key, "iserver", "private_key"))
     if _parameters(AttributeService.__init__) != ("self", "aspace") \
             or _parameters(AttributeService.write)[:3] != ("self", "params", "user"):
         found.append("AttributeService takes other arguments")
@@ -185,6 +191,18 @@ async def stop_time_updates(iserver: InternalServer) -> None:
     await asyncio.wait([task])  # not ``await task``: a cancellation of the caller itself is not swallowed
     if not task.cancelled():
         task.exception()  # one that ended with an error before: seen, so asyncio does not log it as lost
+
+
+# ---------------------------------------------------------------------- the server's certificate
+def loaded_certificate(server: asyncua.Server) -> tuple[Any, Any]:
+    """The certificate and private key ``Server.load_certificate``/``load_private_key`` loaded."""
+    return server.iserver.certificate, server.iserver.private_key
+
+
+def use_certificate(server: asyncua.Server, certificate: Any, private_key: Any) -> None:
+    """What ``load_certificate`` and ``load_private_key`` do, with the two already loaded."""
+    server.iserver.certificate = certificate
+    server.iserver.private_key = private_key
 
 
 # ---------------------------------------------------------------------- the address space

@@ -23,11 +23,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from asyncua import Server, ua
+from asyncua.crypto import uacrypto
 from asyncua.crypto.cert_gen import setup_self_signed_certificate
 from asyncua.crypto.truststore import TrustStore
 from asyncua.crypto.validator import CertificateValidator, CertificateValidatorOptions
 from cryptography.x509.oid import ExtendedKeyUsageOID
 
+from nckemu.emulator.faces.opcua import asyncua_internals
 from nckemu.emulator.faces.opcua.settings import OpcUaSettings
 from nckemu.emulator.faces.opcua.shelf import cache_root
 from nckemu.errors import NckConfigError
@@ -74,28 +76,60 @@ def pki_dir(emulator: Emulator) -> Path:
     return Path(tempfile.mkdtemp(prefix="nckemu-opcua-pki-"))
 
 
+# The certificates and keys the faces of this process loaded, by their files (path, size, mtime), the
+# application URI and the host: parsing the RSA key costs ~60 ms (OpenSSL checks it) and asyncua parsed
+# it twice a start (its certificate check, then the load); a fleet or a test run starts faces by the
+# hundred. Files changed on disk are other files here and are loaded again.
+_LOADED: dict[tuple[Any, ...], tuple[Any, Any]] = {}
+
+
+def _files_stamp(*paths: Path) -> tuple[Any, ...] | None:
+    try:
+        return tuple((str(path), stat.st_size, stat.st_mtime_ns) for path in paths for stat in [path.stat()])
+    except OSError:
+        return None
+
+
+async def _load_certificate(server: Server, emulator: Emulator, settings: OpcUaSettings, uri: str) -> None:
+    made = not (settings.certificate and settings.private_key)
+    if made:
+        where = pki_dir(emulator)
+        certificate, key = where / CERTIFICATE_FILE, where / KEY_FILE
+    else:
+        certificate, key = Path(str(settings.certificate)), Path(str(settings.private_key))
+    host = socket.gethostname()
+    stamp = _files_stamp(certificate, key)
+    held = _LOADED.get((stamp, uri, host)) if stamp is not None else None
+    # a made certificate is checked as asyncua checks it (valid today, naming the URI and this host)
+    if held is not None and made and uacrypto.check_certificate(held[0], uri, host):
+        held = None
+    if held is not None:
+        asyncua_internals.use_certificate(server, *held)
+        return
+    if made:
+        # asyncua checks that the certificate names this host (and makes a new one where it does not)
+        await setup_self_signed_certificate(
+            key, certificate, uri, host, [ExtendedKeyUsageOID.SERVER_AUTH],
+            {"countryName": "DE", "organizationName": "nckemu", "commonName": f"nckemu {emulator.name}"})
+        key.chmod(0o600)
+    try:
+        await server.load_certificate(str(certificate))
+        await server.load_private_key(str(key))
+    except (OSError, ValueError) as exc:
+        raise NckConfigError(f"the OPC UA certificate or key does not load: {exc}", path=str(certificate),
+                             field="opcua.certificate") from None
+    stamp = _files_stamp(certificate, key)
+    if stamp is not None:
+        _LOADED[(stamp, uri, host)] = asyncua_internals.loaded_certificate(server)
+
+
 async def apply(server: Server, emulator: Emulator, settings: OpcUaSettings, rules: Any) -> None:
     """Set the policies, the certificate, the validator and the identity tokens on an initialised server."""
     server.set_security_policy(policy_types(settings), permission_ruleset=rules)
     uri = application_uri(emulator)
     await server.set_application_uri(uri)
     if any(name != "None" for name in settings.security):
-        if settings.certificate and settings.private_key:
-            certificate, key = Path(settings.certificate), Path(settings.private_key)
-        else:
-            where = pki_dir(emulator)
-            certificate, key = where / CERTIFICATE_FILE, where / KEY_FILE
-            # asyncua checks that the certificate names this host (and makes a new one where it does not)
-            await setup_self_signed_certificate(
-                key, certificate, uri, socket.gethostname(), [ExtendedKeyUsageOID.SERVER_AUTH],
-                {"countryName": "DE", "organizationName": "nckemu", "commonName": f"nckemu {emulator.name}"})
-            key.chmod(0o600)
-        try:
-            await server.load_certificate(str(certificate))
-            await server.load_private_key(str(key))
-        except (OSError, ValueError) as exc:
-            raise NckConfigError(f"the OPC UA certificate or key does not load: {exc}", path=str(certificate),
-                                 field="opcua.certificate") from None
+        await _load_certificate(server, emulator, settings, uri)
     if not settings.accept_certificates and settings.trusted_certificates:
         trust = TrustStore([Path(settings.trusted_certificates)], [])
         await trust.load()
