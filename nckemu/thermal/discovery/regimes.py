@@ -9,8 +9,11 @@ cycle name) or found from the residual's relation: the sign of the candidate's s
 when the runs of one sign are one stretch of dates (``consecutive``).
 
 A split is named only when it clears what a term must (the runs' paired test, the held-out bar for its
-parameters) and leaves no run worse than the harm tolerance; the report then names the group, its
-runs, and both models' figures (one coefficient for all runs, one per group).
+parameters, the sizes a machine can have); one that leaves no run worse than the harm tolerance comes
+first, and one that still does is named only as a term of one coefficient would be
+(``Settings.run_harm_refuses`` off), its runs named with the model's. The report then names the group,
+its runs, and both models' figures (one coefficient for all runs, one per group). Once a group is
+named, the later terms are tried on it too (``carry_groups``).
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ from .run_figures import consecutive
 from .selector import Selector
 
 MIN_GROUP_RUNS = 3
+# Candidates tried fitted apart over groups already named, best in sample first (carry_groups).
+CARRIED_TRIES = 8
 
 
 @dataclass
@@ -255,10 +260,11 @@ def named_term_split(selector: Selector, path: Path, groups: np.ndarray) -> stat
     return None if best is None else selector.baseline.cross_validate(best[1], y, selector.baseline.folds)
 
 
-def judged(selector: Selector, path: Path, split: Split, reversed_only: bool = True) -> bool:
+def judged(selector: Selector, path: Path, split: Split, reversed_only: bool = True, harm_refuses: bool = True) -> bool:
     """A split clears what a term with its parameters must: the runs' paired test, the held-out bar
-    for its parameters (two coefficients and the term's time constants) and no run harmed; and
-    (``reversed_only``) the two groups' coefficients are of opposite signs."""
+    for its parameters (two coefficients and the term's time constants), each group's coefficient a
+    size a machine can have, and (``harm_refuses``) no run harmed; and (``reversed_only``) the two
+    groups' coefficients are of opposite signs."""
     s = selector.settings
     term = split.evaluation.candidate.term
     bar = shapes.parameter_bar(selector.bar, shapes.parameters_of(term) + 1)
@@ -267,8 +273,10 @@ def judged(selector: Selector, path: Path, split: Split, reversed_only: bool = T
     after = np.square(np.asarray(split.cv.fold_rms_um))
     improves = runs_improve(before, after, s.runs_alpha, s.min_fold_share, s.runs_test_min)
     one_sign_each = split.coefficients[0] * split.coefficients[1] < 0 or not reversed_only
-    return gain >= bar and improves and one_sign_each \
-        and not selector.harms_runs(path.base_cv.fold_rms_um, split.cv.fold_rms_um)
+    can_have = not any(term.spec.cannot_have(term.parameters, coefficient, s.structure)
+                       for coefficient in split.coefficients)
+    return gain >= bar and improves and one_sign_each and can_have \
+        and not (harm_refuses and selector.harms_runs(path.base_cv.fold_rms_um, split.cv.fold_rms_um))
 
 
 def describe(names: list[str], members: list[int]) -> str:
@@ -282,21 +290,78 @@ def describe(names: list[str], members: list[int]) -> str:
 
 
 def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bool:
-    """Name a group of runs that follows another relation, when one clears the guards (module doc).
-    True when it was named: the path then carries the candidate's term twice, one per group."""
+    """Name a group of runs that follows another relation, when one clears the guards (module doc),
+    and the later terms on it (``carry_groups``); a group named in a round already (``fit_apart``):
+    its later terms. True when a term was named: the path then carries its term twice, one per group."""
     if not selector.settings.run_groups or not selector.paired_runs or path.gain_mode or not path.rejected:
         return False
     given = given_groups(selector, pattern) if pattern else None
     if pattern and given is None:
         return False
+    named = named_groups(selector, path)
+    if named is not None:  # a group named in a round (fit_apart): its later terms
+        return carry_groups(selector, path, *named)
     split = best_split(selector, path, given)
-    if split is None or not judged(selector, path, split):
+    if split is None or not judged(selector, path, split, harm_refuses=selector.settings.run_harm_refuses):
         return False
     label = explain.label_with_time_constants(split.evaluation.candidate.term)
     name_split(selector, path, split, found_words(pattern, f"the sign of {label}'s slope on each run"),
                path.rejected_t_critical)
     path.final = stats.fit(path.design, selector.y)
+    carry_groups(selector, path, split.groups, label)
     return True
+
+
+def ranked_splits(selector: Selector, path: Path, groups: np.ndarray) -> list[Evaluation]:
+    """The last round's candidates, each fitted apart over ``groups`` beside the path's design, by the
+    in-sample residual they leave, least first."""
+    y, design = selector.y, path.design
+    scored = []
+    for order, evaluation in enumerate(path.rejected):
+        if evaluation.candidate.runs_with is not None:
+            continue
+        full = np.column_stack([design, grouped_columns(selector, evaluation.candidate.feature, groups)])
+        scored.append((stats.rms(y - full @ stats.least_squares(full, y)), order, evaluation))
+    return [evaluation for _left, _order, evaluation in sorted(scored, key=lambda item: item[:2])]
+
+
+def named_groups(selector: Selector, path: Path) -> tuple[np.ndarray, str] | None:
+    """The groups a term of the path was fitted apart on (the group apart 1) and that term's label;
+    None when no term was."""
+    names = [run.name for run in selector.library.problem.runs]
+    for found, term in zip(path.discovered, path.added, strict=True):  # no gain error: split_runs's paths
+        record = found.evidence
+        if isinstance(record, Evidence) and record.regime is not None and record.regime.apart:
+            apart = set(record.regime.runs)
+            return np.array([1 if name in apart else 0 for name in names]), explain.label_with_time_constants(term)
+    return None
+
+
+def carry_groups(selector: Selector, path: Path, groups: np.ndarray, first_label: str) -> bool:
+    """Runs that follow another relation follow it in more than one term: a fixture mounted the other
+    way round turns every effect of the heat it carries (a sensor's temperature and its transient
+    alike). Once a group is named, the last round's candidates are fitted apart over the same groups
+    (the best ``CARRIED_TRIES`` by the in-sample residual, in turn) and the first that clears what a
+    split must is named; then the rounds of one coefficient for all runs resume, as the search's do.
+    Runs it still leaves worse are named with the model's, not refused, as for a term of one
+    coefficient (``Settings.run_harm_refuses``). Up to ``Settings.max_effects`` columns in all.
+    True when a term was named."""
+    s = selector.settings
+    named = False
+    while path.rejected and len(path.added) + 2 <= s.max_effects:
+        split = next((trial for trial in (fitted_split(selector, path, evaluation, groups)
+                                          for evaluation in ranked_splits(selector, path, groups)[:CARRIED_TRIES])
+                      if judged(selector, path, trial, reversed_only=False, harm_refuses=s.run_harm_refuses)), None)
+        if split is None:
+            break
+        name_split(selector, path, split, f"the groups {first_label} was named on", path.rejected_t_critical)
+        path.present.add(present_key(split.evaluation.candidate.term))
+        named = True
+        path.rejected = []
+        while len(path.added) < s.max_effects and selector.searcher.round(path):
+            pass
+    path.final = stats.fit(path.design, selector.y)
+    return named
 
 
 def found_words(pattern: str | None, otherwise: str) -> str:
@@ -316,7 +381,9 @@ def fit_apart(selector: Selector, path: Path, evaluation: Evaluation, t_crit: fl
     coefficient lowers the in-sample residual most (``best_stretches``), tried in turn, the smaller
     group the one apart. The split must clear the runs' paired test, the bar for its
     parameters and harm no run; the groups' coefficients may share a sign (a sensor that tells the
-    structure's heat on heavy days and a coolant pump's cycling on light ones). True when named."""
+    structure's heat on heavy days and a coolant pump's cycling on light ones). With
+    ``Settings.run_harm_refuses`` off, a split that still harms runs is named when it harms fewer than
+    the one coefficient would and beats it by the bar for its extra parameter. True when named."""
     problem = selector.library.problem
     if not selector.settings.run_groups or not selector.paired_runs or path.gain_mode \
             or evaluation.candidate.runs_with is not None:
@@ -328,12 +395,21 @@ def fit_apart(selector: Selector, path: Path, evaluation: Evaluation, t_crit: fl
         groupings = [] if given is None else [given]
     else:
         groupings = best_stretches(selector, feature, path_residual(selector, path), names)
-    for groups in groupings:
-        split = fitted_split(selector, path, evaluation, groups)
-        if judged(selector, path, split, reversed_only=False):
-            break
+    splits = [fitted_split(selector, path, evaluation, groups) for groups in groupings]
+    harmless = [split for split in splits if judged(selector, path, split, reversed_only=False)]
+    if harmless:
+        split = harmless[0]
     else:
-        return False
+        # Named as a pooled term is (Settings.run_harm_refuses off): the runs it still leaves worse are
+        # named with the model's; the split leaves fewer of them than one coefficient for all runs would.
+        pooled_harms = len(selector.harms_runs(path.base_cv.fold_rms_um, evaluation.cv.fold_rms_um))
+        harming = [split for split in splits if not selector.settings.run_harm_refuses
+                   and judged(selector, path, split, reversed_only=False, harm_refuses=False)
+                   and selector.heldout_gain(split.cv, evaluation.cv) >= selector.bar
+                   and len(selector.harms_runs(path.base_cv.fold_rms_um, split.cv.fold_rms_um)) < pooled_harms]
+        if not harming:
+            return False
+        split = min(harming, key=lambda candidate: float(np.median(candidate.cv.fold_rms_um)))
     label = explain.label_with_time_constants(evaluation.candidate.term)
     name_split(selector, path, split, found_words(pattern, f"the stretch of dates on which {label} acts otherwise"), t_crit,
                because=f"one coefficient for all runs leaves runs worse than before by more than "

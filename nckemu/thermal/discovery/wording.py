@@ -13,6 +13,7 @@ from nckemu.thermal.model.terms import Term
 
 from . import explain
 from .discover import Discovery
+from .findings import RegimeGroup
 
 
 def _parameters(parameters: dict[str, Any]) -> str:
@@ -129,6 +130,17 @@ def worse_line(discovery: Discovery, shown: int = 4) -> str:
     return f"made worse: {runs}: {'; '.join(shared)}"
 
 
+def group_figures(discovery: Discovery, regime: RegimeGroup) -> tuple[float, float, float]:
+    """A group of runs' figures under the final model, from the runs' rows: the median over its runs of
+    held-out RMS before and after, and its worst run after (the group's record holds them as they
+    were when its term was named, before any later term)."""
+    rows = [row for row in discovery.runs if row["name"] in set(regime.runs)]
+    if not rows:
+        return regime.median_before_um, regime.median_after_um, regime.worst_after_um
+    after = [row["heldout_rms_after_um"] for row in rows]
+    return float(np.median([row["heldout_rms_before_um"] for row in rows])), float(np.median(after)), max(after)
+
+
 def headline_lines(discovery: Discovery) -> list[str]:
     """At most four lines an engineer can act on (issue 51): each term named, its size and what it
     means physically (a group of runs fitted apart on one line with its own size), the runs made
@@ -168,12 +180,16 @@ def headline_lines(discovery: Discovery) -> list[str]:
     if figures:
         line = (f"held-out, each run left out: median {figures['median_before_um']:.3f} -> "
                 f"{figures['median_after_um']:.3f} um, worst run {figures['worst_after_um']:.3f} um")
+        shown: set[str] = set()
         for m in physics:
             regime = getattr(m.evidence, "regime", None)
-            if regime is not None and regime.apart:
-                line += (f"; on {regime.runs_words}: median {regime.median_before_um:.3f} -> {regime.median_after_um:.3f} "
-                         f"um (one coefficient for all runs: {regime.median_one_coefficient_um:.3f} um), worst "
-                         f"{regime.worst_after_um:.3f} um")
+            if regime is None or not regime.apart or regime.runs_words in shown:
+                continue  # several terms fitted apart on one group: the group once, with the final model's figures
+            shown.add(regime.runs_words)
+            before, after, worst = group_figures(discovery, regime)
+            line += (f"; on {regime.runs_words}: median {before:.3f} -> {after:.3f} "
+                     f"um (one coefficient for all runs: {regime.median_one_coefficient_um:.3f} um), worst "
+                     f"{worst:.3f} um")
     else:
         line = f"held-out RMS {discovery.heldout_rms_before_um:.3f} -> {discovery.heldout_rms_after_um:.3f} um"
     return [*terms, line]

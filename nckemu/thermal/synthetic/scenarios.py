@@ -743,22 +743,31 @@ def make_correlated_family(name: str, seed: int = 1, runs: int | None = None, *,
 
 
 # ---------------------------------------------------------------------- issue 42: the measured month's shape
-MONTH_FAMILIES = ("duty_month", "null_duty_month")
+MONTH_FAMILIES = ("duty_month", "null_duty_month", "reversed_month")
 MONTH_SENSORS = ("ambient", "coolant_wall", "spindle_rear", "spindle_front", "bed", "hydraulic")
 MONTH_LEVELS = {"light": 0.15, "medium": 0.5, "heavy": 1.0}
 MONTH_SLOW_TAU_S = 2.74 * 3600.0
 MONTH_FAST_TAU_S = 0.5 * 3600.0
 
 
-def month_truth() -> ThermalModel:
+# reversed_month: the runs (the 7th to the 12th, as the held-back month's TM7-TM12) on which the
+# spindle rear's heat moves the structure the other way.
+MONTH_REVERSED_RUNS = range(6, 12)
+
+
+def month_truth(reversed_run: bool = False) -> ThermalModel:
     """The terms ``duty_month`` hides: a gradient of the hall against the coolant-cooled wall, the
-    spindle rear's transient at a slow and a fast time constant, and its plain temperature."""
+    spindle rear's transient at a slow and a fast time constant, and its plain temperature
+    (``reversed_run``: the spindle rear's three of the other sign)."""
+    rear = -1.0 if reversed_run else 1.0
     return ThermalModel(AXIS, [
         Term("thermal_gradient", {"sensors": ["ambient", "coolant_wall"], "coeff_um_per_K": -4.67}),
-        Term("transient_gradient", {"sensor": "spindle_rear", "tau_s": MONTH_SLOW_TAU_S, "coeff_um_per_K": 4.61}),
-        Term("temperature", {"sensor": "spindle_rear", "t_ref_C": 20.0, "coeff_um_per_K": 0.8}),
-        Term("transient_gradient", {"sensor": "spindle_rear", "tau_s": MONTH_FAST_TAU_S, "coeff_um_per_K": 2.5})],
-        "<duty_month's truth>")
+        Term("transient_gradient", {"sensor": "spindle_rear", "tau_s": MONTH_SLOW_TAU_S,
+                                    "coeff_um_per_K": rear * 4.61}),
+        Term("temperature", {"sensor": "spindle_rear", "t_ref_C": 20.0, "coeff_um_per_K": rear * 0.8}),
+        Term("transient_gradient", {"sensor": "spindle_rear", "tau_s": MONTH_FAST_TAU_S,
+                                    "coeff_um_per_K": rear * 2.5})],
+        "<duty_month's truth>" if not reversed_run else "<reversed_month's truth on its reversed runs>")
 
 
 def make_month_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
@@ -770,10 +779,13 @@ def make_month_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
     - ``duty_month``: ``month_truth()``; the spindle's front sensor follows the same heat through
       another lag (a stand-in a search may name), the rear sensor carries a slow wander of its own.
       The gauge wanders by 3.5 um (r(1) near 1): the light days sit near 2-3 um whatever is named.
-    - ``null_duty_month``: the same days and sensors, the gauge reads wander and noise only."""
+    - ``null_duty_month``: the same days and sensors, the gauge reads wander and noise only.
+    - ``reversed_month``: ``duty_month``, except on the six runs of ``MONTH_REVERSED_RUNS``, where the
+      spindle rear's terms change sign (the held-back month's TM7-TM12, on which the error falls while
+      the rear keeps warming). Runs are named by date, ``2017-02-DD_TM<n>_<duty>``."""
     _check_family(name, MONTH_FAMILIES, runs)
     rng = np.random.default_rng([seed, 4244])
-    truth_model = month_truth()
+    truth_models = (month_truth(), month_truth(reversed_run=True))
     recordings: list[Recording] = []
     offsets: list[float] = []
     labels: list[str] = []
@@ -793,19 +805,21 @@ def make_month_family(name: str, seed: int = 1, runs: int = 30) -> RunFamily:
                    "spindle_front": _lag_from(grid, ambient + 10.0 * spindle_load, 900.0),
                    "bed": _lag_from(grid, ambient + 2.0 * spindle_load, 3 * 3600.0),
                    "hydraulic": _lag_from(grid, ambient + 6.0 * _duty_cycle(rng, grid), 2400.0)}
-        if name == "duty_month":
+        reversed_run = name == "reversed_month" and index in MONTH_REVERSED_RUNS
+        if name != "null_duty_month":
             # The structure follows the rear's heat, not its sensor's own wander.
             structure = Recording("<truth>", grid, {f"temp_{k}_C": v for k, v in {**sensors, "spindle_rear": rear}.items()},
                                   name="truth")
-            truth = truth_model.predict_um(structure)
+            truth = truth_models[reversed_run].predict_um(structure)
         else:
             truth = np.zeros_like(grid)
-        recording, offset = _logged_day(rng, f"{name}_s{seed}_{index + 1:02d}_{kind}", grid, truth,
-                                        _ar1(rng, grid, 3.5, 0.995), sensors, spindle_load)
+        run_name = f"{name}_s{seed}_{index + 1:02d}_{kind}" if name != "reversed_month" \
+            else f"2017-02-{index + 1:02d}_TM{index + 1}_{kind}"
+        recording, offset = _logged_day(rng, run_name, grid, truth, _ar1(rng, grid, 3.5, 0.995), sensors, spindle_load)
         recordings.append(recording)
         offsets.append(offset)
-        labels.append(kind)
-    effect, parameters = (("several", {"terms": len(truth_model.terms)}) if name == "duty_month" else (None, {}))
+        labels.append(f"{kind}, reversed" if reversed_run else kind)
+    effect, parameters = ((None, {}) if name == "null_duty_month" else ("several", {"terms": len(truth_models[0].terms)}))
     return RunFamily(name, recordings, ThermalModel(AXIS, [], "<each run's own offset>"),
                      FamilyTruth(effect, parameters, tuple(offsets), tuple(labels)))
 
