@@ -344,7 +344,8 @@ def carry_groups(selector: Selector, path: Path, groups: np.ndarray, first_label
     (the best ``CARRIED_TRIES`` by the in-sample residual, in turn) and the first that clears what a
     split must is named; then the rounds of one coefficient for all runs resume, as the search's do.
     Runs it still leaves worse are named with the model's, not refused, as for a term of one
-    coefficient (``Settings.run_harm_refuses``). Up to ``Settings.max_effects`` columns in all.
+    coefficient (``Settings.run_harm_refuses``). Up to ``Settings.max_effects`` columns in all; the
+    terms that the later ones made redundant are then withdrawn (``Search.withdraw_redundant``).
     True when a term was named."""
     s = selector.settings
     named = False
@@ -360,6 +361,8 @@ def carry_groups(selector: Selector, path: Path, groups: np.ndarray, first_label
         path.rejected = []
         while len(path.added) < s.max_effects and selector.searcher.round(path):
             pass
+    if named:  # the later terms may explain what an earlier one did (a split included)
+        selector.searcher.withdraw_redundant(path)
     path.final = stats.fit(path.design, selector.y)
     return named
 

@@ -283,35 +283,66 @@ class Search:
         """With the runs' paired test and its lower bar, a term may pass in an early round and be
         explained by the terms named after it (a gradient of the rear and the ambient, then the rear's
         and the front's own temperatures; a second time constant that stood in for a temperature named
-        later). Each term must still clear its bar (``withdrawal_bar``) over the others: without it,
-        the median over runs of held-out RMS must rise by the bar, the worst run by the margin of
-        equivalence, or some run by more than the harm tolerance. The one that matters least is
-        withdrawn, and the rest are judged again; a term of a move whose partner goes stays, alone."""
+        later; a term fitted apart on a group of runs before the group's later terms). Each term must
+        still clear its bar (``withdrawal_bar``; a term fitted apart, one parameter more) over the
+        others: without it, the median over runs of held-out RMS must rise by the bar, the worst run by
+        the margin of equivalence, or some run by more than the harm tolerance. The one that matters
+        least is withdrawn (a term fitted apart, both its groups' columns), and the rest are judged
+        again; a term of a move whose partner goes stays, alone."""
         s = self.settings
         offset = 1 if path.gain_mode else 0
         while True:
-            weakest: tuple[float, int, stats.CrossValidation, list[int], float] | None = None
-            for index in range(len(path.added)):
-                record = path.discovered[index + offset].evidence
-                if not isinstance(record, Evidence) or record.regime is not None:
-                    continue  # a term fitted apart over groups of runs was judged as a split
-                without, keep = self.without_added(path, index)
+            weakest: tuple[float, tuple[int, ...], stats.CrossValidation, list[int], float] | None = None
+            for unit in self.withdrawal_units(path):
+                record = path.discovered[unit[0] + offset].evidence
+                assert isinstance(record, Evidence)
+                without, keep = self.without_added(path, *unit)
                 median_with, median_without = (float(np.median(cv.fold_rms_um)) for cv in (path.base_cv, without))
                 loss = 1.0 - median_with / median_without if median_without > 0 else 0.0
                 worst_with, worst_without = max(path.base_cv.fold_rms_um), max(without.fold_rms_um)
-                bar = self.admission.withdrawal_bar(path.added[index]) if record.move is None or s.withdraw_per_parameter \
-                    else -math.inf
+                term = path.added[unit[0]]
+                if record.move is not None and not s.withdraw_per_parameter:
+                    bar = -math.inf
+                elif len(unit) == 2:  # a term fitted apart: its groups' coefficients and its time constants
+                    bar = shapes.parameter_bar(self.admission.bar, shapes.parameters_of(term) + 1) \
+                        if s.withdraw_per_parameter else self.admission.bar
+                else:
+                    bar = self.admission.withdrawal_bar(term)
                 if loss < bar and worst_without <= (1 + s.equivalence) * worst_with \
                         and not self.admission.runs.harms_runs(path.base_cv.fold_rms_um, without.fold_rms_um) \
                         and (weakest is None or loss < weakest[0]):
-                    weakest = (loss, index, without, keep, bar)
+                    weakest = (loss, unit, without, keep, bar)
             if weakest is None:
                 return
-            loss, index, without, keep, bar = weakest
+            loss, unit, without, keep, bar = weakest
             why = words.withdrawn_words(
                 float(np.median(without.fold_rms_um)), float(np.median(path.base_cv.fold_rms_um)), loss, bar,
-                self.admission.bar, path.added[index], max(without.fold_rms_um), max(path.base_cv.fold_rms_um))
-            self.take_out(path, index, without, keep, why)
+                self.admission.bar, path.added[unit[0]], max(without.fold_rms_um), max(path.base_cv.fold_rms_um))
+            self.take_out(path, unit, without, keep, why)
+
+    def withdrawal_units(self, path: Path) -> list[tuple[int, ...]]:
+        """What the withdrawal weighs as one: each term, and a term fitted apart over groups of runs as
+        its two groups' columns together (named one after the other, the larger group first)."""
+        offset = 1 if path.gain_mode else 0
+        units: list[tuple[int, ...]] = []
+        index = 0
+        while index < len(path.added):
+            record = path.discovered[index + offset].evidence
+            if not isinstance(record, Evidence):
+                index += 1
+                continue
+            if record.regime is None:
+                units.append((index,))
+                index += 1
+                continue
+            partner = path.discovered[index + offset + 1].evidence if index + 1 < len(path.added) else None
+            if not record.regime.apart and isinstance(partner, Evidence) and partner.regime is not None \
+                    and partner.regime.apart and path.added[index + 1].effect == path.added[index].effect:
+                units.append((index, index + 1))
+                index += 2
+            else:
+                index += 1
+        return units
 
     def withdraw_beyond_structure(self, path: Path) -> bool:
         """A term is admitted at the size a machine can have (the physical guard), but the terms named
@@ -344,22 +375,27 @@ class Search:
                           coefficient)
         return withdrawn
 
-    def take_out(self, path: Path, index: int, without: stats.CrossValidation, keep: list[int], why: str,
-                 coefficient: float | None = None) -> None:
+    def take_out(self, path: Path, indices: int | tuple[int, ...], without: stats.CrossValidation, keep: list[int],
+                 why: str, coefficient: float | None = None) -> None:
         """Withdraws ``path.added[index]`` (its column, its record; ``without``: the path's design
         without it, cross-validated, and the columns kept) with ``why``, at ``coefficient`` when given;
-        the partner of a move it was named in stays as a term of its own."""
+        the partner of a move it was named in stays as a term of its own. Several indices: a term
+        fitted apart over groups of runs, its groups' columns."""
         offset = 1 if path.gain_mode else 0
-        term = path.added.pop(index)
-        if coefficient is not None:
-            term = term.with_coefficient(coefficient)
-        gone = path.discovered.pop(index + offset).evidence
+        taken = (indices,) if isinstance(indices, int) else indices
+        terms = [path.added[index] for index in taken]
+        gone = [path.discovered[index + offset].evidence for index in taken]
+        for index in sorted(taken, reverse=True):
+            path.added.pop(index)
+            path.discovered.pop(index + offset)
+        term = terms[0] if coefficient is None else terms[0].with_coefficient(coefficient)
         path.design, path.noise = path.design[:, keep], path.noise[:, keep]
-        label = explain.label_with_time_constants(term)
+        label = explain.label_with_time_constants(term) + (" fitted apart over groups of runs" if len(taken) > 1 else "")
         path.withdrawn.append(Withdrawn(term.effect, label, dict(term.parameters), why))
         path.base_cv = without
-        if isinstance(gone, Evidence) and gone.move is not None:
-            self.leave_move(path, gone.move.terms, label)
+        for record in gone:
+            if isinstance(record, Evidence) and record.move is not None:
+                self.leave_move(path, record.move.terms, label)
 
     def leave_move(self, path: Path, members: list[str], withdrawn: str) -> None:
         """A term of a move was withdrawn: its partner stays as a term of its own, and says so."""
@@ -369,11 +405,12 @@ class Search:
                 record.move = None
                 record.preferred = words.partner_withdrawn_words(withdrawn)
 
-    def without_added(self, path: Path, index: int) -> tuple[stats.CrossValidation, list[int]]:
-        """The path's design without the column of ``path.added[index]``, cross-validated, and the
-        columns kept."""
-        column = path.design.shape[1] - len(path.added) + index
-        keep = [c for c in range(path.design.shape[1]) if c != column]
+    def without_added(self, path: Path, *indices: int) -> tuple[stats.CrossValidation, list[int]]:
+        """The path's design without the columns of ``path.added[index]`` for each of ``indices``,
+        cross-validated, and the columns kept."""
+        first = path.design.shape[1] - len(path.added)
+        gone = {first + index for index in indices}
+        keep = [c for c in range(path.design.shape[1]) if c not in gone]
         return self.baseline.cross_validate(path.design[:, keep], self.y, self.baseline.folds), keep
 
     def twin_shares(self, path: Path) -> None:

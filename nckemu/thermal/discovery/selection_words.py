@@ -4,6 +4,7 @@ how they read is decided here (a figure is never called below a bar it clears: d
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from nckemu.thermal.model.terms import Term
@@ -25,9 +26,11 @@ def percent(share: float) -> str:
 
 def per_parameter_words(bar: float, one: float, terms: tuple[Term, ...]) -> str:
     """Where a bar is weighed by the term's parameters, how."""
-    if len(terms) != 1 or abs(bar - one) < 1e-12:
+    if len(terms) != 1 or abs(bar - one) < 1e-12 or not 0 < one < 1 or bar >= 1:
         return ""
-    return f" ({percent(one)} for each of its {shapes.parameters_of(terms[0])} parameters)"
+    # the count the bar was weighed by (a term fitted apart over groups of runs has one more than its own)
+    count = max(round(math.log1p(-bar) / math.log1p(-one)), shapes.parameters_of(terms[0]))
+    return f" ({percent(one)} for each of its {count} parameters)"
 
 
 def plural(count: int, word: str) -> str:

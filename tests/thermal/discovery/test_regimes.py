@@ -22,6 +22,7 @@ from nckemu.thermal.synthetic.scenarios import (
     RunFamily,
     make_duty_mix_family,
     make_shape_family,
+    make_transient_family,
 )
 
 
@@ -125,3 +126,16 @@ def test_a_term_that_harms_the_light_days_is_fitted_apart_on_them() -> None:
     assert "leaves runs worse than before" in groups[True].evidence.why
     assert not [row for row in result.runs
                 if row["heldout_rms_after_um"] > 1.1 * row["heldout_rms_before_um"] + 0.3]
+
+
+def test_a_term_fitted_apart_is_withdrawn_when_the_later_terms_explain_it() -> None:
+    # pair_days seed 16: the rear's lag fitted apart on runs 20-26 first, then both temperatures; the
+    # lag's two groups' columns together buy nothing over them, and are withdrawn as one.
+    family = make_transient_family("pair_days", 16)
+    result = discover_runs(family.runs, AXIS, family.model)
+    assert {(m.effect, m.parameters.get("sensor")) for m in result.missing_physics} == \
+        {("temperature", "rear"), ("temperature", "front")}
+    assert all(m.evidence.regime is None for m in result.missing_physics)
+    withdrawn = [w for w in result.withdrawn if w.label.endswith("fitted apart over groups of runs")]
+    assert len(withdrawn) == 1 and withdrawn[0].effect == "thermal_lag"
+    assert "for each of its 3 parameters" in withdrawn[0].why
