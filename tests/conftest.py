@@ -34,6 +34,19 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 REPO = Path(__file__).resolve().parent.parent
 
 
+@pytest.fixture(autouse=True)
+def _cli_log_handler_goes_with_its_test() -> Iterator[None]:
+    """``cli.main`` run in a test's process leaves its log handler on the root logger, writing to the
+    stream that test's capture opened; pytest closes that stream after the test, and a later record
+    (a session closing on a module's server) then printed "--- Logging error ---". The handler goes
+    with the test that set it."""
+    yield
+    root = logging.getLogger()
+    for handler in [h for h in root.handlers if h.get_name() == "nckemu"]:
+        root.removeHandler(handler)
+        handler.close()
+
+
 def _shared_dir() -> Path:
     """../shared beside the repository; in a git worktree elsewhere, beside the main checkout (the
     worktree's .git file names its gitdir, whose commondir leads back to the main .git)."""
