@@ -274,12 +274,13 @@ class Admission:
                 return chosen
             chosen = min(simpler, key=lambda e: e.ranked_rms_um)
 
-    def withdrawal_bar(self, term: Term) -> float:
+    def withdrawal_bar(self, term: Term, extra_parameters: int = 0) -> float:
         """What a named term must still be worth at the end: the held-out bar, weighed by its
-        parameters as admission weighs them (``Settings.runs_bar_per_parameter``)."""
+        parameters as admission weighs them (``Settings.runs_bar_per_parameter``); a term fitted apart
+        over groups of runs has ``extra_parameters`` (its other group's coefficient)."""
         if not self.settings.withdraw_per_parameter:
             return self.bar
-        return shapes.parameter_bar(self.bar, shapes.parameters_of(term))
+        return shapes.parameter_bar(self.bar, shapes.parameters_of(term) + extra_parameters)
 
     def move_passes(self, path: Path, move: Move, t_crit: float, *, over: Evaluation | None = None,
                     paired: bool = True) -> bool:

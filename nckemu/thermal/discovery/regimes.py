@@ -307,8 +307,7 @@ def split_runs(selector: Selector, path: Path, pattern: str | None = None) -> bo
     label = explain.label_with_time_constants(split.evaluation.candidate.term)
     name_split(selector, path, split, found_words(pattern, f"the sign of {label}'s slope on each run"),
                path.rejected_t_critical)
-    path.final = stats.fit(path.design, selector.y)
-    carry_groups(selector, path, split.groups, label)
+    carry_groups(selector, path, split.groups, label)  # ... and fits the final path
     return True
 
 
@@ -346,7 +345,7 @@ def carry_groups(selector: Selector, path: Path, groups: np.ndarray, first_label
     Runs it still leaves worse are named with the model's, not refused, as for a term of one
     coefficient (``Settings.run_harm_refuses``). Up to ``Settings.max_effects`` columns in all; the
     terms that the later ones made redundant are then withdrawn (``Search.withdraw_redundant``).
-    True when a term was named."""
+    True when a term was named; the path's final fit is made in any case."""
     s = selector.settings
     named = False
     while path.rejected and len(path.added) + 2 <= s.max_effects:
@@ -398,16 +397,19 @@ def fit_apart(selector: Selector, path: Path, evaluation: Evaluation, t_crit: fl
         groupings = [] if given is None else [given]
     else:
         groupings = best_stretches(selector, feature, path_residual(selector, path), names)
-    splits = [fitted_split(selector, path, evaluation, groups) for groups in groupings]
-    harmless = [split for split in splits if judged(selector, path, split, reversed_only=False)]
-    if harmless:
-        split = harmless[0]
+    tried: list[Split] = []
+    for groups in groupings:
+        split = fitted_split(selector, path, evaluation, groups)
+        if judged(selector, path, split, reversed_only=False):
+            break
+        tried.append(split)
     else:
-        # Named as a pooled term is (Settings.run_harm_refuses off): the runs it still leaves worse are
-        # named with the model's; the split leaves fewer of them than one coefficient for all runs would.
+        if selector.settings.run_harm_refuses:
+            return False
+        # Named as a pooled term is: the runs it still leaves worse are named with the model's; the split
+        # leaves fewer of them than one coefficient for all runs would, and beats it by a parameter's bar.
         pooled_harms = len(selector.harms_runs(path.base_cv.fold_rms_um, evaluation.cv.fold_rms_um))
-        harming = [split for split in splits if not selector.settings.run_harm_refuses
-                   and judged(selector, path, split, reversed_only=False, harm_refuses=False)
+        harming = [split for split in tried if judged(selector, path, split, reversed_only=False, harm_refuses=False)
                    and selector.heldout_gain(split.cv, evaluation.cv) >= selector.bar
                    and len(selector.harms_runs(path.base_cv.fold_rms_um, split.cv.fold_rms_um)) < pooled_harms]
         if not harming:

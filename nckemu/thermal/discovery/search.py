@@ -300,14 +300,9 @@ class Search:
                 median_with, median_without = (float(np.median(cv.fold_rms_um)) for cv in (path.base_cv, without))
                 loss = 1.0 - median_with / median_without if median_without > 0 else 0.0
                 worst_with, worst_without = max(path.base_cv.fold_rms_um), max(without.fold_rms_um)
-                term = path.added[unit[0]]
-                if record.move is not None and not s.withdraw_per_parameter:
-                    bar = -math.inf
-                elif len(unit) == 2:  # a term fitted apart: its groups' coefficients and its time constants
-                    bar = shapes.parameter_bar(self.admission.bar, shapes.parameters_of(term) + 1) \
-                        if s.withdraw_per_parameter else self.admission.bar
-                else:
-                    bar = self.admission.withdrawal_bar(term)
+                # a term fitted apart (two columns): one coefficient more than its own
+                bar = self.admission.withdrawal_bar(path.added[unit[0]], len(unit) - 1) \
+                    if record.move is None or s.withdraw_per_parameter else -math.inf
                 if loss < bar and worst_without <= (1 + s.equivalence) * worst_with \
                         and not self.admission.runs.harms_runs(path.base_cv.fold_rms_um, without.fold_rms_um) \
                         and (weakest is None or loss < weakest[0]):
@@ -317,7 +312,8 @@ class Search:
             loss, unit, without, keep, bar = weakest
             why = words.withdrawn_words(
                 float(np.median(without.fold_rms_um)), float(np.median(path.base_cv.fold_rms_um)), loss, bar,
-                self.admission.bar, path.added[unit[0]], max(without.fold_rms_um), max(path.base_cv.fold_rms_um))
+                self.admission.bar, path.added[unit[0]], max(without.fold_rms_um), max(path.base_cv.fold_rms_um),
+                extra_parameters=len(unit) - 1)
             self.take_out(path, unit, without, keep, why)
 
     def withdrawal_units(self, path: Path) -> list[tuple[int, ...]]:
@@ -383,12 +379,11 @@ class Search:
         fitted apart over groups of runs, its groups' columns."""
         offset = 1 if path.gain_mode else 0
         taken = (indices,) if isinstance(indices, int) else indices
-        terms = [path.added[index] for index in taken]
+        term = path.added[taken[0]] if coefficient is None else path.added[taken[0]].with_coefficient(coefficient)
         gone = [path.discovered[index + offset].evidence for index in taken]
         for index in sorted(taken, reverse=True):
             path.added.pop(index)
             path.discovered.pop(index + offset)
-        term = terms[0] if coefficient is None else terms[0].with_coefficient(coefficient)
         path.design, path.noise = path.design[:, keep], path.noise[:, keep]
         label = explain.label_with_time_constants(term) + (" fitted apart over groups of runs" if len(taken) > 1 else "")
         path.withdrawn.append(Withdrawn(term.effect, label, dict(term.parameters), why))

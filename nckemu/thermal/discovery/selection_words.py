@@ -4,7 +4,6 @@ how they read is decided here (a figure is never called below a bar it clears: d
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 from nckemu.thermal.model.terms import Term
@@ -24,13 +23,12 @@ def percent(share: float) -> str:
     return f"{share:.0%}" if abs(share * 100 - round(share * 100)) < 1e-9 else f"{share:.1%}"
 
 
-def per_parameter_words(bar: float, one: float, terms: tuple[Term, ...]) -> str:
-    """Where a bar is weighed by the term's parameters, how."""
-    if len(terms) != 1 or abs(bar - one) < 1e-12 or not 0 < one < 1 or bar >= 1:
+def per_parameter_words(bar: float, one: float, terms: tuple[Term, ...], extra_parameters: int = 0) -> str:
+    """Where a bar is weighed by the term's parameters, how (``extra_parameters``: a term fitted apart
+    over groups of runs has its other group's coefficient beside its own)."""
+    if len(terms) != 1 or abs(bar - one) < 1e-12:
         return ""
-    # the count the bar was weighed by (a term fitted apart over groups of runs has one more than its own)
-    count = max(round(math.log1p(-bar) / math.log1p(-one)), shapes.parameters_of(terms[0]))
-    return f" ({percent(one)} for each of its {count} parameters)"
+    return f" ({percent(one)} for each of its {shapes.parameters_of(terms[0]) + extra_parameters} parameters)"
 
 
 def plural(count: int, word: str) -> str:
@@ -172,10 +170,11 @@ def partner_preferred(move: str, plain: bool, share: float) -> str:
 
 # ---------------------------------------------------------------------- withdrawals
 def withdrawn_words(without_um: float, with_um: float, loss: float, bar: float, one_bar: float, term: Term,
-                    worst_without_um: float, worst_with_um: float) -> str:
+                    worst_without_um: float, worst_with_um: float, extra_parameters: int = 0) -> str:
+    weighed = per_parameter_words(bar, one_bar, (term,), extra_parameters)
     return (f"the terms named after it explain what it did: without it the median over runs of held-out RMS "
             f"is {without_um:.3f} um against {with_um:.3f} um "
-            f"with it ({loss:.1%}; the bar is {percent(bar)}){per_parameter_words(bar, one_bar, (term,))}, "
+            f"with it ({loss:.1%}; the bar is {percent(bar)}){weighed}, "
             f"the worst run {worst_without_um:.3f} um against {worst_with_um:.3f} um")
 
 

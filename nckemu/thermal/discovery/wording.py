@@ -134,7 +134,8 @@ def group_figures(discovery: Discovery, regime: RegimeGroup) -> tuple[float, flo
     """A group of runs' figures under the final model, from the runs' rows: the median over its runs of
     held-out RMS before and after, and its worst run after (the group's record holds them as they
     were when its term was named, before any later term)."""
-    rows = [row for row in discovery.runs if row["name"] in set(regime.runs)]
+    members = set(regime.runs)
+    rows = [row for row in discovery.runs if row["name"] in members]
     if not rows:
         return regime.median_before_um, regime.median_after_um, regime.worst_after_um
     after = [row["heldout_rms_after_um"] for row in rows]
